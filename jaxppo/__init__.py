@@ -1,0 +1,31 @@
+"""jaxppo: transits with planet-planet occultations, in JAX.
+
+Layers (imports point down only):
+
+* ``jaxppo.core``: pure array kernels (intensity profiles, circle geometry,
+  exact occultation integrals, raster coverage);
+* models: :class:`Star`, :class:`Planet`, :class:`System`,
+  :func:`occultation_flux`;
+* workflows: multi-transits, fits, sampling, the obliquity scan and the CLI.
+
+Enable float64 for science work: ``jax.config.update("jax_enable_x64", True)``
+(the library never flips it for you).
+"""
+
+from ._flux import occultation_flux as occultation_flux
+from ._star import Star as Star
+from ._system import MultiTransit as MultiTransit
+from ._system import Planet as Planet
+from ._system import System as System
+from ._system import alpha_limits as alpha_limits
+from ._system import multi_transits as multi_transits
+
+__version__ = "0.1.0"
+from ._phoenix import band_intensity as band_intensity
+from ._phoenix import claret_power2 as claret_power2
+from ._phoenix import claret_quadratic as claret_quadratic
+from ._phoenix import kepler20_star as kepler20_star
+from ._phoenix import kepler_response as kepler_response
+from ._phoenix import phoenix_star as phoenix_star
+from ._phoenix import read_specint as read_specint
+from ._phoenix import truncate_limb as truncate_limb

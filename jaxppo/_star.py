@@ -1,0 +1,235 @@
+"""Star: a radially symmetric intensity profile I(mu) with exact totals."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike
+
+from .core import intensity as _I
+
+__all__ = ["Star", "LAWS"]
+
+LAWS = ("uniform", "quadratic", "nonlinear", "power2", "tabulated")
+_INTERPOLATIONS = ("sqrt-poly", "linear", "cubic")
+
+
+def _check_finite(name: str, value) -> None:
+    if isinstance(value, jax.core.Tracer):
+        return
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+
+
+def _sqrt_poly_design(mu: np.ndarray, degree: int) -> np.ndarray:
+    return np.sqrt(mu)[:, None] ** np.arange(degree + 1)[None, :]
+
+
+def _choose_degree(mu: np.ndarray, inten: np.ndarray, max_degree: int, rtol: float) -> int:
+    """Smallest degree of the sqrt(mu) polynomial whose max residual at the
+    table points is below rtol * max(I) (or ``max_degree``)."""
+    scale = np.max(np.abs(inten))
+    limit = min(max_degree, len(mu) - 1)
+    for deg in range(2, limit + 1):
+        design = _sqrt_poly_design(mu, deg)
+        coef, *_ = np.linalg.lstsq(design, inten, rcond=None)
+        if np.max(np.abs(design @ coef - inten)) <= rtol * scale:
+            return deg
+    return limit
+
+
+class Star(eqx.Module):
+    """A radially symmetric star of unit radius.
+
+    Build it with one of the constructors; every profile is normalised by its
+    exact total flux F0 = 2 pi int_0^1 I(mu) mu dmu (a 1D closed form, never a
+    pixel sum).
+
+    Laws (intensity relative to the centre, mu = sqrt(1 - r^2)):
+
+    * ``Star.uniform()``: I = 1.
+    * ``Star.quadratic(u1, u2)``: I = 1 - u1 (1 - mu) - u2 (1 - mu)^2.
+    * ``Star.nonlinear(c1, c2, c3, c4)``: I = 1 - sum_k c_k (1 - mu^(k/2))
+      (Claret 2000).
+    * ``Star.power2(c, alpha)``: I = 1 - c (1 - mu^alpha) (Hestroffer 1997;
+      Claret & Southworth 2023 tabulate c as ``g`` and alpha as ``h``).
+    * ``Star.tabulated(mu, intensity, interpolation=...)``: any (mu, I) table.
+
+    Tables: ``interpolation="sqrt-poly"`` (default) represents the table by the
+    least-squares polynomial in sqrt(mu) of the smallest degree (<= 12) whose
+    largest residual at the table points is below ``rtol`` times max(I); it is
+    exact for any Claret non-linear profile, smooth (so the exact engine
+    converges spectrally), and the residual is kept in ``table_residual``.
+    ``"linear"`` (the paper's scheme) and ``"cubic"`` (natural spline) pass
+    through every point; they have kinks at the nodes, so the exact engine's
+    error for them is larger (measured in docs/accuracy.md).
+    """
+
+    law: str = eqx.field(static=True)
+    params: Array
+    mu_nodes: Array | None = None
+    interpolation: str = eqx.field(static=True, default="")
+    degree: int = eqx.field(static=True, default=0)
+    fit_matrix: Array | None = None
+    table_residual: float = eqx.field(static=True, default=0.0)
+
+    # ---- constructors --------------------------------------------------------
+    @classmethod
+    def uniform(cls) -> "Star":
+        return cls(law="uniform", params=jnp.zeros(0))
+
+    @classmethod
+    def quadratic(cls, u1: ArrayLike, u2: ArrayLike) -> "Star":
+        _check_finite("u1", u1)
+        _check_finite("u2", u2)
+        return cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
+
+    @classmethod
+    def nonlinear(cls, c1: ArrayLike, c2: ArrayLike, c3: ArrayLike, c4: ArrayLike) -> "Star":
+        for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
+            _check_finite(name, v)
+        return cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
+
+    @classmethod
+    def power2(cls, c: ArrayLike, alpha: ArrayLike) -> "Star":
+        _check_finite("c", c)
+        _check_finite("alpha", alpha)
+        if isinstance(alpha, (int, float)) and alpha <= 0:
+            raise ValueError(f"power-2 exponent alpha must be > 0, got {alpha!r}")
+        return cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
+
+    @classmethod
+    def tabulated(
+        cls,
+        mu: ArrayLike,
+        intensity: ArrayLike,
+        interpolation: str = "sqrt-poly",
+        max_degree: int = 12,
+        rtol: float = 1e-6,
+    ) -> "Star":
+        """A star from a table of specific intensities I(mu).
+
+        ``mu`` must be strictly increasing in [0, 1] (at least 3 points) and the
+        intensities finite and >= 0. A table that stops short of mu = 0 or 1 is
+        held flat to the ends (documented; PHOENIX tables cover both).
+        """
+        if interpolation not in _INTERPOLATIONS:
+            raise ValueError(
+                f"interpolation must be one of {_INTERPOLATIONS}, got {interpolation!r}"
+            )
+        mu_np = np.asarray(mu, dtype=float)
+        i_np = np.asarray(intensity, dtype=float)
+        if mu_np.ndim != 1 or i_np.shape != mu_np.shape:
+            raise ValueError(
+                f"mu and intensity must be 1D of equal length, got shapes {mu_np.shape} and {i_np.shape}"
+            )
+        if mu_np.size < 3:
+            raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
+        _check_finite("mu", mu_np)
+        _check_finite("intensity", i_np)
+        if np.any(mu_np < 0) or np.any(mu_np > 1):
+            raise ValueError(f"mu must lie in [0, 1], got values from {mu_np.min()} to {mu_np.max()}")
+        if np.any(np.diff(mu_np) <= 0):
+            raise ValueError("mu must be strictly increasing (sort the table and drop repeats)")
+        if np.any(i_np < 0):
+            raise ValueError(f"intensity must be >= 0, got minimum {i_np.min()}")
+        if np.max(i_np) <= 0:
+            raise ValueError("intensity must not be zero everywhere")
+        if mu_np[0] > 0:
+            mu_np, i_np = np.concatenate([[0.0], mu_np]), np.concatenate([[i_np[0]], i_np])
+        if mu_np[-1] < 1:
+            mu_np, i_np = np.concatenate([mu_np, [1.0]]), np.concatenate([i_np, [i_np[-1]]])
+        if interpolation == "sqrt-poly":
+            deg = _choose_degree(mu_np, i_np, max_degree, rtol)
+            design = _sqrt_poly_design(mu_np, deg)
+            fit = np.linalg.pinv(design)
+            resid = float(np.max(np.abs(design @ (fit @ i_np) - i_np)))
+            return cls(
+                law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
+                interpolation=interpolation, degree=deg, fit_matrix=jnp.asarray(fit), table_residual=resid,
+            )
+        return cls(
+            law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
+            interpolation=interpolation,
+        )
+
+    @classmethod
+    def from_law(cls, law: str, coefficients=()) -> "Star":
+        """Build a star from a law name and its coefficients (used by configs)."""
+        law = str(law).lower()
+        coefficients = list(np.atleast_1d(np.asarray(coefficients, dtype=float))) if len(np.atleast_1d(coefficients)) else []
+        need = {"uniform": 0, "quadratic": 2, "nonlinear": 4, "power2": 2}
+        if law not in need:
+            raise ValueError(f"unknown limb-darkening law {law!r}; expected one of {tuple(need)} (tables: Star.tabulated)")
+        if len(coefficients) != need[law]:
+            raise ValueError(f"law {law!r} needs {need[law]} coefficients, got {len(coefficients)}: {coefficients}")
+        return getattr(cls, law)(*coefficients)
+
+    # ---- the profile in power-basis / table form ------------------------------
+    def _halfint(self) -> tuple[Array, tuple[int, ...]] | None:
+        """(a_k, 2 e_k) when I = sum_k a_k mu**e_k with half-integer e_k."""
+        p = self.params
+        if self.law == "uniform":
+            return jnp.ones(1, self.params.dtype), (0,)
+        if self.law == "quadratic":
+            u1, u2 = p[0], p[1]
+            return jnp.stack([1.0 - u1 - u2, u1 + 2.0 * u2, -u2]), (0, 2, 4)
+        if self.law == "nonlinear":
+            return jnp.concatenate([jnp.reshape(1.0 - jnp.sum(p), (1,)), p]), (0, 1, 2, 3, 4)
+        if self.law == "tabulated" and self.interpolation == "sqrt-poly":
+            a = self.fit_matrix @ p
+            return a, tuple(range(self.degree + 1))
+        return None
+
+    def _power(self) -> tuple[Array, Array]:
+        c, alpha = self.params[0], self.params[1]
+        return jnp.stack([1.0 - c, c]), jnp.stack([jnp.zeros_like(alpha), alpha])
+
+    def _table(self) -> tuple[Array, Array, Array]:
+        b = _I.spline_coefficients(self.mu_nodes, self.params, self.interpolation)
+        return self.mu_nodes, b, _I.table_cumulative(self.mu_nodes, b)
+
+    # ---- what the kernels need ----------------------------------------------
+    def intensity(self, mu: ArrayLike) -> Array:
+        """Specific intensity I(mu) (not normalised; divide by ``total_flux``)."""
+        half = self._halfint()
+        if half is not None:
+            a, twice_e = half
+            return _I.power_basis_intensity(mu, a, jnp.asarray(twice_e, float) / 2.0)
+        if self.law == "power2":
+            return _I.power_basis_intensity(mu, *self._power())
+        mu_nodes, b, _ = self._table()
+        return _I.table_intensity(mu, mu_nodes, b)
+
+    def radial_kernel(self):
+        """(g, Phi(1)) with g(s) = Phi(sqrt(s)) / s, for ``jaxppo.core.occult``."""
+        half = self._halfint()
+        if half is not None:
+            a, twice_e = half
+            coef = _I.halfint_coefficients(a, twice_e)
+            phi1 = jnp.sum(a * jnp.asarray([2.0 / (te + 4.0) for te in twice_e], dtype=a.dtype))
+            return (lambda s: _I.halfint_g(s, coef)), phi1
+        if self.law == "power2":
+            a, e = self._power()
+            return (lambda s: _I.power_basis_g(s, a, e)), _I.power_basis_total(a, e) / (2 * jnp.pi)
+        mu_nodes, b, phin = self._table()
+        return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
+
+    @property
+    def total_flux(self) -> Array:
+        """F0 = 2 pi int_0^1 I(mu) mu dmu, exact."""
+        return 2.0 * jnp.pi * self.radial_kernel()[1]
+
+    @property
+    def symmetric(self) -> bool:
+        """Radially symmetric (always, for this class; spotted stars are not)."""
+        return True
+
+    def __repr__(self) -> str:
+        if self.law == "tabulated":
+            extra = f", degree={self.degree}, residual={self.table_residual:.2e}" if self.interpolation == "sqrt-poly" else ""
+            return f"Star.tabulated({len(self.mu_nodes)} points, interpolation={self.interpolation!r}{extra})"
+        return f"Star.{self.law}({', '.join(f'{float(v):.6g}' for v in np.asarray(self.params))})"

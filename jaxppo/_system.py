@@ -1,0 +1,302 @@
+"""Planets on circular orbits, the tilt alpha of one orbit, and multi-transits.
+
+Frame and equations: ../shared/CONVENTIONS.md (sky frame x right, y up, z to
+the observer; Mueller et al. 2021, Sect. 2.5 and Eqs. 2-6).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike
+
+from ._flux import occultation_flux
+from ._star import Star
+
+__all__ = ["Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES"]
+
+CASES = ("same", "opposite")
+
+
+def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
+    if isinstance(value, jax.core.Tracer):
+        return
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    bad = arr <= lower if strict else arr < lower
+    if np.any(bad):
+        op = ">" if strict else ">="
+        raise ValueError(f"{name} must be {op} {lower}, got {value!r}")
+
+
+class Planet(eqx.Module):
+    """A planet on a circular orbit.
+
+    Args:
+        period: orbital period P [d], > 0.
+        t0: a mid-transit time [d] (any consistent zero point, e.g. BKJD).
+        a: semi-major axis [R*], > 1.
+        inc: inclination i [deg] in [0, 180]; b = a cos(i).
+        radius: radius ratio p = R_p / R*, > 0.
+        name: optional label used in free-parameter names ("b.t0").
+    """
+
+    period: Array
+    t0: Array
+    a: Array
+    inc: Array
+    radius: Array
+    name: str = eqx.field(static=True, default="")
+
+    def __init__(self, period, t0, a, inc, radius, name: str = ""):
+        _positive("period", period)
+        _positive("t0", t0, strict=False, lower=-np.inf)
+        _positive("a", a, lower=1.0)
+        _positive("radius", radius)
+        if not isinstance(inc, jax.core.Tracer):
+            inc_arr = np.asarray(inc, dtype=float)
+            if not np.all(np.isfinite(inc_arr)) or np.any((inc_arr < 0) | (inc_arr > 180)):
+                raise ValueError(f"inc must be in [0, 180] degrees, got {inc!r}")
+        self.period = jnp.asarray(period, float)
+        self.t0 = jnp.asarray(t0, float)
+        self.a = jnp.asarray(a, float)
+        self.inc = jnp.asarray(inc, float)
+        self.radius = jnp.asarray(radius, float)
+        self.name = str(name)
+
+    @property
+    def impact(self) -> Array:
+        """Impact parameter b = a cos(i) [R*] (signed: > 0 crosses y > 0)."""
+        return self.a * jnp.cos(jnp.deg2rad(self.inc))
+
+    def position(self, t: ArrayLike) -> tuple[Array, Array, Array]:
+        """Sky position (x, y, z) [R*] at times t [d] (CONVENTIONS: circular orbit)."""
+        phi = 2.0 * jnp.pi * (jnp.asarray(t) - self.t0) / self.period
+        inc = jnp.deg2rad(self.inc)
+        cphi = jnp.cos(phi)
+        return self.a * jnp.sin(phi), self.a * cphi * jnp.cos(inc), self.a * cphi * jnp.sin(inc)
+
+    def half_duration(self) -> Array:
+        """Half the time [d] from first to last contact (0 if it never transits)."""
+        sin_i = jnp.sin(jnp.deg2rad(self.inc))
+        c2 = (1.0 - ((1.0 + self.radius) / self.a) ** 2) / jnp.maximum(sin_i**2, 1e-300)
+        transits = (jnp.abs(self.impact) < 1.0 + self.radius) & (c2 < 1.0)
+        phase = jnp.arccos(jnp.sqrt(jnp.clip(c2, 0.0, 1.0)))
+        return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
+
+    def replace(self, **changes) -> "Planet":
+        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name")}
+        fields.update(changes)
+        return Planet(**fields)
+
+
+def _tilt(x: Array, y: Array, alpha_rad: Array) -> tuple[Array, Array]:
+    """The paper's R_y(alpha) with (x, z)_paper = (x, y)_ours (CONVENTIONS)."""
+    ca, sa = jnp.cos(alpha_rad), jnp.sin(alpha_rad)
+    return x * ca + y * sa, -x * sa + y * ca
+
+
+class System(eqx.Module):
+    """A star and its planets; planet ``tilted`` is the one whose orbit is
+    rotated by alpha about the line of sight.
+
+    ``System(star, planets, tilted=0)``; ``.star``, ``.planets`` (in order),
+    ``.tilted`` (index).
+    """
+
+    star: Star
+    planets: tuple[Planet, ...]
+    tilted: int = eqx.field(static=True, default=0)
+
+    def __init__(self, star: Star, planets, tilted: int = 0):
+        if not isinstance(star, Star):
+            raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
+        planets = tuple(planets)
+        if not planets:
+            raise ValueError("planets must hold at least one Planet")
+        for i, pl in enumerate(planets):
+            if not isinstance(pl, Planet):
+                raise ValueError(f"planets[{i}] must be a jaxppo.Planet, got {type(pl).__name__}")
+        names = [pl.name for pl in planets if pl.name]
+        if len(names) != len(set(names)):
+            raise ValueError(f"planet names must be unique, got {names}")
+        if not (0 <= int(tilted) < len(planets)):
+            raise ValueError(f"tilted must index a planet (0..{len(planets) - 1}), got {tilted!r}")
+        self.star = star
+        self.planets = planets
+        self.tilted = int(tilted)
+
+    def index(self, name: str) -> int:
+        for i, pl in enumerate(self.planets):
+            if pl.name == name:
+                return i
+        raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
+
+    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same"):
+        """Sky positions (x, y, r) with the disks on the last axis; planets
+        behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``."""
+        if case not in CASES:
+            raise ValueError(f"case must be one of {CASES}, got {case!r}")
+        t = jnp.asarray(t, float)
+        alpha_rad = jnp.deg2rad(jnp.asarray(alpha, float))
+        shape = jnp.broadcast_shapes(t.shape, alpha_rad.shape)
+        xs, ys, rs = [], [], []
+        for i, pl in enumerate(self.planets):
+            x, y, z = pl.position(t)
+            if i == self.tilted:
+                x, y = _tilt(x, y, alpha_rad)
+            elif case == "opposite":
+                y = -y
+            xs.append(jnp.broadcast_to(x, shape))
+            ys.append(jnp.broadcast_to(y, shape))
+            rs.append(jnp.broadcast_to(jnp.where(z > 0, pl.radius, 0.0), shape))
+        return jnp.stack(xs, -1), jnp.stack(ys, -1), jnp.stack(rs, -1)
+
+    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", method: str = "auto", **kwargs) -> Array:
+        """Relative flux at times t [d].
+
+        ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
+        [alpha, time]. ``case``: "same" or "opposite" (CONVENTIONS).
+        """
+        t = jnp.asarray(t, float)
+        if not isinstance(t, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(t))):
+            raise ValueError("t must be finite")
+        alpha = jnp.asarray(alpha, float)
+        if alpha.ndim > 1:
+            raise ValueError(f"alpha must be a scalar or 1D array, got shape {alpha.shape}")
+        if alpha.ndim == 1:
+            a_grid = alpha.reshape((-1,) + (1,) * t.ndim)
+            x, y, r = self.positions(t[None], a_grid, case)
+        else:
+            x, y, r = self.positions(t, alpha, case)
+        return occultation_flux(self.star, x, y, r, method=method, **kwargs)
+
+    def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
+        return System(
+            star if star is not None else self.star,
+            planets if planets is not None else self.planets,
+            self.tilted if tilted is None else tilted,
+        )
+
+
+def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
+    """(alpha_a, alpha_b, alpha_c, alpha_d) [deg]: the tilt angles between which
+    planet-planet occultations can occur (Mueller et al. 2021, Eqs. 3-6).
+
+    ``other``: the second planet (index or name); default the first planet that
+    is not tilted.
+    """
+    tb = system.planets[system.tilted]
+    if other is None:
+        candidates = [i for i in range(len(system.planets)) if i != system.tilted]
+        if not candidates:
+            raise ValueError("alpha_limits needs a second planet")
+        other = candidates[0]
+    if isinstance(other, str):
+        other = system.index(other)
+    pc = system.planets[other]
+    bb, bc = float(abs(tb.impact)), float(abs(pc.impact))
+    pb, pcr = float(tb.radius), float(pc.radius)
+
+    def asin_deg(v: float) -> float:
+        return math.degrees(math.asin(min(max(v, -1.0), 1.0)))
+
+    alpha_a = abs(asin_deg(bc + pcr) - asin_deg(bb - pb)) - 1.0
+    alpha_b = 180.0 - abs(asin_deg(bc - pcr) + asin_deg(bb - pb)) + 1.0
+    return alpha_a, alpha_b, 360.0 - alpha_b, 360.0 - alpha_a
+
+
+@dataclasses.dataclass(frozen=True)
+class MultiTransit:
+    """Two or more planets on the star at once.
+
+    ``start``/``end``: first contact of the earliest and last contact of the
+    latest of the overlapping transits [d]; ``mid`` their midpoint;
+    ``overlap_start``/``overlap_end``: when all of ``planets`` are on the star;
+    ``transit_mid``: each planet's mid-transit time.
+    """
+
+    number: int
+    planets: tuple[str, ...]
+    start: float
+    end: float
+    mid: float
+    overlap_start: float
+    overlap_end: float
+    transit_mid: tuple[float, ...]
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def _label(system: System, i: int) -> str:
+    return system.planets[i].name or str(i)
+
+
+def multi_transits(
+    system: System, t_start: float, t_end: float, planets: tuple | None = None
+) -> list[MultiTransit]:
+    """Events in [t_start, t_end] in which the transit windows (first to last
+    contact) of two or more planets overlap.
+
+    ``planets``: restrict to these planets (names or indices); default all.
+    Windows come from the circular-orbit contact times, so events that fall in
+    data gaps are listed too.
+    """
+    for name, v in (("t_start", t_start), ("t_end", t_end)):
+        if not np.isfinite(v):
+            raise ValueError(f"{name} must be finite, got {v!r}")
+    if t_end <= t_start:
+        raise ValueError(f"t_end must be after t_start, got {t_start} .. {t_end}")
+    idx = range(len(system.planets)) if planets is None else [
+        system.index(p) if isinstance(p, str) else int(p) for p in planets
+    ]
+    windows = []  # (start, end, planet index, mid)
+    for i in idx:
+        pl = system.planets[i]
+        half = float(pl.half_duration())
+        if half <= 0:
+            continue
+        period, t0 = float(pl.period), float(pl.t0)
+        n0 = math.floor((t_start - half - t0) / period)
+        n1 = math.ceil((t_end + half - t0) / period)
+        for n in range(n0, n1 + 1):
+            mid = t0 + n * period
+            if mid + half >= t_start and mid - half <= t_end:
+                windows.append((mid - half, mid + half, i, mid))
+    windows.sort()
+    events: list[MultiTransit] = []
+    group: list = []
+    group_end = -np.inf
+
+    def flush():
+        members = {w[2] for w in group}
+        if len(members) >= 2:
+            start = min(w[0] for w in group)
+            end = max(w[1] for w in group)
+            # When are all members on the star at once (if ever)?
+            ov_start = max(w[0] for w in group)
+            ov_end = min(w[1] for w in group)
+            events.append(MultiTransit(
+                number=len(events) + 1,
+                planets=tuple(_label(system, i) for i in sorted(members)),
+                start=start, end=end, mid=0.5 * (start + end),
+                overlap_start=ov_start, overlap_end=max(ov_end, ov_start),
+                transit_mid=tuple(w[3] for w in sorted(group, key=lambda w: w[2])),
+            ))
+
+    for w in windows:
+        if group and w[0] > group_end:
+            flush()
+            group = []
+        group.append(w)
+        group_end = max(group_end, w[1]) if len(group) > 1 else w[1]
+    if group:
+        flush()
+    return events

@@ -1,0 +1,87 @@
+"""Circle geometry with gradients that stay finite at contact points.
+
+Kernels for one frame; callers vectorise. Every square root, arctangent and
+division is guarded with the double-``where`` pattern so that tangent circles,
+concentric circles and zero distances give finite values *and* finite
+gradients.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike
+
+__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "circle_intersection_angles"]
+
+
+def float_dtype(*arrays):
+    """The floating dtype of the inputs (float32 stays float32; integers and
+    Python numbers give JAX's default float)."""
+    dt = jnp.result_type(*arrays)
+    return dt if jnp.issubdtype(dt, jnp.inexact) else jnp.result_type(float)
+
+
+def safe_sqrt(x: ArrayLike) -> Array:
+    """sqrt(max(x, 0)) with zero (not infinite) gradient at x <= 0."""
+    x = jnp.asarray(x)
+    pos = x > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, x, 1.0)), 0.0)
+
+
+def safe_hypot(x: ArrayLike, y: ArrayLike) -> Array:
+    """sqrt(x^2 + y^2) with a finite gradient at the origin."""
+    return safe_sqrt(jnp.square(x) + jnp.square(y))
+
+
+def safe_atan2(y: ArrayLike, x: ArrayLike) -> Array:
+    """atan2 that returns 0 with zero gradient at (0, 0)."""
+    y, x = jnp.asarray(y), jnp.asarray(x)
+    zero = (x == 0) & (y == 0)
+    return jnp.where(zero, 0.0, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
+
+
+def _heron(p: Array, delta: Array, q: Array) -> tuple[Array, Array]:
+    """16 x (area of the triangle with sides p, delta, q)^2, Kahan's ordering.
+
+    Sorting the sides (a >= b >= c) and grouping as
+    (a + (b + c)) (c - (a - b)) (c + (a - b)) (a + (b - c)) makes the product
+    symmetric in its arguments and accurate to a few ulps, so circle A crossing
+    circle B is decided exactly as B crossing A. Also returns whether q is the
+    largest side (used for nesting when the product is not positive).
+    """
+    a = jnp.maximum(jnp.maximum(p, delta), q)
+    c = jnp.minimum(jnp.minimum(p, delta), q)
+    b = jnp.maximum(jnp.minimum(p, delta), jnp.minimum(jnp.maximum(p, delta), q))  # median, exact
+    prod = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
+    return prod, q >= a
+
+
+def circle_intersection_angles(
+    cx: ArrayLike, cy: ArrayLike, p: ArrayLike, ox: ArrayLike, oy: ArrayLike, q: ArrayLike
+) -> tuple[Array, Array, Array, Array]:
+    """Where circle (cx, cy, p) meets circle (ox, oy, q), seen from (cx, cy).
+
+    Returns ``(base, half_width, crosses, inside)``: the crossing points are at
+    angles ``base -/+ half_width`` about (cx, cy) (base points at (ox, oy));
+    ``crosses`` is False when the circles do not cross (disjoint, nested,
+    tangent or concentric), and then ``half_width`` is 0 and ``inside`` says
+    whether the first circle lies in the closed second disk.
+
+    The half-width is atan2(sqrt(Heron), p^2 + delta^2 - q^2): full precision
+    near tangency, where arccos of the law of cosines loses half the digits.
+    """
+    dx = jnp.asarray(ox) - cx
+    dy = jnp.asarray(oy) - cy
+    delta = safe_hypot(dx, dy)
+    base = safe_atan2(dy, dx)
+    prod, q_largest = _heron(jnp.asarray(p), delta, jnp.asarray(q))
+    crosses = (prod > 0) & (delta > 0)
+    # (p - q)(p + q) + delta^2: no cancellation for nearly identical circles.
+    cos_term = (p - q) * (p + q) + delta * delta
+    half = jnp.where(
+        crosses,
+        jnp.arctan2(safe_sqrt(jnp.where(crosses, prod, 0.0)), jnp.where(crosses, cos_term, 1.0)),
+        0.0,
+    )
+    inside = ~crosses & q_largest
+    return base, half, crosses, inside
