@@ -110,7 +110,7 @@ def occultation_flux(
     y: ArrayLike,
     r: ArrayLike,
     method: str = "auto",
-    order: int = 20,
+    order: int = 24,
     chunk: int = 65536,
 ) -> Array:
     """Relative flux of ``star`` behind opaque disks.
@@ -128,7 +128,8 @@ def occultation_flux(
             equals ``"exact"`` to rounding. Under ``jit``/``grad`` (traced
             inputs) ``"auto"`` evaluates the union integral for every frame.
             ``"raster"`` is the pixel-grid method.
-        order: Gauss-Legendre nodes per arc piece (20: < 1e-11 in float64).
+        order: Gauss-Legendre nodes per arc piece (24: worst measured error
+            ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
         chunk: frames per compiled batch (bounds memory).
 
     Returns:

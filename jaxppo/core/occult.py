@@ -63,7 +63,7 @@ def union_deficit(
     r: Float[Array, " disk"],
     g: Callable[[Array], Array],
     phi1: Array,
-    order: int = 20,
+    order: int = 24,
 ) -> Array:
     """Integral of I over (union of disks) intersected with the unit disk.
 
@@ -152,7 +152,7 @@ def union_deficit(
 
 
 def disk_deficit(
-    d: Array, p: Array, g: Callable[[Array], Array], phi1: Array, order: int = 20
+    d: Array, p: Array, g: Callable[[Array], Array], phi1: Array, order: int = 24
 ) -> Array:
     """Occulted flux of one disk of radius ``p`` whose centre is ``d`` from the
     stellar centre (a single-disk scene depends on nothing else).

@@ -1,0 +1,66 @@
+"""Accuracy table of the exact engine: max |flux - reference| per class of
+configuration, float64 and float32, against the independent radial reference
+of tests/helpers.py (adaptive Gauss-Kronrod, split at every kink).
+
+    python benchmarks/accuracy.py
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import jaxppo as jp  # noqa: E402
+from helpers import (  # noqa: E402
+    KEPLER20_P100,
+    adversarial_pairs,
+    adversarial_single,
+    random_configs,
+    reference_deficit,
+    reference_total,
+)
+
+warnings.filterwarnings("ignore")
+
+
+def main() -> None:
+    rng = np.random.default_rng(2024)
+    mu = np.sort(np.concatenate([[0.0], np.cos(np.linspace(0, np.pi / 2, 78))[:-1]]))
+    mu[-1] = 1.0
+    stars = {
+        "quadratic": jp.Star.quadratic(0.495, 0.154),
+        "nonlinear P100": jp.Star.nonlinear(*KEPLER20_P100),
+        "power-2": jp.Star.power2(0.7178, 0.7764),
+        "tabulated (sqrt-poly, 78 mu)": jp.Star.tabulated(mu, np.asarray(jp.Star.power2(0.7178, 0.7764).intensity(mu))),
+    }
+    classes = {
+        "single, b in {0,p,1-p,1,1+p} +-1e-12": adversarial_single(),
+        "pairs/triples: tangent, nested, concentric, identical, limb": adversarial_pairs(),
+        "random overlapping pairs": random_configs(rng, 40, 2),
+        "random overlapping triples": random_configs(rng, 20, 3),
+    }
+    print(f"{'star':30s} {'configurations':60s} {'n':>4s} {'float64':>9s} {'float32':>9s}")
+    for sname, star in stars.items():
+        ir = lambda r, star=star: float(star.intensity(np.sqrt(max(1 - r * r, 0.0))))
+        f0 = reference_total(ir)
+        star32 = jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, star)
+        for cname, cfgs in classes.items():
+            e64 = e32 = 0.0
+            for x, y, p in cfgs:
+                ref = 1 - reference_deficit(ir, x, y, p) / f0
+                v64 = float(jp.occultation_flux(star, np.array(x), np.array(y), np.array(p), method="exact"))
+                v32 = float(jp.occultation_flux(star32, np.array(x, np.float32), np.array(y, np.float32), np.array(p, np.float32), method="exact"))
+                e64, e32 = max(e64, abs(v64 - ref)), max(e32, abs(v32 - ref))
+            print(f"{sname:30s} {cname:60s} {len(cfgs):4d} {e64:9.1e} {e32:9.1e}")
+
+
+if __name__ == "__main__":
+    main()
