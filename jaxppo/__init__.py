@@ -21,6 +21,7 @@ from ._system import alpha_limits as alpha_limits
 from ._system import multi_transits as multi_transits
 
 __version__ = "0.1.0"
+from ._raster import RasterSettings as RasterSettings
 from ._phoenix import band_intensity as band_intensity
 from ._phoenix import claret_power2 as claret_power2
 from ._phoenix import claret_quadratic as claret_quadratic

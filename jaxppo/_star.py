@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -75,6 +77,7 @@ class Star(eqx.Module):
     degree: int = eqx.field(static=True, default=0)
     fit_matrix: Array | None = None
     table_residual: float = eqx.field(static=True, default=0.0)
+    surface: object = eqx.field(static=True, default=None)
 
     # ---- constructors --------------------------------------------------------
     @classmethod
@@ -225,8 +228,17 @@ class Star(eqx.Module):
 
     @property
     def symmetric(self) -> bool:
-        """Radially symmetric (always, for this class; spotted stars are not)."""
-        return True
+        """Radially symmetric (no surface map)."""
+        return self.surface is None
+
+    def with_surface(self, surface) -> "Star":
+        """This star times a surface map ``surface(x, y)`` in sky coordinates
+        [R*] (spots, faculae; a jnp-traceable function). Such a star is not
+        radially symmetric: only ``method="raster"`` can model it, and
+        ``"auto"`` uses the raster for it."""
+        if not callable(surface):
+            raise ValueError(f"surface must be a function surface(x, y), got {type(surface).__name__}")
+        return dataclasses.replace(self, surface=surface)
 
     def __repr__(self) -> str:
         if self.law == "tabulated":
