@@ -14,6 +14,7 @@ Enable float64 for science work: ``jax.config.update("jax_enable_x64", True)``
 
 from ._flux import occultation_flux as occultation_flux
 from ._star import Star as Star
+from ._sweep import sweep as sweep
 from ._system import MultiTransit as MultiTransit
 from ._system import Planet as Planet
 from ._system import System as System

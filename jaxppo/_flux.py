@@ -68,21 +68,39 @@ def _bucket(n: int) -> int:
     return 1 << max(int(np.ceil(np.log2(max(n, 1)))), 4)
 
 
+def _shard(arrays):
+    """Place the frame axis across all devices (a no-op on one device)."""
+    devices = jax.devices()
+    if len(devices) == 1:
+        return arrays
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    mesh = Mesh(np.array(devices), ("frames",))
+    spec = NamedSharding(mesh, PartitionSpec("frames"))
+    return tuple(jax.device_put(a, spec) for a in arrays)
+
+
 def _run_padded(fn, star, x, y, r, order, chunk: int):
+    """Run a frame kernel over [frame, disk] arrays in chunks of at most
+    ``chunk`` frames, padded to a few bucket sizes (so repeated calls reuse
+    compilations) and to a multiple of the device count, sharded over devices."""
     n = x.shape[0]
     if n == 0:
         return jnp.zeros(0, x.dtype)
+    ndev = len(jax.devices())
     outs = []
     for start in range(0, n, chunk):
         xs, ys, rs = x[start:start + chunk], y[start:start + chunk], r[start:start + chunk]
         m = xs.shape[0]
         size = min(_bucket(m), chunk) if m <= chunk else m
+        size = -(-size // ndev) * ndev
         pad = size - m
         if pad:
             # Padding frames: disks far off the star cost nothing and are dropped.
             xs = jnp.concatenate([xs, jnp.full((pad, xs.shape[1]), 10.0, xs.dtype) + jnp.arange(xs.shape[1])], 0)
             ys = jnp.concatenate([ys, jnp.zeros((pad, ys.shape[1]), ys.dtype)], 0)
             rs = jnp.concatenate([rs, jnp.full((pad, rs.shape[1]), 0.1, rs.dtype)], 0)
+        xs, ys, rs = _shard((xs, ys, rs))
         outs.append(fn(star, xs, ys, rs, order)[:m])
     return jnp.concatenate(outs)
 
