@@ -31,3 +31,7 @@ from ._phoenix import kepler_response as kepler_response
 from ._phoenix import phoenix_star as phoenix_star
 from ._phoenix import read_specint as read_specint
 from ._phoenix import truncate_limb as truncate_limb
+from ._lightcurve import LightCurve as LightCurve
+from ._kepler20 import kepler20_system as kepler20_system
+from ._kepler20 import simulate as simulate
+from ._kepler20 import simulate_kepler20 as simulate_kepler20

@@ -64,8 +64,12 @@ def _separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Ar
 
 
 def _bucket(n: int) -> int:
-    """Pad batch sizes to a few shapes so repeated calls reuse compilations."""
-    return 1 << max(int(np.ceil(np.log2(max(n, 1)))), 4)
+    """Pad batch sizes to a few shapes (1024 x 4^k) so that repeated calls
+    reuse compilations: at most a handful of programs per kernel."""
+    size = 1024
+    while size < n:
+        size *= 4
+    return size
 
 
 def _shard(arrays):
@@ -88,6 +92,9 @@ def _run_padded(fn, star, x, y, r, order, chunk: int):
     if n == 0:
         return jnp.zeros(0, x.dtype)
     ndev = len(jax.devices())
+    concrete = _is_concrete(x, y, r, *jax.tree_util.tree_leaves(star))
+    x, y, r = (np.asarray(v) for v in (x, y, r)) if concrete else (x, y, r)
+    xp = np if concrete else jnp
     outs = []
     for start in range(0, n, chunk):
         xs, ys, rs = x[start:start + chunk], y[start:start + chunk], r[start:start + chunk]
@@ -97,12 +104,13 @@ def _run_padded(fn, star, x, y, r, order, chunk: int):
         pad = size - m
         if pad:
             # Padding frames: disks far off the star cost nothing and are dropped.
-            xs = jnp.concatenate([xs, jnp.full((pad, xs.shape[1]), 10.0, xs.dtype) + jnp.arange(xs.shape[1])], 0)
-            ys = jnp.concatenate([ys, jnp.zeros((pad, ys.shape[1]), ys.dtype)], 0)
-            rs = jnp.concatenate([rs, jnp.full((pad, rs.shape[1]), 0.1, rs.dtype)], 0)
-        xs, ys, rs = _shard((xs, ys, rs))
-        outs.append(fn(star, xs, ys, rs, order)[:m])
-    return jnp.concatenate(outs)
+            kk = xs.shape[1]
+            xs = xp.concatenate([xs, xp.full((pad, kk), 10.0, xs.dtype) + xp.arange(kk, dtype=xs.dtype)], 0)
+            ys = xp.concatenate([ys, xp.zeros((pad, kk), ys.dtype)], 0)
+            rs = xp.concatenate([rs, xp.full((pad, kk), 0.1, rs.dtype)], 0)
+        xs, ys, rs = _shard(tuple(jnp.asarray(v) for v in (xs, ys, rs)))
+        outs.append(np.asarray(fn(star, xs, ys, rs, order))[:m] if concrete else fn(star, xs, ys, rs, order)[:m])
+    return np.concatenate(outs) if concrete else jnp.concatenate(outs)
 
 
 def scene_classes(x: np.ndarray, y: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -173,23 +181,22 @@ def occultation_flux(
         from ._raster import raster_flux
 
         return raster_flux(star, x, y, r, raster)
-    concrete = _is_concrete(x, y, r)
-    if concrete:
+    concrete = _is_concrete(x, y, r, *jax.tree_util.tree_leaves(star))
+    if _is_concrete(x, y, r):
         _validate_concrete(x, y, r)
     xf, yf, rf = (v.reshape(-1, k) for v in (x, y, r))
     if method == "exact" or not concrete:
         if concrete:
-            return _run_padded(_exact_frames, star, xf, yf, rf, order, chunk).reshape(lead)
+            return jnp.asarray(_run_padded(_exact_frames, star, xf, yf, rf, order, chunk).reshape(lead))
         return _exact_frames(star, xf, yf, rf, order).reshape(lead)
-    any_on, overlap = scene_classes(np.asarray(xf), np.asarray(yf), np.asarray(rf))
-    out = jnp.ones(xf.shape[0], xf.dtype)
+    xf, yf, rf = (np.asarray(v) for v in (xf, yf, rf))
+    any_on, overlap = scene_classes(xf, yf, rf)
+    out = np.ones(xf.shape[0], xf.dtype)
     single = np.nonzero(any_on & ~overlap)[0]
     multi = np.nonzero(overlap)[0]
     if single.size:
-        vals = _run_padded(_separate_frames, star, xf[single], yf[single], rf[single], order, chunk)
-        out = out.at[single].set(vals)
+        out[single] = _run_padded(_separate_frames, star, xf[single], yf[single], rf[single], order, chunk)
     if multi.size:
-        vals = _run_padded(_exact_frames, star, xf[multi], yf[multi], rf[multi], order, chunk)
-        out = out.at[multi].set(vals)
-    return out.reshape(lead)
+        out[multi] = _run_padded(_exact_frames, star, xf[multi], yf[multi], rf[multi], order, chunk)
+    return jnp.asarray(out.reshape(lead))
 

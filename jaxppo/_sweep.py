@@ -11,7 +11,6 @@ run the exact union integral, in bounded chunks, sharded over all devices.
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 
 from ._flux import _exact_frames, _run_padded, _separate_frames
@@ -72,7 +71,7 @@ def sweep(
     k = len(system.planets)
     tilted = system.tilted
     # Untilted positions, case "same"; radius 0 behind the star.
-    x0, y0, r0 = (np.asarray(v) for v in system.positions(jnp.asarray(t), 0.0, "same"))
+    x0, y0, r0 = system.positions(t, 0.0, "same", xp=np)
     d = np.hypot(x0, y0)
     # One-disk terms: alpha- and case-independent, computed once.
     on = (d - r0 < 1.0) & (r0 > 0)
@@ -80,8 +79,8 @@ def sweep(
     frames = np.nonzero(on.any(-1))[0]
     n_single = 0
     if frames.size:
-        xs = jnp.asarray(d[frames])
-        sep = _run_padded(_separate_frames, system.star, xs, jnp.zeros_like(xs), jnp.asarray(r0[frames]), order, chunk)
+        xs = d[frames]
+        sep = _run_padded(_separate_frames, system.star, xs, np.zeros_like(xs), r0[frames], order, chunk)
         base[frames] = np.asarray(sep)
         n_single = int(on.sum())
     out = np.broadcast_to(base, (n_c, n_a, n_t)).copy()
@@ -114,7 +113,7 @@ def sweep(
         Y[:, tilted] = y0[ti, tilted]
         X[:, tilted] = xt[ai, ti]
         Y[:, tilted] = yt[ai, ti]
-        vals = _run_padded(_exact_frames, system.star, jnp.asarray(X), jnp.asarray(Y), jnp.asarray(r0[ti]), order, chunk)
+        vals = _run_padded(_exact_frames, system.star, X, Y, r0[ti], order, chunk)
         out[ci, ai, ti] = np.asarray(vals)
         n_union += ai.size
     stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=n_union)

@@ -75,12 +75,14 @@ class Planet(eqx.Module):
         """Impact parameter b = a cos(i) [R*] (signed: > 0 crosses y > 0)."""
         return self.a * jnp.cos(jnp.deg2rad(self.inc))
 
-    def position(self, t: ArrayLike) -> tuple[Array, Array, Array]:
-        """Sky position (x, y, z) [R*] at times t [d] (CONVENTIONS: circular orbit)."""
-        phi = 2.0 * jnp.pi * (jnp.asarray(t) - self.t0) / self.period
-        inc = jnp.deg2rad(self.inc)
-        cphi = jnp.cos(phi)
-        return self.a * jnp.sin(phi), self.a * cphi * jnp.cos(inc), self.a * cphi * jnp.sin(inc)
+    def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
+        """Sky position (x, y, z) [R*] at times t [d] (CONVENTIONS: circular
+        orbit). ``xp=numpy`` evaluates eagerly in numpy (geometry on the host)."""
+        phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
+        inc = xp.deg2rad(xp.asarray(self.inc))
+        cphi = xp.cos(phi)
+        a = xp.asarray(self.a)
+        return a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc)
 
     def half_duration(self) -> Array:
         """Half the time [d] from first to last contact (0 if it never transits)."""
@@ -94,12 +96,6 @@ class Planet(eqx.Module):
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name")}
         fields.update(changes)
         return Planet(**fields)
-
-
-def _tilt(x: Array, y: Array, alpha_rad: Array) -> tuple[Array, Array]:
-    """The paper's R_y(alpha) with (x, z)_paper = (x, y)_ours (CONVENTIONS)."""
-    ca, sa = jnp.cos(alpha_rad), jnp.sin(alpha_rad)
-    return x * ca + y * sa, -x * sa + y * ca
 
 
 class System(eqx.Module):
@@ -138,25 +134,28 @@ class System(eqx.Module):
                 return i
         raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
 
-    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same"):
+    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", xp=jnp):
         """Sky positions (x, y, r) with the disks on the last axis; planets
-        behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``."""
+        behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
+        ``xp=numpy`` computes on the host without tracing (fast geometry for
+        concrete inputs)."""
         if case not in CASES:
             raise ValueError(f"case must be one of {CASES}, got {case!r}")
-        t = jnp.asarray(t, float)
-        alpha_rad = jnp.deg2rad(jnp.asarray(alpha, float))
-        shape = jnp.broadcast_shapes(t.shape, alpha_rad.shape)
+        t = xp.asarray(t, dtype=float)
+        alpha_rad = xp.deg2rad(xp.asarray(alpha, dtype=float))
+        shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
         xs, ys, rs = [], [], []
         for i, pl in enumerate(self.planets):
-            x, y, z = pl.position(t)
+            x, y, z = pl.position(t, xp)
             if i == self.tilted:
-                x, y = _tilt(x, y, alpha_rad)
+                ca, sa = xp.cos(alpha_rad), xp.sin(alpha_rad)
+                x, y = x * ca + y * sa, -x * sa + y * ca
             elif case == "opposite":
                 y = -y
-            xs.append(jnp.broadcast_to(x, shape))
-            ys.append(jnp.broadcast_to(y, shape))
-            rs.append(jnp.broadcast_to(jnp.where(z > 0, pl.radius, 0.0), shape))
-        return jnp.stack(xs, -1), jnp.stack(ys, -1), jnp.stack(rs, -1)
+            xs.append(xp.broadcast_to(x, shape))
+            ys.append(xp.broadcast_to(y, shape))
+            rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
+        return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
 
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d].

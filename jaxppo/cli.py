@@ -15,17 +15,6 @@ def _enable_x64() -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-def kepler20_system(star=None):
-    """Kepler-20 b (tilted) and c with the paper's Table 3 "This work" values
-    (T0 converted to BKJD = BJD - 2454833)."""
-    import jaxppo as jp
-
-    star = jp.kepler20_star() if star is None else star
-    b = jp.Planet(period=3.69611590, t0=134.501962, a=10.60, inc=87.687, radius=0.01805, name="b")
-    c = jp.Planet(period=10.85408479, t0=138.608470, a=22.764, inc=89.967, radius=0.02878, name="c")
-    return jp.System(star, [b, c], tilted=0)
-
-
 def cmd_demo(args) -> int:
     """Light curves of the seven Kepler-20 b + c double transits for a few tilt
     angles, both hemisphere cases; writes a CSV and a figure."""
@@ -40,10 +29,10 @@ def cmd_demo(args) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+
     system = kepler20_system()
-    events = jp.multi_transits(system, 300.0, 1600.0)
-    paper = (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
-    events = [min(events, key=lambda e: abs(e.mid - m)) for m in paper]
+    events = paper_multi_transits(system)
     alphas = np.array([0.0, 90.0, 151.0, 212.0, 249.0, 313.0, 322.0])
     t0 = time.perf_counter()
     rows = []
@@ -75,14 +64,91 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def _print_summary(result) -> None:
+    for case, geo in result["probabilities"].items():
+        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}")
+        for name, v in geo.items():
+            if isinstance(v, dict):
+                print(f"   {name:36s} p = {100 * v['probability']:6.2f} %   sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
+        print(f"   Bayes factor {geo['bayes_factor']:.3f} for '{geo['favoured']}': {geo['jeffreys']}")
+
+
+def cmd_scan(args) -> int:
+    """Run the obliquity scan; no config runs the bundled default."""
+    _enable_x64()
+    from jaxppo._config import load_config
+    from jaxppo._scan import run_scan
+
+    cfg = load_config(args.config)
+    t0 = time.perf_counter()
+    result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+    print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
+          f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
+    _print_summary(result)
+    print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json and {len(result.get('figures', []))} figures")
+    return 0
+
+
+def cmd_plot(args) -> int:
+    """Redraw the figures of a finished scan from DIR/scan.csv and its config."""
+    _enable_x64()
+    from jaxppo._config import load_config
+    from jaxppo._figures import scan_figures
+
+    out = Path(args.dir)
+    for name in ("summary.json", "scan.csv"):
+        if not (out / name).exists():
+            raise ValueError(f"{out} holds no finished scan ({name} missing)")
+    summary = json.loads((out / "summary.json").read_text())
+    cfg = load_config(summary["config"])
+    if cfg.digest != summary["config_digest"]:
+        raise ValueError(f"the config {summary['config']} changed since the scan in {out}; rerun the scan")
+    files = scan_figures(cfg, out, summary)
+    print("wrote " + ", ".join(files))
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    """Write synthetic Kepler-20 b + c photometry (the bundled default data)."""
+    _enable_x64()
+    import jaxppo as jp
+
+    lc = jp.simulate_kepler20(seed=args.seed, noise=args.noise, alpha=args.alpha, case=args.case,
+                              radius_scale=args.radius_scale)
+    lc.to_csv(args.out)
+    print(f"wrote {args.out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="jaxppo", description="Planet-planet occultations in JAX")
     sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures")
+    p.add_argument("config", nargs="?", default=None, help="CONFIG.toml (default: the bundled Kepler-20 scan)")
+    p.add_argument("--out", default="scan_out", help="output folder (default: scan_out)")
+    p.add_argument("--restart", action="store_true", help="discard earlier results in --out instead of resuming")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_scan)
+    p = sub.add_parser("plot", help="redraw the figures of a finished scan")
+    p.add_argument("dir", help="the scan's output folder")
+    p.set_defaults(func=cmd_plot)
+    p = sub.add_parser("simulate", help="write synthetic Kepler-20 b + c data (CSV)")
+    p.add_argument("--out", required=True)
+    p.add_argument("--seed", type=int, default=2021)
+    p.add_argument("--noise", type=float, default=4e-4)
+    p.add_argument("--alpha", type=float, default=None, help="inject this tilt [deg] (default: untilted)")
+    p.add_argument("--case", default="same", choices=("same", "opposite"))
+    p.add_argument("--radius-scale", type=float, default=1.0)
+    p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("demo", help="Kepler-20 b + c double-transit light curves for a few tilt angles")
     p.add_argument("--out", default="jaxppo_demo", help="output folder")
     p.set_defaults(func=cmd_demo)
     args = parser.parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except ValueError as err:
+        print(f"jaxppo {args.command}: error: {err}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

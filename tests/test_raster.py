@@ -6,7 +6,7 @@ import pytest
 
 import jaxppo as jp
 from jaxppo import RasterSettings
-from jaxppo.cli import kepler20_system
+from jaxppo._kepler20 import kepler20_system
 from jaxppo.core.raster import pixel_disk_area
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
-from jaxppo.cli import kepler20_system
+from jaxppo._kepler20 import kepler20_system
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +58,7 @@ def test_sharded_equals_unsharded(grid, tmp_path):
         jax.config.update("jax_enable_x64", True)
         assert jax.device_count() == 4, jax.devices()
         import jaxppo as jp
-        from jaxppo.cli import kepler20_system
+        from jaxppo._kepler20 import kepler20_system
         t = np.load(r"{tmp_path / 't.npy'}"); a = np.load(r"{tmp_path / 'a.npy'}")
         np.save(r"{tmp_path / 'out.npy'}", jp.sweep(kepler20_system(), t, a, chunk=33))
     """)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
-from jaxppo.cli import kepler20_system
+from jaxppo._kepler20 import kepler20_system
 
 PAPER_MIDS = (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
 # Paper Table 5: (alpha_1, alpha_4) of the Delta chi^2 extrema; each must lie

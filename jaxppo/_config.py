@@ -1,0 +1,150 @@
+"""Scan configuration (TOML, CONVENTIONS.md): parsed and checked before any
+work starts, so a bad config fails in milliseconds with the field named."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ._lightcurve import LightCurve
+from ._phoenix import data_path, phoenix_star
+from ._star import Star
+from ._system import CASES, Planet, System
+
+__all__ = ["ScanConfig", "load_config", "default_config_path"]
+
+_PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
+
+
+def default_config_path() -> Path:
+    return data_path("kepler20_default.toml")
+
+
+@dataclasses.dataclass
+class ScanConfig:
+    system: System
+    lightcurve: LightCurve
+    alpha: np.ndarray
+    cases: tuple[str, ...]
+    margin: float
+    block: int
+    raw: dict
+    source: str
+
+    @property
+    def digest(self) -> str:
+        """Hash of everything that determines the results (not the path)."""
+        payload = json.dumps(self.raw, sort_keys=True, default=str).encode()
+        data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
+        return hashlib.sha256(payload + data).hexdigest()[:16]
+
+
+def _err(source, msg):
+    return ValueError(f"{source}: {msg}")
+
+
+def _star_from(section: dict, base: Path, source: str) -> Star:
+    if "law" not in section:
+        raise _err(source, "[star] needs law = quadratic | nonlinear | power2 | uniform | tabulated | phoenix")
+    law = str(section["law"]).lower()
+    if law == "phoenix":
+        if "path" not in section:
+            raise _err(source, "[star] law = 'phoenix' needs path = a PHOENIX SPECINT FITS file")
+        return phoenix_star(base / section["path"], limb=section.get("limb", "rescale"))
+    if law == "tabulated":
+        if "mu" in section and "intensity" in section:
+            return Star.tabulated(section["mu"], section["intensity"], interpolation=section.get("interpolation", "sqrt-poly"))
+        if "path" in section:
+            p = base / section["path"]
+            if not p.exists():
+                raise _err(source, f"[star] table file not found: {p}")
+            tab = np.loadtxt(p, delimiter=",", comments="#", ndmin=2)
+            return Star.tabulated(tab[:, 0], tab[:, 1], interpolation=section.get("interpolation", "sqrt-poly"))
+        raise _err(source, "[star] law = 'tabulated' needs mu = [...] and intensity = [...], or path = 'table.csv'")
+    try:
+        return Star.from_law(law, section.get("coefficients", []))
+    except ValueError as e:
+        raise _err(source, f"[star] {e}") from e
+
+
+def load_config(path: str | Path | None = None) -> ScanConfig:
+    """Read and check a scan config; ``None`` gives the bundled default."""
+    path = Path(path) if path is not None else default_config_path()
+    source = str(path)
+    if not path.exists():
+        raise ValueError(f"config file not found: {path}")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{source}: not valid TOML: {e}") from e
+    base = path.parent
+    for sec in ("star", "planet", "data", "scan"):
+        if sec not in raw:
+            raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
+    star = _star_from(raw["star"], base, source)
+
+    planets, tilted = [], []
+    entries = raw["planet"] if isinstance(raw["planet"], list) else [raw["planet"]]
+    if len(entries) < 2:
+        raise _err(source, f"the scan needs at least two [[planet]] entries, got {len(entries)}")
+    for i, p in enumerate(entries):
+        missing = [f for f in _PLANET_FIELDS if f not in p]
+        if missing:
+            raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
+        try:
+            planets.append(Planet(**{f: float(p[f]) for f in _PLANET_FIELDS}, name=str(p.get("name", f"p{i + 1}"))))
+        except (TypeError, ValueError) as e:
+            raise _err(source, f"[[planet]] #{i + 1}: {e}") from e
+        if p.get("tilted", False):
+            tilted.append(i)
+    if len(tilted) > 1:
+        raise _err(source, f"only one planet may have tilted = true, got {len(tilted)}")
+    system = System(star, planets, tilted=tilted[0] if tilted else 0)
+
+    data = raw["data"]
+    if "path" not in data:
+        raise _err(source, "[data] needs path = a CSV (time,flux,flux_err) or Kepler light-curve FITS file")
+    dpath = Path(data["path"])
+    if not dpath.is_absolute():
+        dpath = base / dpath
+    if not dpath.exists():
+        raise _err(source, f"[data] file not found: {dpath}")
+    exposure = data.get("exposure")
+    try:
+        if dpath.suffix.lower() in (".fits", ".fit", ".fz") or dpath.name.endswith(".fits.gz"):
+            lc = LightCurve.from_kepler_fits(dpath)
+            if exposure is not None:
+                lc = LightCurve(lc.time, lc.flux, lc.flux_err, float(exposure), lc.report)
+        else:
+            lc = LightCurve.from_csv(dpath, exposure=None if exposure is None else float(exposure))
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from e
+
+    scan = raw["scan"]
+    grid = scan.get("alpha", [0.0, 360.0, 1.0])
+    if not (isinstance(grid, list) and len(grid) == 3):
+        raise _err(source, f"[scan] alpha must be [start, stop, step] in degrees, got {grid!r}")
+    start, stop, step = (float(v) for v in grid)
+    if not step > 0:
+        raise _err(source, f"[scan] alpha step must be > 0, got {step}")
+    alpha = np.arange(start, stop, step)
+    if alpha.size == 0:
+        raise _err(source, f"[scan] alpha grid [{start}, {stop}) with step {step} is empty")
+    cases = tuple(scan.get("cases", list(CASES)))
+    if not cases:
+        raise _err(source, "[scan] cases must not be empty")
+    for c in cases:
+        if c not in CASES:
+            raise _err(source, f"[scan] unknown case {c!r}; expected {CASES}")
+    margin = float(scan.get("margin", 0.05))
+    if margin < 0:
+        raise _err(source, f"[scan] margin must be >= 0 days, got {margin}")
+    block = int(scan.get("block", 60))
+    if block < 1:
+        raise _err(source, f"[scan] block must be >= 1, got {block}")
+    return ScanConfig(system, lc, alpha, cases, margin, block, raw, source)
