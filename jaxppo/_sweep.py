@@ -39,6 +39,7 @@ def sweep(
     order: int = 24,
     chunk: int = 65536,
     return_stats: bool = False,
+    no_overlap: bool = False,
 ):
     """Relative flux on the grid [case, alpha, time].
 
@@ -50,6 +51,8 @@ def sweep(
         method: "auto" (default; see module doc), "exact" (union integral for
             every frame) or "raster".
         return_stats: also return a :class:`SweepStats`.
+        no_overlap: model every frame as if no two disks overlapped (the null
+            model of the obliquity scan: each planet's own transit only).
     """
     t = np.asarray(t, float)
     alpha = np.atleast_1d(np.asarray(alpha, float))
@@ -85,6 +88,9 @@ def sweep(
         n_single = int(on.sum())
     out = np.broadcast_to(base, (n_c, n_a, n_t)).copy()
 
+    if no_overlap:
+        stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=0)
+        return (out, stats) if return_stats else out
     # Frames where some pair of disks on the star overlaps.
     xt, yt = _tilted_xy(x0[:, tilted], y0[:, tilted], alpha)  # [alpha, time]
     jobs = []  # (case index, alpha index, time index)
