@@ -35,3 +35,8 @@ from ._lightcurve import LightCurve as LightCurve
 from ._kepler20 import kepler20_system as kepler20_system
 from ._kepler20 import simulate as simulate
 from ._kepler20 import simulate_kepler20 as simulate_kepler20
+from ._fit import FitResult as FitResult
+from ._fit import fit as fit
+from ._fit import parameter_names as parameter_names
+from ._sample import SampleResult as SampleResult
+from ._sample import sample as sample

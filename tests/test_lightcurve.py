@@ -1,0 +1,74 @@
+"""LightCurve loading, windows, normalisation and exposure integration."""
+
+import numpy as np
+import pytest
+from astropy.io import fits
+
+import jaxppo as jp
+from jaxppo._phoenix import data_path
+
+
+def _kepler_fits(path, columns=("TIME", "PDCSAP_FLUX", "PDCSAP_FLUX_ERR", "SAP_QUALITY"), quality=None):
+    n = 50
+    data = {"TIME": np.linspace(160, 161, n), "PDCSAP_FLUX": 1e5 + np.zeros(n), "PDCSAP_FLUX_ERR": np.full(n, 10.0),
+            "SAP_QUALITY": np.zeros(n, int) if quality is None else quality}
+    data["PDCSAP_FLUX"][3] = np.nan
+    cols = [fits.Column(name=c, format="J" if c == "SAP_QUALITY" else "D", array=data[c]) for c in columns]
+    hdu = fits.BinTableHDU.from_columns(cols, name="LIGHTCURVE")
+    hdu.header["INT_TIME"] = 6.019802903
+    hdu.header["NUM_FRM"] = 270
+    fits.HDUList([fits.PrimaryHDU(), hdu]).writeto(path)
+
+
+def test_kepler_fits_reader(tmp_path):
+    q = np.zeros(50, int)
+    q[[5, 6]] = 128
+    _kepler_fits(tmp_path / "k.fits", quality=q)
+    lc = jp.LightCurve.from_kepler_fits(tmp_path / "k.fits")
+    assert lc.report["flagged"] == 2 and lc.report["non_finite"] == 1 and len(lc) == 47
+    assert abs(lc.exposure - 6.019802903 * 270 / 86400) < 1e-12
+    assert abs(np.median(lc.flux) - 1) < 1e-12
+
+
+def test_kepler_fits_missing_columns(tmp_path):
+    _kepler_fits(tmp_path / "k.fits", columns=("TIME", "PDCSAP_FLUX", "SAP_QUALITY"))
+    with pytest.raises(ValueError, match="missing columns"):
+        jp.LightCurve.from_kepler_fits(tmp_path / "k.fits")
+
+
+def test_all_points_flagged(tmp_path):
+    _kepler_fits(tmp_path / "k.fits", quality=np.full(50, 1))
+    with pytest.raises(ValueError, match="no usable points"):
+        jp.LightCurve.from_kepler_fits(tmp_path / "k.fits")
+
+
+def test_real_csv_and_exposure_integration():
+    lc = jp.LightCurve.from_csv(data_path("kepler20_kic6850504_q1_llc_BKJD159.0-161.5.csv"), exposure=0.02043357)
+    assert lc.report == {**lc.report, "points": 122, "flagged": 7, "kept": 115}
+    t, n = lc.supersampled_times()
+    assert n % 2 == 1 and t.size == n * len(lc)
+    # integrating a linear function over the exposure leaves it unchanged
+    np.testing.assert_allclose(t.reshape(-1, n).mean(1), lc.time, atol=1e-12)
+    # integration smooths a transit: the binned model is shallower at ingress
+    system = jp.kepler20_system()
+    inst = np.asarray(system.flux(lc.time))
+    binned = np.asarray(system.flux(t)).reshape(-1, n).mean(1)
+    assert np.max(np.abs(inst - binned)) > 1e-5
+
+
+def test_normalisation_by_polynomial():
+    t = np.linspace(0, 1, 200)
+    trend = 1 + 0.01 * (t - 0.5) + 0.02 * (t - 0.5) ** 2
+    dip = np.where(np.abs(t - 0.5) < 0.1, 0.999, 1.0)
+    lc = jp.LightCurve(t, trend * dip, np.full(t.size, 1e-4))
+    norm = lc.normalized([(0, 1)], in_transit=np.abs(t - 0.5) < 0.12)
+    np.testing.assert_allclose(norm.flux, dip, atol=1e-10)
+
+
+def test_bad_lightcurves(tmp_path):
+    with pytest.raises(ValueError, match="flux_err must be > 0"):
+        jp.LightCurve([1.0, 2.0], [1.0, 1.0], [0.1, 0.0])
+    with pytest.raises(ValueError, match="exposure"):
+        jp.LightCurve([1.0], [1.0], [0.1], exposure=-1)
+    with pytest.raises(ValueError, match="not found"):
+        jp.LightCurve.from_csv(tmp_path / "none.csv")
