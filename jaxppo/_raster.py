@@ -91,7 +91,7 @@ def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None):
     rpos = np.asarray(rf)[np.asarray(rf) > 0]
     scale = s.scale if s.scale is not None else (float(rpos.min()) / 16.0 if rpos.size else 0.01)
     window = int(math.ceil(2.0 * rmax / scale)) + 2
-    per_frame = window * window * s.ss * s.ss * max(k, 1)
+    per_frame = (window * window * s.ss * s.ss + (4 * window * 256 if s.aa == "exact" else 0)) * max(k, 1)
     batch = max(1, _SAMPLE_BUDGET // per_frame)
     if star.surface is None:
         f0 = star.total_flux
