@@ -1,0 +1,36 @@
+"""The examples run, with small settings."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_scan_example(tmp_path):
+    res = _load("scan_kepler20").main(["--out", str(tmp_path / "o"), "--step", "4"])
+    assert (tmp_path / "o" / "scan.csv").exists() and res["points"] > 2000
+
+
+def test_injected_ppo_example():
+    res = _load("injected_ppo").main(["--alpha", "151", "--window", "6"])
+    assert abs(res["cases"]["same"]["min_delta_chi2"]["alpha"] - 151) <= 2
+
+
+def test_sensitivity_example():
+    out = _load("sensitivity").main(["--scales", "1.45", "--noises", "4e-4", "--step", "6"])
+    assert 0.5 <= list(out.values())[0] < 1.0
+
+
+def test_fit_q1_example(tmp_path):
+    res = _load("fit_kepler20_q1").main(["--out", str(tmp_path / "f.png")])
+    assert res.success and (tmp_path / "f.png").exists()
+    assert 0.6 < res.reduced_chi2 < 1.6
