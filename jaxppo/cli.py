@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 def _enable_x64() -> None:
     import jax
@@ -120,6 +122,57 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _fit_inputs(args):
+    from jaxppo._config import load_config
+
+    cfg = load_config(args.config)
+    lc = cfg.lightcurve
+    if args.windows:
+        from jaxppo._scan import scan_events
+
+        keep = np.zeros(len(lc), bool)
+        for _, s in scan_events(cfg):
+            keep |= s
+        lc = lc.select(keep)
+    return cfg, lc
+
+
+def cmd_fit(args) -> int:
+    """Least-squares fit of the config's system to its data."""
+    _enable_x64()
+    import jaxppo as jp
+
+    cfg, lc = _fit_inputs(args)
+    t0 = time.perf_counter()
+    res = jp.fit(cfg.system, lc, free=tuple(args.free))
+    print(res.table())
+    print(f"{len(lc)} points, {time.perf_counter() - t0:.1f} s")
+    if args.out:
+        Path(args.out).write_text(json.dumps({
+            "names": list(res.names), "values": res.values.tolist(), "errors": res.errors.tolist(),
+            "covariance": res.covariance.tolist(), "chi2": res.chi2, "reduced_chi2": res.reduced_chi2,
+            "success": res.success, "message": res.message}, indent=2))
+        print(f"wrote {args.out}")
+    return 0 if res.success else 1
+
+
+def cmd_sample(args) -> int:
+    """NUTS over the config's system and data."""
+    _enable_x64()
+    import jaxppo as jp
+
+    cfg, lc = _fit_inputs(args)
+    res = jp.sample(cfg.system, lc, free=tuple(args.free), num_warmup=args.warmup, num_samples=args.samples,
+                    seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet)
+    for n, (med, lo, hi) in res.intervals.items():
+        d = res.diagnostics[n]
+        print(f"{n:12s} {med:.8f} +{hi - med:.2e} -{med - lo:.2e}   r_hat {d['r_hat']:.3f}  n_eff {d['n_eff']:.0f}")
+    if args.out:
+        np.savez(args.out, **{k.replace(".", "_"): v for k, v in res.samples.items()})
+        print(f"wrote {args.out}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="jaxppo", description="Planet-planet occultations in JAX")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -129,6 +182,21 @@ def main(argv=None) -> int:
     p.add_argument("--restart", action="store_true", help="discard earlier results in --out instead of resuming")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_scan)
+    for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
+                                 ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
+        p = sub.add_parser(name, help=helptext)
+        p.add_argument("config", nargs="?", default=None, help="CONFIG.toml (default: the bundled Kepler-20 set)")
+        p.add_argument("--free", nargs="+", default=["b.t0", "b.radius", "c.t0", "c.radius"],
+                       help="free parameters, e.g. b.t0 b.radius b.a b.inc c.t0 star.c1")
+        p.add_argument("--windows", action="store_true", help="use only the multi-transit windows of the data")
+        p.add_argument("--out", default=None, help="write results (fit: JSON, sample: .npz)")
+        if name == "sample":
+            p.add_argument("--warmup", type=int, default=1000)
+            p.add_argument("--samples", type=int, default=1000)
+            p.add_argument("--chains", type=int, default=1)
+            p.add_argument("--seed", type=int, default=0)
+            p.add_argument("--quiet", action="store_true")
+        p.set_defaults(func=func)
     p = sub.add_parser("plot", help="redraw the figures of a finished scan")
     p.add_argument("dir", help="the scan's output folder")
     p.set_defaults(func=cmd_plot)

@@ -9,7 +9,7 @@ import pytest
 from jaxppo.cli import main
 
 
-@pytest.mark.parametrize("sub", ["scan", "plot", "simulate", "demo"])
+@pytest.mark.parametrize("sub", ["scan", "plot", "simulate", "demo", "fit", "sample"])
 def test_help(sub, capsys):
     with pytest.raises(SystemExit) as e:
         main([sub, "--help"])
@@ -45,3 +45,12 @@ def test_bad_config_exits_with_message(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert "error" in proc.stderr and "bad.toml" in proc.stderr
+
+
+def test_fit_and_sample_commands(tmp_path, capsys):
+    assert main(["fit", "--free", "b.t0", "c.radius", "--out", str(tmp_path / "fit.json")]) == 0
+    fitted = json.loads((tmp_path / "fit.json").read_text())
+    assert fitted["success"] and len(fitted["errors"]) == 2
+    assert main(["sample", "--free", "c.radius", "--warmup", "20", "--samples", "20", "--quiet",
+                 "--out", str(tmp_path / "s.npz")]) == 0
+    assert "r_hat" in capsys.readouterr().out
