@@ -87,3 +87,20 @@ def test_bad_sweep_inputs(grid):
         jp.sweep(system, t, alpha, cases=("same", "upside-down"))
     with pytest.raises(ValueError, match="finite"):
         jp.sweep(system, np.array([np.nan]), alpha)
+
+
+def test_one_million_frames_stay_under_2gb():
+    code = textwrap.dedent("""
+        import resource, jax, numpy as np
+        jax.config.update("jax_enable_x64", True)
+        import jaxppo as jp
+        from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+        system = kepler20_system()
+        t = np.concatenate([np.arange(e.start - 0.05, e.end + 0.05, 1 / 1440) for e in paper_multi_transits(system)])[:1400]
+        out = jp.sweep(system, t, np.arange(0.0, 360.0), chunk=16384)
+        assert out.size >= 1_000_000
+        print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True)
+    peak_kb = int(proc.stdout.strip().splitlines()[-1])
+    assert peak_kb < 2 * 1024 * 1024, f"peak resident memory {peak_kb / 1024:.0f} MB"
