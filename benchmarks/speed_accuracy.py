@@ -154,8 +154,8 @@ def main() -> None:
             xx = np.array([[base[0], base[0] + 0.05 + e]])  # outer tangency of p = 0.03 and 0.02
             yy = np.array([[base[1], base[1]]])
             rr = np.array([[0.03, 0.02]])
-            ref = 1 - (2 - float(jp.occultation_flux(star, xx[:, :1], yy[:, :1], rr[:, :1], order=48)) - float(jp.occultation_flux(star, xx[:, 1:], yy[:, 1:], rr[:, 1:], order=48)))
-            e_tan.append(abs(float(jp.occultation_flux(star, xx, yy, rr, **mk())) - ref))
+            ref = 1 - (2 - float(jp.occultation_flux(star, xx[:, :1], yy[:, :1], rr[:, :1], order=48)[0]) - float(jp.occultation_flux(star, xx[:, 1:], yy[:, 1:], rr[:, 1:], order=48)[0]))
+            e_tan.append(abs(float(jp.occultation_flux(star, xx, yy, rr, **mk())[0]) - ref))
         errs[label] = e_tan
         axs[0].loglog(eps, np.maximum(e_tan, 1e-17), "o-", ms=3, label=label)
     axs[0].set_xlabel("distance from outer tangency [R*]")
@@ -168,8 +168,8 @@ def main() -> None:
             xx = np.array([[0.95, 0.95 + 0.8 * p]])
             yy = np.array([[0.1, 0.1 + 0.3 * p]])
             rr = np.array([[p, 0.7 * p]])
-            ref = float(jp.occultation_flux(star, xx, yy, rr, order=64))
-            e_p.append(abs(float(jp.occultation_flux(star, xx, yy, rr, **kw)) - ref))
+            ref = float(jp.occultation_flux(star, xx, yy, rr, order=64)[0])
+            e_p.append(abs(float(jp.occultation_flux(star, xx, yy, rr, **kw)[0]) - ref))
         axs[1].loglog(ps, np.maximum(e_p, 1e-17), "o-", ms=3, label=label)
     axs[1].set_xlabel("planet radius p (overlapping pair on the limb)")
     axs[1].legend(fontsize=7)
