@@ -194,6 +194,7 @@ def main(scene_file, out_file):
         pl.hide_render = True
     t_start = time.time()
     full, _ = render(sc, tmp / "unocculted.exr")
+    full_frame_seconds = time.time() - t_start
     total = full.sum()
     pix = 2.0 / n
     rows = []
@@ -236,6 +237,7 @@ def main(scene_file, out_file):
         "frames_rendered": n_rendered,
         "render_seconds": round(elapsed, 2),
         "seconds_per_rendered_frame": round(elapsed / max(n_rendered + 1, 1), 3),
+        "full_frame_seconds": round(full_frame_seconds, 3),
         "date": datetime.date.today().isoformat(),
         "scene": spec.get("params", {}),
     }
