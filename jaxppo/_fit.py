@@ -136,6 +136,33 @@ class Model:
         star = dataclasses.replace(self.system.star, params=star_params)
         return System(star, [Planet(**p) for p in planets], self.system.tilted)
 
+    def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
+        """Unconstrained theta from parameter values in physical units, except
+        that an inclination may be given either in degrees (``theta_ref``
+        supplies a and p when they are not free) or, with ``theta_ref=None``,
+        as the impact parameter in units of (1 + p) (what ``sample`` draws)."""
+        ref = self.to_system(theta_ref) if theta_ref is not None else None
+        named = {slot: values[k] for k, slot in enumerate(self.slots)}
+        out = []
+        for k, (owner, par) in enumerate(self.slots):
+            v = values[k]
+            if owner == "star" or par == "t0":
+                out.append(v)
+            elif par == "period":
+                out.append(jnp.log(v))
+            elif par == "a":
+                out.append(jnp.log(v - 1.0))
+            elif par == "radius":
+                out.append(jnp.log(v))
+            elif ref is None:
+                out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
+            else:
+                pl = ref.planets[owner]
+                a = named.get((owner, "a"), pl.a)
+                p = named.get((owner, "radius"), pl.radius)
+                out.append(jnp.arctanh(a * jnp.cos(jnp.deg2rad(v)) / (1.0 + p)))
+        return jnp.stack(out)
+
     def physical(self, theta) -> jnp.ndarray:
         """The free parameters in physical units (days, degrees, R*)."""
         sysm = self.to_system(theta)
@@ -203,7 +230,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     phys = model.physical(theta)
 
     def res_phys(q):
-        return model.residuals(_theta_from_physical(model, q, theta))
+        return model.residuals(model.theta_from(q, theta))
 
     try:
         jac = np.asarray(jax.jacfwd(res_phys)(phys))
@@ -222,30 +249,4 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     dof = max(lightcurve.time.size - len(free), 1)
     steps = int(sol.stats.get("num_steps", -1)) if hasattr(sol, "stats") else -1
     return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors, chi2 / dof, steps)
-
-
-def _theta_from_physical(model: Model, q, theta_ref):
-    """Inverse of ``physical`` (for the covariance in physical units)."""
-    out = []
-    sysm_ref = model.to_system(theta_ref)
-    vals = {}
-    for k, (owner, par) in enumerate(model.slots):
-        vals[(owner, par)] = q[k]
-    for k, (owner, par) in enumerate(model.slots):
-        v = q[k]
-        if owner == "star" or par == "t0":
-            out.append(v)
-        elif par == "period":
-            out.append(jnp.log(v))
-        elif par == "a":
-            out.append(jnp.log(v - 1.0))
-        elif par == "radius":
-            out.append(jnp.log(v))
-        else:
-            pl = sysm_ref.planets[owner]
-            a = vals.get((owner, "a"), pl.a)
-            p = vals.get((owner, "radius"), pl.radius)
-            b = a * jnp.cos(jnp.deg2rad(v))
-            out.append(jnp.arctanh(b / (1.0 + p)))
-    return jnp.stack(out)
 

@@ -61,22 +61,6 @@ def _priors(model: Model):
     return out
 
 
-def _theta(model: Model, values):
-    out = []
-    for (owner, par), v in zip(model.slots, values):
-        if owner == "star" or par == "t0":
-            out.append(v)
-        elif par == "period":
-            out.append(jnp.log(v))
-        elif par == "a":
-            out.append(jnp.log(v - 1.0))
-        elif par == "radius":
-            out.append(jnp.log(v))
-        else:
-            out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
-    return jnp.stack(out)
-
-
 def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), num_warmup: int = 1000,
            num_samples: int = 1000, seed: int = 0, num_chains: int = 1, alpha: float = 0.0, case: str = "same",
            progress_bar: bool = True) -> SampleResult:
@@ -109,7 +93,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
 
     def numpyro_model():
         vals = [numpyro.sample(k, pr) for k, pr in zip(keys, priors)]
-        theta = _theta(model, vals)
+        theta = model.theta_from(vals)
         numpyro.deterministic("loglike", -0.5 * jnp.sum(model.residuals(theta) ** 2))
         numpyro.sample("obs", numpyro.distributions.Normal(model.flux(theta), model.sigma), obs=model.y)
 
@@ -121,10 +105,10 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     flat = {k: np.asarray(v).reshape(-1) for k, v in raw.items()}
     # physical samples (inclinations from b)
     vals = np.stack([flat[k] for k in keys], axis=1)
-    phys = np.asarray(jax.vmap(lambda v: model.physical(_theta(model, v)))(jnp.asarray(vals)))
+    phys = np.asarray(jax.vmap(lambda v: model.physical(model.theta_from(v)))(jnp.asarray(vals)))
     samples = {n: phys[:, i] for i, n in enumerate(names)}
     best_i = int(np.argmax(flat["loglike"]))
-    best = model.to_system(_theta(model, jnp.asarray(vals[best_i])))
+    best = model.to_system(model.theta_from(jnp.asarray(vals[best_i])))
     intervals = {n: tuple(float(q) for q in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
     by_chain = {n: samples[n].reshape(num_chains, -1) for n in names}
     diag = summary(by_chain, prob=0.683)
