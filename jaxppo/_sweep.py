@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._flux import _exact_frames, _run_padded, _separate_frames
+from ._flux import one_disk_sum, overlap_frames
 from ._system import CASES, System
 
 __all__ = ["sweep", "SweepStats"]
@@ -82,9 +82,7 @@ def sweep(
     frames = np.nonzero(on.any(-1))[0]
     n_single = 0
     if frames.size:
-        xs = d[frames]
-        sep = _run_padded(_separate_frames, system.star, xs, np.zeros_like(xs), r0[frames], order, chunk)
-        base[frames] = np.asarray(sep)
+        base[frames] = one_disk_sum(system.star, d[frames], r0[frames], order, chunk)
         n_single = int(on.sum())
     out = np.broadcast_to(base, (n_c, n_a, n_t)).copy()
 
@@ -119,7 +117,7 @@ def sweep(
         Y[:, tilted] = y0[ti, tilted]
         X[:, tilted] = xt[ai, ti]
         Y[:, tilted] = yt[ai, ti]
-        vals = _run_padded(_exact_frames, system.star, X, Y, r0[ti], order, chunk)
+        vals = overlap_frames(system.star, X, Y, r0[ti], order, chunk)
         out[ci, ai, ti] = np.asarray(vals)
         n_union += ai.size
     stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=n_union)

@@ -45,7 +45,9 @@ def test_chunking_gives_same_numbers(grid):
     system, t, alpha = grid
     a = jp.sweep(system, t, alpha)
     b = jp.sweep(system, t, alpha, chunk=7)
-    np.testing.assert_array_equal(a, b)
+    # the same numbers up to the last bit that XLA's code for another batch
+    # size may round differently
+    np.testing.assert_allclose(a, b, rtol=0, atol=4e-16)
 
 
 def test_sharded_equals_unsharded(grid, tmp_path):
