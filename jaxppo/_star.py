@@ -27,7 +27,10 @@ def _check_finite(name: str, value) -> None:
 
 
 def _sqrt_poly_design(mu: np.ndarray, degree: int) -> np.ndarray:
-    return np.sqrt(mu)[:, None] ** np.arange(degree + 1)[None, :]
+    """Chebyshev design matrix in x = 2 sqrt(mu) - 1 (well conditioned)."""
+    from numpy.polynomial import chebyshev as C
+
+    return C.chebvander(2.0 * np.sqrt(mu) - 1.0, degree)
 
 
 def _choose_degree(mu: np.ndarray, inten: np.ndarray, max_degree: int, rtol: float) -> int:
@@ -76,6 +79,7 @@ class Star(eqx.Module):
     interpolation: str = eqx.field(static=True, default="")
     degree: int = eqx.field(static=True, default=0)
     fit_matrix: Array | None = None
+    q_matrix: Array | None = None
     table_residual: float = eqx.field(static=True, default=0.0)
     surface: object = eqx.field(static=True, default=None)
 
@@ -147,12 +151,12 @@ class Star(eqx.Module):
             mu_np, i_np = np.concatenate([mu_np, [1.0]]), np.concatenate([i_np, [i_np[-1]]])
         if interpolation == "sqrt-poly":
             deg = _choose_degree(mu_np, i_np, max_degree, rtol)
-            design = _sqrt_poly_design(mu_np, deg)
-            fit = np.linalg.pinv(design)
-            resid = float(np.max(np.abs(design @ (fit @ i_np) - i_np)))
+            fit, qmap = _I.sqrt_cheb_operators(mu_np, deg)
+            resid = float(np.max(np.abs(_sqrt_poly_design(mu_np, deg) @ (fit @ i_np) - i_np)))
             return cls(
                 law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
-                interpolation=interpolation, degree=deg, fit_matrix=jnp.asarray(fit), table_residual=resid,
+                interpolation=interpolation, degree=deg, fit_matrix=jnp.asarray(fit),
+                q_matrix=jnp.asarray(qmap), table_residual=resid,
             )
         return cls(
             law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
@@ -182,9 +186,6 @@ class Star(eqx.Module):
             return jnp.stack([1.0 - u1 - u2, u1 + 2.0 * u2, -u2]), (0, 2, 4)
         if self.law == "nonlinear":
             return jnp.concatenate([jnp.reshape(1.0 - jnp.sum(p), (1,)), p]), (0, 1, 2, 3, 4)
-        if self.law == "tabulated" and self.interpolation == "sqrt-poly":
-            a = self.fit_matrix @ p
-            return a, tuple(range(self.degree + 1))
         return None
 
     def _power(self) -> tuple[Array, Array]:
@@ -204,6 +205,9 @@ class Star(eqx.Module):
             return _I.power_basis_intensity(mu, a, jnp.asarray(twice_e, float) / 2.0)
         if self.law == "power2":
             return _I.power_basis_intensity(mu, *self._power())
+        if self.interpolation == "sqrt-poly":
+            m = jnp.clip(jnp.asarray(mu), 0.0, 1.0)
+            return _I.cheb_eval(2.0 * jnp.sqrt(m) - 1.0, self.fit_matrix @ self.params)
         mu_nodes, b, _ = self._table()
         return _I.table_intensity(mu, mu_nodes, b)
 
@@ -218,6 +222,9 @@ class Star(eqx.Module):
         if self.law == "power2":
             a, e = self._power()
             return (lambda s: _I.power_basis_g(s, a, e)), _I.power_basis_total(a, e) / (2 * jnp.pi)
+        if self.interpolation == "sqrt-poly":
+            qc = self.q_matrix @ self.params
+            return (lambda s: _I.cheb_g(s, qc)), _I.cheb_g(jnp.ones((), qc.dtype), qc)
         mu_nodes, b, phin = self._table()
         return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
 

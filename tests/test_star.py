@@ -119,3 +119,20 @@ def test_unknown_law():
         jp.Star.from_law("quadratic", [0.1])
     with pytest.raises(ValueError, match="alpha must be > 0"):
         jp.Star.power2(0.5, -1.0)
+
+
+def test_sqrt_poly_table_in_float32():
+    """A high-degree table (a power-2 profile, not in the sqrt(mu) basis) is
+    fitted and evaluated in a Chebyshev basis: float32 stays accurate."""
+    import jax.numpy as jnp
+
+    truth = jp.Star.power2(0.72, 0.78)
+    mu = np.sort(np.concatenate([[0.0], np.cos(np.linspace(0, np.pi / 2, 78))[:-1]]))
+    mu[-1] = 1.0
+    tab = jp.Star.tabulated(mu, np.asarray(truth.intensity(mu)))
+    assert tab.degree >= 8
+    x, y, r = np.array([[0.3, 0.33], [0.95, 0.97]]), np.array([[0.1, 0.11], [0.1, 0.12]]), np.array([[0.05, 0.03], [0.05, 0.04]])
+    f64 = np.asarray(jp.occultation_flux(tab, x, y, r, method="exact"))
+    tab32 = jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, tab)
+    f32 = np.asarray(jp.occultation_flux(tab32, x.astype(np.float32), y.astype(np.float32), r.astype(np.float32), method="exact"), float)
+    assert np.max(np.abs(f32 - f64)) < 1e-6

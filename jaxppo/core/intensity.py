@@ -39,6 +39,9 @@ __all__ = [
     "table_total",
     "table_cumulative",
     "spline_coefficients",
+    "sqrt_cheb_operators",
+    "cheb_g",
+    "cheb_eval",
 ]
 
 
@@ -117,6 +120,57 @@ def halfint_g(s: ArrayLike, coef: Float[Array, " n"]) -> Array:
     for c in coef[-2::-1]:
         num = num * v + c
     return num / (((v + 1.0) * v + 1.0) * v + 1.0)
+
+
+# --------------------------------------------------------------------------
+# Smooth tables in a Chebyshev basis of v = mu**(1/2): well conditioned in
+# float32 as in float64.
+# --------------------------------------------------------------------------
+def sqrt_cheb_operators(mu: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Linear maps (float64, numpy) from table values to Chebyshev
+    coefficients (in x = 2 v - 1, v = mu**(1/2)) of
+
+    * the least-squares fit I(v) of degree ``degree`` (``fit``), and
+    * Q(v) = (H(1) - H(v)) / (1 - v), H(v) = 2 int_0^v t^3 I(t) dt
+      (``q``), so that g = Q(v) / (1 + v + v^2 + v^3).
+
+    The fit is solved in the Chebyshev basis (no Vandermonde in v), and the
+    product, integral and exact division act on Chebyshev series.
+    """
+    from numpy.polynomial import chebyshev as C
+
+    x = 2.0 * np.sqrt(mu) - 1.0
+    design = C.chebvander(x, degree)
+    fit = np.linalg.pinv(design)  # [degree + 1, n]
+    t3 = C.poly2cheb([1 / 8, 3 / 8, 3 / 8, 1 / 8])  # v^3 = ((x + 1) / 2)^3
+    cols = []
+    for j in range(degree + 1):
+        e = np.zeros(degree + 1)
+        e[j] = 1.0
+        h = C.chebint(C.chebmul(e, t3), lbnd=-1.0) * 2.0 * 0.5  # 2 int t^3 I dt, dt = dx / 2
+        num = C.chebsub([C.chebval(1.0, h)], h)  # H(1) - H(x), zero at x = 1
+        quo, rem = C.chebdiv(num, [0.5, -0.5])  # divide by 1 - v = (1 - x) / 2
+        cols.append(np.pad(quo, (0, degree + 4 - quo.size)))
+    q = np.stack(cols, axis=1) @ fit  # [degree + 4, n]
+    return fit, q
+
+
+def cheb_g(s: ArrayLike, qcheb: Float[Array, " n"]) -> Array:
+    """g(s) = Q(v) / (1 + v + v^2 + v^3) with Q given by Chebyshev
+    coefficients in x = 2 v - 1 (Clenshaw), v = (1 - s)**(1/4)."""
+    m2 = 1.0 - jnp.asarray(s)
+    inside = m2 > 0
+    v = jnp.where(inside, jnp.sqrt(jnp.sqrt(jnp.where(inside, m2, 1.0))), 0.0)
+    return cheb_eval(2.0 * v - 1.0, qcheb) / (((v + 1.0) * v + 1.0) * v + 1.0)
+
+
+def cheb_eval(x: Array, coef: Float[Array, " n"]) -> Array:
+    """Chebyshev series sum_j coef_j T_j(x) by Clenshaw's recurrence."""
+    b1 = jnp.zeros_like(x)
+    b2 = jnp.zeros_like(x)
+    for c in coef[:0:-1]:
+        b1, b2 = 2.0 * x * b1 - b2 + c, b1
+    return x * b1 - b2 + coef[0]
 
 
 # --------------------------------------------------------------------------
