@@ -19,7 +19,6 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
 from jaxppo._fit import Model  # noqa: E402

@@ -11,7 +11,6 @@ from pathlib import Path
 import jax
 
 jax.config.update("jax_enable_x64", True)
-import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
 from jaxppo._config import load_config  # noqa: E402

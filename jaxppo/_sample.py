@@ -82,7 +82,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     keys = [n.replace(".", "_") for n in names]
     # start at the given system (b in units of 1 + p for inclinations)
     start = {}
-    for key, (owner, par), pr in zip(keys, model.slots, priors):
+    for key, (owner, par) in zip(keys, model.slots):
         if owner == "star":
             start[key] = float(system.star.params[par])
         elif par == "inc":

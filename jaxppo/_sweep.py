@@ -24,12 +24,6 @@ class SweepStats(dict):
     frames that needed the union integral."""
 
 
-def _tilted_xy(x, y, alpha_deg):
-    a = np.deg2rad(np.asarray(alpha_deg, float))[:, None]
-    ca, sa = np.cos(a), np.sin(a)
-    return x[None, :] * ca + y[None, :] * sa, -x[None, :] * sa + y[None, :] * ca
-
-
 def sweep(
     system: System,
     t,
@@ -90,7 +84,9 @@ def sweep(
         stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=0)
         return (out, stats) if return_stats else out
     # Frames where some pair of disks on the star overlaps.
-    xt, yt = _tilted_xy(x0[:, tilted], y0[:, tilted], alpha)  # [alpha, time]
+    # the tilted planet at every alpha (the one place the tilt convention lives)
+    xa, ya, _ = system.positions(t[None, :], alpha[:, None], "same", xp=np)
+    xt, yt = xa[..., tilted], ya[..., tilted]  # [alpha, time]
     jobs = []  # (case index, alpha index, time index)
     for ci, case in enumerate(cases):
         sign = -1.0 if case == "opposite" else 1.0
