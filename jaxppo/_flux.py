@@ -11,7 +11,15 @@ from jaxtyping import Array, ArrayLike
 
 from ._star import Star
 from .core.geometry import float_dtype
-from .core.occult import INNER_MARGIN, disk_deficit, inner_disk_deficit, inner_pair_deficit, union_deficit
+from .core.occult import (
+    INNER_MARGIN,
+    LENS_RULES,
+    disk_deficit,
+    inner_disk_deficit,
+    lens_deficit,
+    lens_rho,
+    union_deficit,
+)
 
 __all__ = ["occultation_flux", "METHODS"]
 
@@ -77,22 +85,45 @@ def _inner_disk_terms(star: Star, d: Array, p: Array) -> Array:
     return inner_disk_deficit(d, p, g) / (2.0 * jnp.pi * phi1)
 
 
+@functools.partial(jax.jit, static_argnames=("order",))
+def _lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> tuple[Array, Array]:
+    """Relative flux of the lens of each crossing pair ([pair, 2] arrays) by
+    ``order`` Gauss-Legendre nodes per arc, and its convergence ``lens_rho``."""
+    g, phi1 = star.radial_kernel()
+    return lens_deficit(x, y, r, g, order) / (2.0 * jnp.pi * phi1), lens_rho(x, y, r)
+
+
+def _padded_calls(n: int, chunk: int):
+    """Split n frames into calls of a few fixed sizes, 1024 x 2^k <= chunk, so
+    that repeated calls reuse at most a handful of compiled programs and the
+    padding is below 1024 frames: yields (start, stop, padded size)."""
+    ndev = len(jax.devices())
+    top = max(1024, 1 << (max(chunk, 1).bit_length() - 1)) if chunk >= 1024 else max(chunk, 1)
+    start = 0
+    while start < n:
+        rest = n - start
+        size = top if top < 1024 else max(min(top, 1 << (rest.bit_length() - 1)), 1024)
+        stop = min(start + size, n)
+        yield start, stop, -(-size // ndev) * ndev
+        start = stop
+
+
 def one_disk_sum(star: Star, d: np.ndarray, r: np.ndarray, order: int, chunk: int) -> np.ndarray:
-    """1 - sum of one-disk deficits per frame ([frame, disk] host arrays): each
-    disk well inside the star (1 - d - p >= INNER_MARGIN p) takes the cheap
-    midpoint rule, every other disk on the star the general rule."""
+    """1 - sum of one-disk deficits per frame ([frame, disk] host arrays): for
+    a smooth profile each disk well inside the star (1 - d - p >= INNER_MARGIN p)
+    takes the cheap midpoint rule, every other disk on the star the general
+    rule."""
     d = np.asarray(d)
     r = np.asarray(r)
     flat_d, flat_r = d.reshape(-1), r.reshape(-1)
     terms = np.zeros(flat_d.size, d.dtype)
     on = (flat_r > 0) & (flat_d - flat_r < 1.0)
-    inner = on & (1.0 - flat_d - flat_r >= INNER_MARGIN * flat_r)
+    inner = on & (1.0 - flat_d - flat_r >= INNER_MARGIN * flat_r) & star.smooth
     rest = on & ~inner
     for mask, kernel in ((inner, lambda s, a, b, o: _inner_disk_terms(s, a, b)), (rest, _disk_terms)):
         idx = np.nonzero(mask)[0]
-        for start in range(0, idx.size, chunk):
-            sel = idx[start:start + chunk]
-            size = _bucket(sel.size)
+        for start, stop, size in _padded_calls(idx.size, chunk):
+            sel = idx[start:stop]
             a = np.zeros(size, d.dtype)
             b = np.zeros(size, d.dtype)
             a[: sel.size], b[: sel.size] = flat_d[sel], flat_r[sel]
@@ -100,36 +131,74 @@ def one_disk_sum(star: Star, d: np.ndarray, r: np.ndarray, order: int, chunk: in
     return 1.0 - terms.reshape(d.shape).sum(-1)
 
 
-@functools.partial(jax.jit, static_argnames=("order",))
-def _inner_pair_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
-    """Two overlapping disks, both well inside the star (inclusion-exclusion)."""
-    g, phi1 = star.radial_kernel()
-    return 1.0 - inner_pair_deficit(x, y, r, g) / (2.0 * jnp.pi * phi1)
+def plan_frames(x: np.ndarray, y: np.ndarray, r: np.ndarray):
+    """Which disks count and which pairs cross ([frame, disk] host arrays).
+
+    Returns ``(multiple, r_eff, pairs)``. A disk that lies off the star or
+    inside another disk adds nothing to the union: its radius in ``r_eff`` is
+    0 (of identical disks the first counts). ``pairs = (frame, i, j)`` lists
+    the crossing pairs of counting disks. Where each disk crosses at most one
+    other (``multiple`` False), the union is, exactly, the sum of the one-disk
+    terms minus the lenses of the crossing pairs; frames with a disk that
+    crosses two or more others need the union integral.
+    """
+    n, k = x.shape
+    d = np.hypot(x, y)
+    contained = np.zeros((n, k), bool)
+    for i in range(k):
+        for j in range(k):
+            if i != j:
+                dist = np.hypot(x[:, i] - x[:, j], y[:, i] - y[:, j])
+                inside = (r[:, j] > 0) & (dist + r[:, i] <= r[:, j])  # disk i in closed disk j
+                identical = inside & (dist + r[:, j] <= r[:, i])  # keep the first copy
+                contained[:, i] |= inside & (~identical | (j < i))
+    active = (r > 0) & (d - r < 1.0) & ~contained
+    crossings = np.zeros((n, k), int)
+    rows = [np.zeros(0, int)] * 3
+    for i in range(k):
+        for j in range(i + 1, k):
+            dist = np.hypot(x[:, i] - x[:, j], y[:, i] - y[:, j])
+            cross = active[:, i] & active[:, j] & (dist < r[:, i] + r[:, j])
+            crossings[:, i] += cross
+            crossings[:, j] += cross
+            f = np.nonzero(cross)[0]
+            rows = [np.concatenate([a, b]) for a, b in zip(rows, (f, np.full(f.size, i), np.full(f.size, j)))]
+    return np.any(crossings > 1, axis=1), np.where(active, r, 0.0), tuple(rows)
 
 
-def overlap_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: int, chunk: int) -> np.ndarray:
-    """Flux of frames in which disks overlap ([frame, disk] host arrays): pairs
-    of disks well inside the star (1 - d - p >= INNER_MARGIN p) take the
-    inclusion-exclusion kernel, everything else the general union integral."""
-    out = np.empty(x.shape[0], x.dtype)
-    inner = np.zeros(x.shape[0], bool)
-    if x.shape[1] == 2:
-        d = np.hypot(x, y)
-        inner = np.all((r > 0) & (1.0 - d - r >= INNER_MARGIN * r), axis=1)
-    for mask, fn in ((inner, _inner_pair_frames), (~inner, _exact_frames)):
-        idx = np.nonzero(mask)[0]
-        if idx.size:
-            out[idx] = _run_padded(fn, star, x[idx], y[idx], r[idx], order, chunk)
+def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: int, chunk: int) -> np.ndarray:
+    """Relative flux of frames ([frame, disk] host arrays) modelling no more
+    than each needs: one-disk terms, the lens of each crossing pair where its
+    Gauss-Legendre rule converges (``lens_rho``; LENS_RULES from the core),
+    and the union integral only for the frames left."""
+    general, r_eff, (f, i, j) = plan_frames(x, y, r)
+    out = np.ones(x.shape[0], x.dtype)
+    if f.size and not star.smooth:
+        general[f] = True  # kinked tables: the union integral, as "exact"
+    elif f.size:
+        pair = tuple(np.stack([v[f, i], v[f, j]], 1) for v in (x, y, r))
+        lens = np.zeros(f.size, x.dtype)
+        todo = np.ones(f.size, bool)
+        for nodes, rho_min in LENS_RULES:
+            sel = np.nonzero(todo)[0]
+            if not sel.size:
+                break
+            val, rho = _run_padded(
+                lambda s, a, b, c, o: _lens_terms(s, a, b, c, o), star, *(v[sel] for v in pair), nodes, chunk
+            )
+            ok = rho >= rho_min
+            lens[sel[ok]] = val[ok]
+            todo[sel[ok]] = False
+        general[f[todo]] = True
+        keep = ~general[f]
+        np.add.at(out, f[keep], lens[keep])
+    cheap = np.nonzero(~general & np.any(r_eff > 0, axis=1))[0]
+    if cheap.size:
+        out[cheap] += one_disk_sum(star, np.hypot(x[cheap], y[cheap]), r_eff[cheap], order, chunk) - 1.0
+    idx = np.nonzero(general)[0]
+    if idx.size:
+        out[idx] = _run_padded(_exact_frames, star, x[idx], y[idx], r[idx], order, chunk)
     return out
-
-
-def _bucket(n: int) -> int:
-    """Pad batch sizes to a few shapes (1024 x 4^k) so that repeated calls
-    reuse compilations: at most a handful of programs per kernel."""
-    size = 1024
-    while size < n:
-        size *= 4
-    return size
 
 
 def _shard(arrays):
@@ -145,22 +214,19 @@ def _shard(arrays):
 
 
 def _run_padded(fn, star, x, y, r, order, chunk: int):
-    """Run a frame kernel over [frame, disk] arrays in chunks of at most
-    ``chunk`` frames, padded to a few bucket sizes (so repeated calls reuse
-    compilations) and to a multiple of the device count, sharded over devices."""
+    """Run a frame kernel over [frame, disk] arrays in calls of a few fixed
+    sizes (``_padded_calls``: so repeated calls reuse compilations), padded to
+    a multiple of the device count and sharded over devices."""
     n = x.shape[0]
     if n == 0:
         return jnp.zeros(0, x.dtype)
-    ndev = len(jax.devices())
     concrete = _is_concrete(x, y, r, *jax.tree_util.tree_leaves(star))
     x, y, r = (np.asarray(v) for v in (x, y, r)) if concrete else (x, y, r)
     xp = np if concrete else jnp
     outs = []
-    for start in range(0, n, chunk):
-        xs, ys, rs = x[start:start + chunk], y[start:start + chunk], r[start:start + chunk]
-        m = xs.shape[0]
-        size = min(_bucket(m), chunk) if m <= chunk else m
-        size = -(-size // ndev) * ndev
+    for start, stop, size in _padded_calls(n, chunk):
+        xs, ys, rs = x[start:stop], y[start:stop], r[start:stop]
+        m = stop - start
         pad = size - m
         if pad:
             # Padding frames: disks far off the star cost nothing and are dropped.
@@ -169,25 +235,10 @@ def _run_padded(fn, star, x, y, r, order, chunk: int):
             ys = xp.concatenate([ys, xp.zeros((pad, kk), ys.dtype)], 0)
             rs = xp.concatenate([rs, xp.full((pad, kk), 0.1, rs.dtype)], 0)
         xs, ys, rs = _shard(tuple(jnp.asarray(v) for v in (xs, ys, rs)))
-        outs.append(np.asarray(fn(star, xs, ys, rs, order))[:m] if concrete else fn(star, xs, ys, rs, order)[:m])
-    return np.concatenate(outs) if concrete else jnp.concatenate(outs)
-
-
-def scene_classes(x: np.ndarray, y: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame: (any disk on the star, any two disks on the star overlapping).
-
-    Tangent disks (distance = sum of radii) do not overlap: their union has the
-    area of the sum, so the one-disk sum is exact for them.
-    """
-    d = np.hypot(x, y)
-    on = (d - r < 1.0) & (r > 0)
-    k = x.shape[-1]
-    overlap = np.zeros(x.shape[:-1], dtype=bool)
-    for i in range(k):
-        for j in range(i + 1, k):
-            dist = np.hypot(x[..., i] - x[..., j], y[..., i] - y[..., j])
-            overlap |= on[..., i] & on[..., j] & (dist < r[..., i] + r[..., j])
-    return on.any(-1), overlap
+        res = fn(star, xs, ys, rs, order)
+        outs.append(jax.tree_util.tree_map(lambda v: np.asarray(v)[:m] if concrete else v[:m], res))
+    cat = np.concatenate if concrete else jnp.concatenate
+    return jax.tree_util.tree_map(lambda *v: cat(v), *outs)
 
 
 def occultation_flux(
@@ -210,9 +261,15 @@ def occultation_flux(
         method: ``"exact"`` integrates the union of the disks exactly (Green's
             theorem, ``jaxppo.core.occult``); ``"auto"`` (default) models no
             more than each frame needs: frames with no disk on the star cost
-            nothing, frames whose disks do not overlap use one-disk terms, and
-            only frames with overlapping disks run the union integral. It
-            equals ``"exact"`` to rounding. Under ``jit``/``grad`` (traced
+            nothing; disks off the star or inside another disk are dropped;
+            where each disk crosses at most one other, the flux is the sum of
+            one-disk terms minus the lens of each crossing pair (a midpoint
+            rule for disks well inside the star, Gauss-Legendre on lenses
+            where ``lens_rho`` says it converges); only the remaining frames
+            (three disks meeting, lenses at the limb) run the union integral.
+            Its error is the same as ``"exact"``'s (both ~4e-12 at worst,
+            measured). Piecewise-table stars take the union integral for every
+            overlap. Under ``jit``/``grad`` (traced
             inputs) ``"auto"`` evaluates the union integral for every frame.
             ``"raster"`` is the pixel-grid method.
         order: Gauss-Legendre nodes per arc piece (24: worst measured error
@@ -250,13 +307,4 @@ def occultation_flux(
             return jnp.asarray(_run_padded(_exact_frames, star, xf, yf, rf, order, chunk).reshape(lead))
         return _exact_frames(star, xf, yf, rf, order).reshape(lead)
     xf, yf, rf = (np.asarray(v) for v in (xf, yf, rf))
-    any_on, overlap = scene_classes(xf, yf, rf)
-    out = np.ones(xf.shape[0], xf.dtype)
-    single = np.nonzero(any_on & ~overlap)[0]
-    multi = np.nonzero(overlap)[0]
-    if single.size:
-        out[single] = one_disk_sum(star, np.hypot(xf[single], yf[single]), rf[single], order, chunk)
-    if multi.size:
-        out[multi] = overlap_frames(star, xf[multi], yf[multi], rf[multi], order, chunk)
-    return jnp.asarray(out.reshape(lead))
-
+    return jnp.asarray(auto_frames(star, xf, yf, rf, order, chunk).reshape(lead))

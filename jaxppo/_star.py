@@ -234,6 +234,13 @@ class Star(eqx.Module):
         return 2.0 * jnp.pi * self.radial_kernel()[1]
 
     @property
+    def smooth(self) -> bool:
+        """I(mu) analytic on the open disk (every law, and sqrt-poly tables);
+        False for piecewise "linear" and "cubic" tables, whose kinks the fast
+        quadrature rules of ``"auto"`` would not resolve."""
+        return not (self.law == "tabulated" and self.interpolation in ("linear", "cubic"))
+
+    @property
     def symmetric(self) -> bool:
         """Radially symmetric (no surface map)."""
         return self.surface is None

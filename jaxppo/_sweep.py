@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._flux import one_disk_sum, overlap_frames
+from ._flux import auto_frames, one_disk_sum
 from ._system import CASES, System
 
 __all__ = ["sweep", "SweepStats"]
@@ -113,7 +113,7 @@ def sweep(
         Y[:, tilted] = y0[ti, tilted]
         X[:, tilted] = xt[ai, ti]
         Y[:, tilted] = yt[ai, ti]
-        vals = overlap_frames(system.star, X, Y, r0[ti], order, chunk)
+        vals = auto_frames(system.star, X, Y, r0[ti], order, chunk)
         out[ci, ai, ti] = np.asarray(vals)
         n_union += ai.size
     stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=n_union)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
-__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "circle_intersection_angles"]
+__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "circle_intersection_angles"]
 
 
 def float_dtype(*arrays):
@@ -38,6 +38,13 @@ def safe_atan2(y: ArrayLike, x: ArrayLike) -> Array:
     y, x = jnp.asarray(y), jnp.asarray(x)
     zero = (x == 0) & (y == 0)
     return jnp.where(zero, 0.0, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
+
+
+def heron_product(p: ArrayLike, delta: ArrayLike, q: ArrayLike) -> Array:
+    """16 x (area of the triangle with sides p, delta, q)^2 in Kahan's
+    ordering: positive exactly when two circles of radii p and q whose centres
+    are delta apart cross (see ``_heron``)."""
+    return _heron(jnp.asarray(p), jnp.asarray(delta), jnp.asarray(q))[0]
 
 
 def _heron(p: Array, delta: Array, q: Array) -> tuple[Array, Array]:
