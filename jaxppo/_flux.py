@@ -86,11 +86,22 @@ def _inner_disk_terms(star: Star, d: Array, p: Array) -> Array:
 
 
 @functools.partial(jax.jit, static_argnames=("order",))
-def _lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> tuple[Array, Array]:
-    """Relative flux of the lens of each crossing pair ([pair, 2] arrays) by
-    ``order`` Gauss-Legendre nodes per arc, and its convergence ``lens_rho``."""
+def _lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
+    """Relative flux of the lens of each crossing pair ([pair, 2] arrays),
+    ``order`` Gauss-Legendre nodes per arc."""
     g, phi1 = star.radial_kernel()
-    return lens_deficit(x, y, r, g, order) / (2.0 * jnp.pi * phi1), lens_rho(x, y, r)
+    return lens_deficit(x, y, r, g, order) / (2.0 * jnp.pi * phi1)
+
+
+_lens_rho = jax.jit(lens_rho)
+
+
+def _gather_pairs(arrays, fp: np.ndarray, pp: np.ndarray, k: int):
+    """[pair, 2] arrays of the disks of crossing pairs (frame fp, pair pp)."""
+    if k == 2:  # one pair per frame: rows, and no copy when every frame has it
+        return tuple(v if fp.size == v.shape[0] else v[fp] for v in arrays)
+    ij = _pairs(k)[pp]
+    return tuple(np.take_along_axis(v[fp], ij, 1) for v in arrays)
 
 
 def _padded_calls(n: int, chunk: int):
@@ -131,74 +142,113 @@ def one_disk_sum(star: Star, d: np.ndarray, r: np.ndarray, order: int, chunk: in
     return 1.0 - terms.reshape(d.shape).sum(-1)
 
 
-def plan_frames(x: np.ndarray, y: np.ndarray, r: np.ndarray):
-    """Which disks count and which pairs cross ([frame, disk] host arrays).
+@functools.lru_cache(maxsize=None)
+def _pairs(k: int) -> np.ndarray:
+    """The unordered pairs (i < j) of k disks, [pair, 2]."""
+    return np.array([(i, j) for i in range(k) for j in range(i + 1, k)], int).reshape(-1, 2)
 
-    Returns ``(multiple, r_eff, pairs)``. A disk that lies off the star or
-    inside another disk adds nothing to the union: its radius in ``r_eff`` is
-    0 (of identical disks the first counts). ``pairs = (frame, i, j)`` lists
-    the crossing pairs of counting disks. Where each disk crosses at most one
-    other (``multiple`` False), the union is, exactly, the sum of the one-disk
-    terms minus the lenses of the crossing pairs; frames with a disk that
-    crosses two or more others need the union integral.
+
+@jax.jit
+def _survey(star: Star, x: Array, y: Array, r: Array) -> tuple[Array, Array, Array, Array, Array]:
+    """One pass over [frame, disk] arrays that decides how each frame is
+    modelled, and does the cheapest part of it.
+
+    A disk that lies off the star or inside another disk adds nothing to the
+    union and does not count (of identical disks the first counts). Where
+    each counting disk crosses at most one other, the union is, exactly, the
+    sum of the one-disk terms minus the lens of each crossing pair.
+
+    Returns ``(multiple, counts, inner, inner_sum, cross)``: frames with a
+    disk crossing two or more others (they need the union integral); the
+    counting disks; those well inside the star (1 - d - p >= INNER_MARGIN p,
+    smooth profiles only), whose relative deficits, by the midpoint rule,
+    are summed in ``inner_sum``; and the crossing pairs [frame, pair] in
+    ``_pairs(k)`` order.
     """
-    n, k = x.shape
-    d = np.hypot(x, y)
-    contained = np.zeros((n, k), bool)
-    for i in range(k):
-        for j in range(k):
-            if i != j:
-                dist = np.hypot(x[:, i] - x[:, j], y[:, i] - y[:, j])
-                inside = (r[:, j] > 0) & (dist + r[:, i] <= r[:, j])  # disk i in closed disk j
-                identical = inside & (dist + r[:, j] <= r[:, i])  # keep the first copy
-                contained[:, i] |= inside & (~identical | (j < i))
-    active = (r > 0) & (d - r < 1.0) & ~contained
-    crossings = np.zeros((n, k), int)
-    rows = [np.zeros(0, int)] * 3
-    for i in range(k):
-        for j in range(i + 1, k):
-            dist = np.hypot(x[:, i] - x[:, j], y[:, i] - y[:, j])
-            cross = active[:, i] & active[:, j] & (dist < r[:, i] + r[:, j])
-            crossings[:, i] += cross
-            crossings[:, j] += cross
-            f = np.nonzero(cross)[0]
-            rows = [np.concatenate([a, b]) for a, b in zip(rows, (f, np.full(f.size, i), np.full(f.size, j)))]
-    return np.any(crossings > 1, axis=1), np.where(active, r, 0.0), tuple(rows)
+    k = x.shape[-1]
+    d = jnp.hypot(x, y)
+    counts = [(r[..., i] > 0) & (d[..., i] - r[..., i] < 1.0) for i in range(k)]
+    dist = {}
+    for i, j in _pairs(k):
+        dist[i, j] = jnp.hypot(x[..., i] - x[..., j], y[..., i] - y[..., j])
+        i_in_j = (r[..., j] > 0) & (dist[i, j] + r[..., i] <= r[..., j])  # disk i in closed disk j
+        j_in_i = (r[..., i] > 0) & (dist[i, j] + r[..., j] <= r[..., i])
+        counts[i] = counts[i] & ~(i_in_j & ~j_in_i)
+        counts[j] = counts[j] & ~j_in_i
+    crossings = [jnp.zeros(x.shape[:-1], jnp.int32) for _ in range(k)]
+    cross = []
+    for i, j in _pairs(k):
+        cij = counts[i] & counts[j] & (dist[i, j] < r[..., i] + r[..., j])
+        crossings[i] = crossings[i] + cij
+        crossings[j] = crossings[j] + cij
+        cross.append(cij)
+    counts = jnp.stack(counts, -1)
+    multiple = jnp.any(jnp.stack(crossings, -1) > 1, axis=-1)
+    inner = counts & (1.0 - d - r >= INNER_MARGIN * r) & star.smooth
+    g, phi1 = star.radial_kernel()
+    terms = inner_disk_deficit(d, jnp.where(inner, r, 0.0), g) / (2.0 * jnp.pi * phi1)
+    inner_sum = jnp.sum(jnp.where(inner, terms, 0.0), axis=-1)
+    cross = jnp.stack(cross, -1) if cross else jnp.zeros(x.shape[:-1] + (0,), bool)
+    return multiple, counts, inner, inner_sum, cross
+
+
+_lens_rho = jax.jit(lens_rho)
+
+
+def _gather_pairs(arrays, fp: np.ndarray, pp: np.ndarray, k: int):
+    """[pair, 2] arrays of the disks of crossing pairs (frame fp, pair pp)."""
+    if k == 2:  # one pair per frame: rows, and no copy when every frame has it
+        return tuple(v if fp.size == v.shape[0] else v[fp] for v in arrays)
+    ij = _pairs(k)[pp]
+    return tuple(np.take_along_axis(v[fp], ij, 1) for v in arrays)
 
 
 def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: int, chunk: int) -> np.ndarray:
     """Relative flux of frames ([frame, disk] host arrays) modelling no more
-    than each needs: one-disk terms, the lens of each crossing pair where its
-    Gauss-Legendre rule converges (``lens_rho``; LENS_RULES from the core),
-    and the union integral only for the frames left."""
-    general, r_eff, (f, i, j) = plan_frames(x, y, r)
-    out = np.ones(x.shape[0], x.dtype)
-    if f.size and not star.smooth:
-        general[f] = True  # kinked tables: the union integral, as "exact"
-    elif f.size:
-        pair = tuple(np.stack([v[f, i], v[f, j]], 1) for v in (x, y, r))
-        lens = np.zeros(f.size, x.dtype)
-        todo = np.ones(f.size, bool)
-        for nodes, rho_min in LENS_RULES:
-            sel = np.nonzero(todo)[0]
-            if not sel.size:
-                break
-            val, rho = _run_padded(
-                lambda s, a, b, c, o: _lens_terms(s, a, b, c, o), star, *(v[sel] for v in pair), nodes, chunk
-            )
-            ok = rho >= rho_min
-            lens[sel[ok]] = val[ok]
-            todo[sel[ok]] = False
-        general[f[todo]] = True
-        keep = ~general[f]
-        np.add.at(out, f[keep], lens[keep])
-    cheap = np.nonzero(~general & np.any(r_eff > 0, axis=1))[0]
-    if cheap.size:
-        out[cheap] += one_disk_sum(star, np.hypot(x[cheap], y[cheap]), r_eff[cheap], order, chunk) - 1.0
+    than each needs (``_survey``): one-disk terms (the midpoint rule well
+    inside the star, the general rule elsewhere), the lens of each crossing
+    pair by the fewest Gauss-Legendre nodes that converge at its ``lens_rho``
+    (LENS_RULES), and the union integral only for the frames left: a disk
+    crossing two others, a lens at the limb, or any overlap on a star with a
+    piecewise (kinked) table."""
+    survey = _run_padded(lambda s, a, b, c, o: _survey(s, a, b, c), star, x, y, r, 0, chunk)
+    multiple, counts, inner, inner_sum, cross = survey
+    n, k = x.shape
+    general = multiple.astype(bool)
+    out = 1.0 - inner_sum
+    fp, pp = np.nonzero(cross)
+    if fp.size and not star.smooth:
+        general[fp] = True
+    elif fp.size:
+        pair = _gather_pairs((x, y, r), fp, pp, k)
+        rho = _run_padded(lambda s, a, b, c, o: _lens_rho(a, b, c), None, *pair, 0, chunk)
+        # the fewest nodes whose rule converges at this rho; -1: none does
+        tier = np.select([rho >= rho_min for _, rho_min in LENS_RULES], list(range(len(LENS_RULES))), -1)
+        general[fp[tier < 0]] = True
+        # one gather puts the pairs of each tier next to each other
+        order_ = np.argsort(tier, kind="stable")
+        edges = np.searchsorted(tier[order_], np.arange(-1, len(LENS_RULES) + 1))
+        pair = tuple(v[order_] for v in pair)
+        lens = np.zeros(fp.size, x.dtype)
+        for t, (nodes, _) in enumerate(LENS_RULES):
+            lo, hi = edges[t + 1], edges[t + 2]
+            if hi > lo:
+                lens[lo:hi] = _run_padded(_lens_terms, star, *(v[lo:hi] for v in pair), nodes, chunk)
+        out += np.bincount(fp[order_], weights=lens, minlength=n)
+    # counting disks outside the midpoint rule's domain: the general one-disk rule
+    fd, kd = np.nonzero(counts & ~inner & ~general[:, None])
+    if fd.size:
+        out -= np.bincount(fd, weights=_disk_rule(star, np.hypot(x[fd, kd], y[fd, kd]), r[fd, kd], order, chunk), minlength=n)
     idx = np.nonzero(general)[0]
     if idx.size:
         out[idx] = _run_padded(_exact_frames, star, x[idx], y[idx], r[idx], order, chunk)
     return out
+
+
+def _disk_rule(star: Star, d: np.ndarray, p: np.ndarray, order: int, chunk: int) -> np.ndarray:
+    """Relative deficits of single disks by the general one-disk rule."""
+    col = d[:, None]
+    return _run_padded(lambda s, a, b, c, o: _disk_terms(s, a[:, 0], c[:, 0], o), star, col, col, p[:, None], order, chunk)
 
 
 def _shard(arrays):

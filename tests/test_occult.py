@@ -309,7 +309,7 @@ def test_auto_plan_scenes():
     and lenses where each disk crosses at most one other, and sends the rest
     (a disk crossing two others, lenses at the limb) to the union integral:
     every scene class against the union integral at 96 nodes."""
-    from jaxppo._flux import plan_frames
+    from jaxppo._flux import _survey
 
     star = STARS["nonlinear"]
     rows = [
@@ -323,10 +323,12 @@ def test_auto_plan_scenes():
         ([0.3, 0.3 + 0.14, 0.0], [0.0, 0.0, 0.0], [0.07, 0.07, 0.0]),  # tangent from outside
     ]
     x, y, r = (np.array([row[i] for row in rows]) for i in range(3))
-    multiple, r_eff, (f, i, j) = plan_frames(x, y, r)
+    multiple, counts, inner, inner_sum, cross = (np.asarray(v) for v in _survey(star, x, y, r))
     assert list(multiple) == [False, False, False, True, False, False, False, False]
-    assert r_eff[0, 2] == 0.0 and r_eff[1, 1] == 0.0 and r_eff[2, 1] == r_eff[2, 2] == 0.0 and r_eff[2, 0] > 0
-    assert sorted(f.tolist()) == [0, 3, 3, 3, 4, 5]
+    assert not counts[0, 2] and not counts[1, 1] and counts[2].tolist() == [True, False, False]
+    assert counts[6].tolist() == [True, False, False]  # the disk inside the one covering the star
+    assert sorted(np.nonzero(cross)[0].tolist()) == [0, 3, 3, 3, 4, 5]
+    assert not inner[5, 0] and inner[4].all()
     got = np.asarray(jp.occultation_flux(star, x, y, r))
     ref = np.asarray(jp.occultation_flux(star, x, y, r, method="exact", order=96))
     assert np.max(np.abs(got - ref)) < 1e-13

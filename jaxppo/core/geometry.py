@@ -8,10 +8,12 @@ gradients.
 
 from __future__ import annotations
 
+from math import factorial
+
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
-__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "circle_intersection_angles"]
+__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "circle_intersection_angles", "cos_sin"]
 
 
 def float_dtype(*arrays):
@@ -92,3 +94,23 @@ def circle_intersection_angles(
     )
     inside = ~crosses & q_largest
     return base, half, crosses, inside
+
+
+_COS = tuple((-1) ** k / factorial(2 * k) for k in range(14))
+_SIN = tuple((-1) ** k / factorial(2 * k + 1) for k in range(14))
+
+
+def cos_sin(x: ArrayLike) -> tuple[Array, Array]:
+    """(cos x, sin x) for |x| <= pi by their Taylor polynomials of degree 26
+    and 27 in Horner form: absolute error <= 1.3e-15 (measured against numpy
+    in tests/test_geometry.py), a few multiply-adds, several times cheaper
+    than XLA's CPU cos and sin. The quadrature kernels need them at nodes
+    along arcs of at most pi and rotate by the arc's start angle."""
+    x = jnp.asarray(x)
+    z = x * x
+    c = jnp.full_like(x, _COS[-1])
+    s = jnp.full_like(x, _SIN[-1])
+    for a, b in zip(_COS[-2::-1], _SIN[-2::-1]):
+        c = c * z + a
+        s = s * z + b
+    return c, s * x
