@@ -68,6 +68,14 @@ def main() -> None:
         print(f"{'overlapping pair (auto), ' + name:50s} {t / n * 1e6:9.3f}")
         t = best_of(lambda: _exact_frames(star, X, Y, R, 24).block_until_ready())
         print(f"{'overlapping pair (general union only), ' + name:50s} {t / n * 1e6:9.3f}")
+    # which path "auto" takes for the pair frames
+    from jaxppo._flux import _lens_rho
+    from jaxppo.core.occult import LENS_RULES
+
+    rho = np.asarray(_lens_rho(X, Y, R))
+    tiers = [f"{nodes} nodes {np.mean(np.select([rho >= m for _, m in LENS_RULES], list(range(len(LENS_RULES))), -1) == t):.1%}"
+             for t, (nodes, _) in enumerate(LENS_RULES)]
+    print(f"pair frames by path: lens with {', '.join(tiers)}; union integral {np.mean(rho < LENS_RULES[-1][1]):.1%}")
     try:
         from batman import _quadratic_ld
 

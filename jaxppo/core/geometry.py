@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from math import factorial
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
@@ -100,6 +101,7 @@ _COS = tuple((-1) ** k / factorial(2 * k) for k in range(14))
 _SIN = tuple((-1) ** k / factorial(2 * k + 1) for k in range(14))
 
 
+@jax.custom_jvp
 def cos_sin(x: ArrayLike) -> tuple[Array, Array]:
     """(cos x, sin x) for |x| <= pi by their Taylor polynomials of degree 26
     and 27 in Horner form: absolute error <= 1.3e-15 (measured against numpy
@@ -114,3 +116,11 @@ def cos_sin(x: ArrayLike) -> tuple[Array, Array]:
         c = c * z + a
         s = s * z + b
     return c, s * x
+
+
+@cos_sin.defjvp
+def _cos_sin_jvp(primals, tangents):
+    # d(cos, sin) = (-sin, cos) dx: no differentiation through the Horner chain
+    (x,), (dx,) = primals, tangents
+    c, s = cos_sin(x)
+    return (c, s), (-s * dx, c * dx)
