@@ -95,6 +95,11 @@ def _lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
 
 _lens_rho = jax.jit(lens_rho)
 
+# Below this many crossing pairs in one call, "auto" integrates their frames
+# by the union integral: compiling the lens kernels (~1 s on the CPU, once per
+# process and batch size) would cost more than they save (~2.5 us per pair).
+LENS_MIN_PAIRS = 2048
+
 
 def _gather_pairs(arrays, fp: np.ndarray, pp: np.ndarray, k: int):
     """[pair, 2] arrays of the disks of crossing pairs (frame fp, pair pp)."""
@@ -194,6 +199,11 @@ def _survey(star: Star, x: Array, y: Array, r: Array) -> tuple[Array, Array, Arr
 
 _lens_rho = jax.jit(lens_rho)
 
+# Below this many crossing pairs in one call, "auto" integrates their frames
+# by the union integral: compiling the lens kernels (~1 s on the CPU, once per
+# process and batch size) would cost more than they save (~2.5 us per pair).
+LENS_MIN_PAIRS = 2048
+
 
 def _gather_pairs(arrays, fp: np.ndarray, pp: np.ndarray, k: int):
     """[pair, 2] arrays of the disks of crossing pairs (frame fp, pair pp)."""
@@ -210,14 +220,15 @@ def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: 
     pair by the fewest Gauss-Legendre nodes that converge at its ``lens_rho``
     (LENS_RULES), and the union integral only for the frames left: a disk
     crossing two others, a lens at the limb, or any overlap on a star with a
-    piecewise (kinked) table."""
+    piecewise (kinked) table. Calls with fewer than LENS_MIN_PAIRS crossing
+    pairs send those frames to the union integral as well (compilation)."""
     survey = _run_padded(lambda s, a, b, c, o: _survey(s, a, b, c), star, x, y, r, 0, chunk)
     multiple, counts, inner, inner_sum, cross = survey
     n, k = x.shape
     general = multiple.astype(bool)
     out = 1.0 - inner_sum
     fp, pp = np.nonzero(cross)
-    if fp.size and not star.smooth:
+    if fp.size and (not star.smooth or fp.size < LENS_MIN_PAIRS):
         general[fp] = True
     elif fp.size:
         pair = _gather_pairs((x, y, r), fp, pp, k)

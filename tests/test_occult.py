@@ -25,6 +25,16 @@ STARS = {
 TOL64 = 1e-10
 
 
+@pytest.fixture(autouse=True)
+def _lens_path_on_every_batch(monkeypatch):
+    """By default "auto" sends calls with few crossing pairs to the union
+    integral (cheaper to compile); here its lens path runs on every batch, so
+    the single-configuration checks below test it too."""
+    import jaxppo._flux
+
+    monkeypatch.setattr(jaxppo._flux, "LENS_MIN_PAIRS", 0)
+
+
 def _intensity_r(star):
     def f(r):
         mu = np.sqrt(max(1.0 - r * r, 0.0))
@@ -334,3 +344,21 @@ def test_auto_plan_scenes():
     ref = np.asarray(jp.occultation_flux(star, x, y, r, method="exact", order=96))
     assert np.max(np.abs(got - ref)) < 1e-13
     assert abs(got[6]) < 1e-15 and got[7] < 1.0
+
+
+def test_small_batches_take_the_union_integral(monkeypatch):
+    """Below LENS_MIN_PAIRS crossing pairs a call's overlap frames are the
+    union integral's, bit for bit; above it they take the lens path."""
+    import jaxppo._flux as F
+
+    star = STARS["nonlinear"]
+    x = np.array([[0.1, 0.15], [0.3, 0.32], [0.5, 2.0]])
+    y = np.zeros_like(x)
+    r = np.full_like(x, 0.05)
+    exact = np.asarray(jp.occultation_flux(star, x, y, r, method="exact"))
+    monkeypatch.setattr(F, "LENS_MIN_PAIRS", 3)
+    assert np.array_equal(np.asarray(jp.occultation_flux(star, x, y, r))[:2], exact[:2])
+    monkeypatch.setattr(F, "LENS_MIN_PAIRS", 2)
+    lens = np.asarray(jp.occultation_flux(star, x, y, r))
+    assert not np.array_equal(lens[:2], exact[:2])
+    assert np.max(np.abs(lens - exact)) < 1e-14
