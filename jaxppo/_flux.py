@@ -197,22 +197,6 @@ def _survey(star: Star, x: Array, y: Array, r: Array) -> tuple[Array, Array, Arr
     return multiple, counts, inner, inner_sum, cross
 
 
-_lens_rho = jax.jit(lens_rho)
-
-# Below this many crossing pairs in one call, "auto" integrates their frames
-# by the union integral: compiling the lens kernels (~1 s on the CPU, once per
-# process and batch size) would cost more than they save (~2.5 us per pair).
-LENS_MIN_PAIRS = 2048
-
-
-def _gather_pairs(arrays, fp: np.ndarray, pp: np.ndarray, k: int):
-    """[pair, 2] arrays of the disks of crossing pairs (frame fp, pair pp)."""
-    if k == 2:  # one pair per frame: rows, and no copy when every frame has it
-        return tuple(v if fp.size == v.shape[0] else v[fp] for v in arrays)
-    ij = _pairs(k)[pp]
-    return tuple(np.take_along_axis(v[fp], ij, 1) for v in arrays)
-
-
 def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: int, chunk: int) -> np.ndarray:
     """Relative flux of frames ([frame, disk] host arrays) modelling no more
     than each needs (``_survey``): one-disk terms (the midpoint rule well
