@@ -191,7 +191,9 @@ class Model:
 class FitResult:
     """Best-fit ``system``, ``chi2``, ``covariance`` of the free parameters in
     physical units (``names`` order), ``errors`` (1 sigma), ``success`` and
-    ``message``; ``reduced_chi2`` = chi2 / (N - k)."""
+    ``message``; ``reduced_chi2`` = chi2 / (N - k); ``union_frames``: the
+    model frames integrated by the exact union integral (overlapping disks
+    at the start or at the solution, with a margin)."""
 
     system: System
     chi2: float
@@ -203,6 +205,7 @@ class FitResult:
     errors: np.ndarray
     reduced_chi2: float
     steps: int
+    union_frames: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
 
     def table(self) -> str:
         rows = [f"{n:14s} {v:16.8f} +- {e:.2e}" for n, v, e in zip(self.names, self.values, self.errors)]
@@ -218,10 +221,21 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     import optimistix as optx
 
     model = Model(system, lightcurve, free, alpha, case)
-    theta0 = model.to_theta(system)
+    theta = model.to_theta(system)
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    sol = optx.least_squares(model.residuals, solver, theta0, max_steps=max_steps, throw=False)
-    theta = sol.value
+    # The frames that take the union integral are fixed from the starting
+    # parameters (with a margin). If the solution brings disks together in
+    # other frames, refit from it with those frames added (a new Model, so
+    # the residuals are traced anew).
+    for _ in range(4):
+        sol = optx.least_squares(model.residuals, solver, theta, max_steps=max_steps, throw=False)
+        theta = sol.value
+        needed = model._union_frames(model.to_system(theta), np.asarray(model.t_model))
+        if np.all(np.isin(needed, model.union_idx)):
+            break
+        union = np.union1d(model.union_idx, needed)
+        model = Model(model.to_system(theta), lightcurve, free, alpha, case)
+        model.union_idx = np.union1d(model.union_idx, union)
     res = model.residuals(theta)
     chi2 = float(jnp.sum(res**2))
     ok = bool(sol.result == optx.RESULTS.successful) and bool(np.isfinite(chi2))
@@ -248,5 +262,6 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         message += "; covariance not finite"
     dof = max(lightcurve.time.size - len(free), 1)
     steps = int(sol.stats.get("num_steps", -1)) if hasattr(sol, "stats") else -1
-    return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors, chi2 / dof, steps)
+    return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors, chi2 / dof, steps,
+                     model.union_idx)
 

@@ -30,6 +30,31 @@ def test_fit_recovers_truth_within_3_sigma():
     assert 0.85 < res.reduced_chi2 < 1.15
 
 
+def test_fit_refits_when_the_solution_brings_disks_together():
+    """The union-integral frames are fixed from the start; a start that puts
+    c 0.15 R* away from where it occults b (outside the 0.05 R* margin) must
+    still end with every PPO frame of the solution in the union set."""
+    from jaxppo._fit import Model
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=5, noise=2e-4, alpha=90.0)
+    b, c = truth.planets
+    start = truth.replace(planets=(b, c.replace(t0=c.t0 + 0.014)))
+    free = ("b.t0", "c.t0")
+    start_frames = Model(start, lc, free, alpha=90.0)._union_frames(start, lc.time)
+    truth_frames = Model(truth, lc, free, alpha=90.0)._union_frames(truth, lc.time)
+    assert not np.all(np.isin(truth_frames, start_frames))  # the start misses PPO frames
+    res = jp.fit(start, lc, free=free, alpha=90.0)
+    assert res.success, res.message
+    assert np.all(np.isin(truth_frames, res.union_frames))
+    # the solution is optimal for the model with every PPO frame exact: a fit
+    # started there does not move
+    again = jp.fit(res.system, lc, free=free, alpha=90.0)
+    assert np.all(np.abs(again.values - res.values) < 0.05 * res.errors), (again.values - res.values) / res.errors
+    pulls = (res.values - _truth_values(truth, free)) / res.errors
+    assert np.all(np.abs(pulls) < 3), pulls
+
+
 def test_bad_start_reports_failure_without_raising():
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=11, noise=4e-4)
