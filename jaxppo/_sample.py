@@ -20,7 +20,10 @@ class SampleResult:
     """``samples``: name -> array (physical units; chains concatenated);
     ``best``: the lowest-deviance System; ``intervals``: name -> (median,
     lower, upper) of the central 68.3 %; ``diagnostics``: name -> {"r_hat",
-    "n_eff"}; ``mcmc``: the numpyro MCMC object (``arviz.from_numpyro``)."""
+    "n_eff"}; ``mcmc``: the numpyro MCMC object (``arviz.from_numpyro``);
+    ``union_frames``: the model frames integrated exactly as overlaps (from
+    the start with a margin, widened and sampled again when the posterior
+    brings disks together elsewhere)."""
 
     samples: dict
     best: System
@@ -28,6 +31,7 @@ class SampleResult:
     diagnostics: dict
     deviance_min: float
     mcmc: object
+    union_frames: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
 
     def to_arviz(self):
         """An arviz InferenceData, when arviz is installed."""
@@ -69,14 +73,35 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     [1e-4, 0.5], the impact parameter uniform in |b| < 1 + p, limb-darkening
     coefficients within +-1 of the start. Returns samples, the lowest-deviance
     solution (as the paper reports), 68.3 % intervals and R-hat / n_eff."""
-    import numpyro
-    from numpyro.diagnostics import summary
-    from numpyro.infer import MCMC, NUTS, init_to_value
-
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
     model = Model(system, lightcurve, free, alpha, case)
+    for _ in range(3):
+        result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar)
+        result.union_frames = model.union_idx
+        # The union-integral frames were fixed from the start (with a margin);
+        # if the posterior brings disks together elsewhere, sample again with
+        # those frames exact.
+        thin = np.unique(np.linspace(0, len(result.samples[model.free[0]]) - 1, 200).astype(int))
+        needed = [model.union_idx]
+        for i in thin:
+            values = jnp.asarray([result.samples[n][i] for n in model.free])  # physical units
+            theta = model.theta_from(values, model.to_theta(system))
+            needed.append(model._union_frames(model.to_system(theta), np.asarray(model.t_model)))
+        needed = np.unique(np.concatenate(needed))
+        if np.all(np.isin(needed, model.union_idx)):
+            break
+        model = Model(system, lightcurve, free, alpha, case)
+        model.union_idx = needed
+    return result
+
+
+def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar) -> "SampleResult":
+    import numpyro
+    from numpyro.diagnostics import summary
+    from numpyro.infer import MCMC, NUTS, init_to_value
+
     priors = _priors(model)
     names = model.free
     keys = [n.replace(".", "_") for n in names]

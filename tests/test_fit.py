@@ -109,3 +109,22 @@ def test_real_kepler20_q1_window_fit():
     assert 0.6 < res.reduced_chi2 < 1.6
     assert abs(res.values[0] - float(system.planets[0].t0)) < 0.02
     assert 159.0 < ev.mid < 161.5
+
+
+def test_sample_widens_the_union_frames_to_the_posterior():
+    """As in fit: NUTS started where c misses its PPO frames samples again
+    with every PPO frame its posterior reaches integrated exactly."""
+    from jaxppo._fit import Model
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=5, noise=2e-4, alpha=90.0)
+    b, c = truth.planets
+    start = truth.replace(planets=(b, c.replace(t0=c.t0 + 0.014)))
+    free = ("c.t0",)
+    truth_frames = Model(truth, lc, free, alpha=90.0)._union_frames(truth, lc.time)
+    assert not np.all(np.isin(truth_frames, Model(start, lc, free, alpha=90.0).union_idx))
+    post = jp.sample(start, lc, free=free, num_warmup=150, num_samples=150, alpha=90.0, progress_bar=False)
+    assert np.all(np.isin(truth_frames, post.union_frames))
+    lo, hi = post.intervals["c.t0"][1:]
+    width = hi - lo
+    assert lo - 2 * width < c.t0 < hi + 2 * width
