@@ -90,6 +90,18 @@ class Model:
                 near |= on[:, i] & on[:, j] & (d < r[:, i] + r[:, j] + margin)
         return np.nonzero(near)[0]
 
+    def widened(self, systems) -> "Model | None":
+        """A new Model (traced anew) whose union-integral frames also cover
+        the frames where any of ``systems`` brings disks within the margin of
+        touching; None when the current frames cover them already."""
+        t = np.asarray(self.t_model)
+        needed = np.unique(np.concatenate([self.union_idx] + [self._union_frames(s, t) for s in systems]))
+        if np.all(np.isin(needed, self.union_idx)):
+            return None
+        wider = Model(self.system, self.lc, self.free, self.alpha, self.case)
+        wider.union_idx = np.union1d(wider.union_idx, needed)
+        return wider
+
     # ---- coordinates ----------------------------------------------------------
     def to_theta(self, system: System) -> jnp.ndarray:
         out = []
@@ -230,12 +242,10 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     for _ in range(4):
         sol = optx.least_squares(model.residuals, solver, theta, max_steps=max_steps, throw=False)
         theta = sol.value
-        needed = model._union_frames(model.to_system(theta), np.asarray(model.t_model))
-        if np.all(np.isin(needed, model.union_idx)):
+        wider = model.widened([model.to_system(theta)])
+        if wider is None:
             break
-        union = np.union1d(model.union_idx, needed)
-        model = Model(model.to_system(theta), lightcurve, free, alpha, case)
-        model.union_idx = np.union1d(model.union_idx, union)
+        model = wider
     res = model.residuals(theta)
     chi2 = float(jnp.sum(res**2))
     ok = bool(sol.result == optx.RESULTS.successful) and bool(np.isfinite(chi2))

@@ -138,13 +138,17 @@ def one_disk_sum(star: Star, d: np.ndarray, r: np.ndarray, order: int, chunk: in
     rest = on & ~inner
     for mask, kernel in ((inner, lambda s, a, b, o: _inner_disk_terms(s, a, b)), (rest, _disk_terms)):
         idx = np.nonzero(mask)[0]
-        for start, stop, size in _padded_calls(idx.size, chunk):
-            sel = idx[start:stop]
-            a = np.zeros(size, d.dtype)
-            b = np.zeros(size, d.dtype)
-            a[: sel.size], b[: sel.size] = flat_d[sel], flat_r[sel]
-            terms[sel] = np.asarray(kernel(star, jnp.asarray(a), jnp.asarray(b), order))[: sel.size]
+        if idx.size:
+            terms[idx] = _per_disk(kernel, star, flat_d[idx], flat_r[idx], order, chunk)
     return 1.0 - terms.reshape(d.shape).sum(-1)
+
+
+def _per_disk(kernel, star: Star, d: np.ndarray, p: np.ndarray, order: int, chunk: int) -> np.ndarray:
+    """A one-disk kernel(star, d, p, order) over host arrays of disks, in the
+    padded calls of ``_run_padded`` (padding disks lie off the star; the
+    kernel gets d in the x slot, and the y slot is unused)."""
+    col = d[:, None]
+    return _run_padded(lambda s, a, b, c, o: kernel(s, a[:, 0], c[:, 0], o), star, col, col, p[:, None], order, chunk)
 
 
 @functools.lru_cache(maxsize=None)
@@ -233,17 +237,12 @@ def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: 
     # counting disks outside the midpoint rule's domain: the general one-disk rule
     fd, kd = np.nonzero(counts & ~inner & ~general[:, None])
     if fd.size:
-        out -= np.bincount(fd, weights=_disk_rule(star, np.hypot(x[fd, kd], y[fd, kd]), r[fd, kd], order, chunk), minlength=n)
+        terms = _per_disk(_disk_terms, star, np.hypot(x[fd, kd], y[fd, kd]), r[fd, kd], order, chunk)
+        out -= np.bincount(fd, weights=terms, minlength=n)
     idx = np.nonzero(general)[0]
     if idx.size:
         out[idx] = _run_padded(_exact_frames, star, x[idx], y[idx], r[idx], order, chunk)
     return out
-
-
-def _disk_rule(star: Star, d: np.ndarray, p: np.ndarray, order: int, chunk: int) -> np.ndarray:
-    """Relative deficits of single disks by the general one-disk rule."""
-    col = d[:, None]
-    return _run_padded(lambda s, a, b, c, o: _disk_terms(s, a[:, 0], c[:, 0], o), star, col, col, p[:, None], order, chunk)
 
 
 def _shard(arrays):

@@ -84,16 +84,12 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         # if the posterior brings disks together elsewhere, sample again with
         # those frames exact.
         thin = np.unique(np.linspace(0, len(result.samples[model.free[0]]) - 1, 200).astype(int))
-        needed = [model.union_idx]
-        for i in thin:
-            values = jnp.asarray([result.samples[n][i] for n in model.free])  # physical units
-            theta = model.theta_from(values, model.to_theta(system))
-            needed.append(model._union_frames(model.to_system(theta), np.asarray(model.t_model)))
-        needed = np.unique(np.concatenate(needed))
-        if np.all(np.isin(needed, model.union_idx)):
+        ref = model.to_theta(system)
+        draws = [jnp.asarray([result.samples[n][i] for n in model.free]) for i in thin]  # physical units
+        wider = model.widened([model.to_system(model.theta_from(v, ref)) for v in draws])
+        if wider is None:
             break
-        model = Model(system, lightcurve, free, alpha, case)
-        model.union_idx = needed
+        model = wider
     return result
 
 

@@ -217,13 +217,9 @@ def inner_disk_deficit(d: Array, p: Array, g: Callable[[Array], Array], order: i
     dtype = float_dtype(d, p)
     d, p = jnp.asarray(d, dtype), jnp.asarray(p, dtype)
     pd, c0, p2 = (p * d)[..., None], (d * d + p * p)[..., None], (p * p)[..., None]
-
-    def f(cos_t):
-        pd_cos = pd * cos_t
-        return g(c0 + 2.0 * pd_cos) * (p2 + pd_cos)
-
+    # the rule's "nodes" are the cosines themselves: constants
     rule = (np.cos((np.arange(order) + 0.5) * np.pi / order), np.full(order, 2.0 * np.pi / order))
-    return node_sum(rule, f, dtype)
+    return node_sum(rule, lambda cos_t: _circle_term(g, cos_t, pd, c0, p2), dtype)
 
 
 # Gauss-Legendre nodes per lens arc, and the smallest Bernstein-ellipse
@@ -245,7 +241,8 @@ def lens_deficit(x: Array, y: Array, r: Array, g: Callable[[Array], Array], orde
     both traversed counter-clockwise about their own centres. The two arcs
     share their end points, so one Heron product gives both half-widths. On
     circle A (centre at distance d, angle phi_A) the radius of a boundary point
-    is s = d^2 + p^2 + 2 p d cos(t - phi_A), so each node costs one cosine.
+    is s = d^2 + p^2 + 2 p d cos(t - phi_A); the node cosines come from
+    ``_arc_cos`` (one cos and sin per arc, polynomials per node).
     """
     dtype = float_dtype(x, y, r)
     x, y, r = (jnp.asarray(v, dtype) for v in (x, y, r))
