@@ -16,6 +16,26 @@ _ERR = ("flux_err", "pdcsap_flux_err", "err", "sigma")
 _QUALITY = ("quality", "sap_quality")
 
 
+def _kepler_exposure(hdr) -> float | None:
+    """The window [d] over which one Kepler cadence integrates the flux.
+
+    Kepler Archive Manual (KDMC-10008) keywords: INT_TIME is the photon
+    accumulation time of ONE frame (6.02 s), READTIME its readout (0.52 s),
+    FRAMETIM = INT_TIME + READTIME, NUM_FRM the frames co-added per cadence
+    (270 long, 9 short) and TIMEDEL the cadence length [d]. The 270 frames
+    are spread evenly over the whole cadence, so the light curve is the flux
+    averaged over TIMEDEL = FRAMETIM x NUM_FRM (29.4 min), not over the
+    summed photon time INT_TIME x NUM_FRM (27.1 min, which the readout gaps
+    interleave and which is TIMEDEL x DEADC)."""
+    if "TIMEDEL" in hdr:
+        return float(hdr["TIMEDEL"])
+    if "FRAMETIM" in hdr and "NUM_FRM" in hdr:
+        return float(hdr["FRAMETIM"]) * float(hdr["NUM_FRM"]) / 86400.0
+    if "INT_TIME" in hdr and "READTIME" in hdr and "NUM_FRM" in hdr:
+        return (float(hdr["INT_TIME"]) + float(hdr["READTIME"])) * float(hdr["NUM_FRM"]) / 86400.0
+    return None
+
+
 @dataclasses.dataclass(frozen=True)
 class LightCurve:
     """Time [d], relative flux and its 1-sigma error; ``exposure`` [d] is the
@@ -113,7 +133,7 @@ class LightCurve:
         """Kepler light-curve FITS (LIGHTCURVE extension: TIME, PDCSAP_FLUX,
         PDCSAP_FLUX_ERR, SAP_QUALITY). Flagged and non-finite points are
         dropped and counted in ``report``; exposure from the header (long
-        cadence: 29.4 min)."""
+        cadence: 29.4 min, see :func:`_kepler_exposure`)."""
         from astropy.io import fits
 
         path = Path(path)
@@ -134,11 +154,7 @@ class LightCurve:
                 raise ValueError(f"{path}: missing columns {missing} (have {names})")
             d = hdu.data
             hdr = hdu.header
-            exposure = None
-            if "INT_TIME" in hdr and "NUM_FRM" in hdr:
-                exposure = float(hdr["INT_TIME"]) * float(hdr["NUM_FRM"]) / 86400.0
-            elif "TIMEDEL" in hdr:
-                exposure = float(hdr["TIMEDEL"])
+            exposure = _kepler_exposure(hdr)
             return cls._from_columns(d["TIME"], d[flux_column], d[flux_column + "_ERR"], d["SAP_QUALITY"], exposure, path)
 
     def to_csv(self, path) -> None:

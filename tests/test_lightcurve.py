@@ -15,8 +15,13 @@ def _kepler_fits(path, columns=("TIME", "PDCSAP_FLUX", "PDCSAP_FLUX_ERR", "SAP_Q
     data["PDCSAP_FLUX"][3] = np.nan
     cols = [fits.Column(name=c, format="J" if c == "SAP_QUALITY" else "D", array=data[c]) for c in columns]
     hdu = fits.BinTableHDU.from_columns(cols, name="LIGHTCURVE")
+    # the header values of a real Kepler long-cadence file (Q1, kplr006850504-2009166043257_llc.fits)
     hdu.header["INT_TIME"] = 6.019802903
+    hdu.header["READTIME"] = 0.518948526
+    hdu.header["FRAMETIM"] = 6.538751429
     hdu.header["NUM_FRM"] = 270
+    hdu.header["TIMEDEL"] = 0.02043359821692
+    hdu.header["DEADC"] = 0.92063492
     fits.HDUList([fits.PrimaryHDU(), hdu]).writeto(path)
 
 
@@ -26,7 +31,10 @@ def test_kepler_fits_reader(tmp_path):
     _kepler_fits(tmp_path / "k.fits", quality=q)
     lc = jp.LightCurve.from_kepler_fits(tmp_path / "k.fits")
     assert lc.report["flagged"] == 2 and lc.report["non_finite"] == 1 and len(lc) == 47
-    assert abs(lc.exposure - 6.019802903 * 270 / 86400) < 1e-12
+    # A long cadence averages the flux over the cadence (29.42 min), not
+    # over the summed photon time INT_TIME x NUM_FRM (27.09 min).
+    assert abs(lc.exposure * 1440 - 29.4244) < 1e-3
+    assert abs(lc.exposure - 6.538751429 * 270 / 86400) < 1e-8
     assert abs(np.median(lc.flux) - 1) < 1e-12
 
 
