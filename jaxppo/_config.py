@@ -72,6 +72,55 @@ def _star_from(section: dict, base: Path, source: str) -> Star:
         raise _err(source, f"[star] {e}") from e
 
 
+def _is_fits(p: Path) -> bool:
+    name = p.name.lower()
+    return p.suffix.lower() in (".fits", ".fit", ".fz") or name.endswith((".fits.gz", ".fit.gz"))
+
+
+def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
+    """[data]: path (one file or a list, e.g. one per quarter), columns,
+    exposure [d]."""
+    if "path" not in data:
+        raise _err(source, "[data] needs path = a CSV (time,flux[,flux_err]) or Kepler light-curve FITS file, or a list of them")
+    paths = data["path"] if isinstance(data["path"], list) else [data["path"]]
+    if not paths or not all(isinstance(p, str) for p in paths):
+        raise _err(source, f"[data] path must be a file name or a non-empty list of file names, got {data['path']!r}")
+    columns = data.get("columns", {})
+    if not isinstance(columns, dict) or not all(isinstance(v, str) for v in columns.values()):
+        raise _err(source, f"[data] columns must be a table of column names, e.g. {{time = 'bjd', flux_err = 'error'}}, got {columns!r}")
+    exposure = data.get("exposure")
+    if exposure is not None:
+        try:
+            exposure = float(exposure)
+        except (TypeError, ValueError):
+            raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}") from None
+    parts = []
+    for p in paths:
+        dpath = Path(p)
+        if not dpath.is_absolute():
+            dpath = base / dpath
+        if not dpath.exists():
+            raise _err(source, f"[data] file not found: {dpath}")
+        try:
+            if _is_fits(dpath):
+                bad = sorted(set(columns) - {"flux"})
+                if bad:
+                    raise ValueError(f"columns.{bad[0]} is not used for Kepler FITS files (only columns.flux, e.g. 'SAP_FLUX')")
+                lc = LightCurve.from_kepler_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper())
+            else:
+                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns)
+        except ValueError as e:
+            raise _err(source, f"[data] {e}") from e
+        parts.append(lc)
+    try:
+        lc = parts[0] if len(parts) == 1 else LightCurve.concatenate(parts, exposure)
+        if exposure is not None and lc.exposure != exposure:
+            lc = dataclasses.replace(lc, exposure=exposure)
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from e
+    return lc
+
+
 def load_config(path: str | Path | None = None) -> ScanConfig:
     """Read and check a scan config; ``None`` gives the bundled default."""
     path = Path(path) if path is not None else default_config_path()
@@ -106,24 +155,7 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
         raise _err(source, f"only one planet may have tilted = true, got {len(tilted)}")
     system = System(star, planets, tilted=tilted[0] if tilted else 0)
 
-    data = raw["data"]
-    if "path" not in data:
-        raise _err(source, "[data] needs path = a CSV (time,flux,flux_err) or Kepler light-curve FITS file")
-    dpath = Path(data["path"])
-    if not dpath.is_absolute():
-        dpath = base / dpath
-    if not dpath.exists():
-        raise _err(source, f"[data] file not found: {dpath}")
-    exposure = data.get("exposure")
-    try:
-        if dpath.suffix.lower() in (".fits", ".fit", ".fz") or dpath.name.endswith(".fits.gz"):
-            lc = LightCurve.from_kepler_fits(dpath)
-            if exposure is not None:
-                lc = LightCurve(lc.time, lc.flux, lc.flux_err, float(exposure), lc.report)
-        else:
-            lc = LightCurve.from_csv(dpath, exposure=None if exposure is None else float(exposure))
-    except ValueError as e:
-        raise _err(source, f"[data] {e}") from e
+    lc = _lightcurve_from(raw["data"], base, source)
 
     scan = raw["scan"]
     grid = scan.get("alpha", [0.0, 360.0, 1.0])
