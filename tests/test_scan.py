@@ -174,5 +174,5 @@ def test_unreadable_data(tmp_path):
     with pytest.raises(ValueError, match="unreadable row"):
         load_config(path)
     (tmp_path / "data.csv").write_text("when,what\n1,2\n")
-    with pytest.raises(ValueError, match="no column named"):
+    with pytest.raises(ValueError, match="no time column"):
         load_config(path)
