@@ -35,6 +35,9 @@ class ScanConfig:
     block: int
     raw: dict
     source: str
+    detrend: int | None = 2
+    baseline: float = 0.3
+    clip: float | None = 5.0
 
     @property
     def digest(self) -> str:
@@ -179,4 +182,18 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
     block = int(scan.get("block", 60))
     if block < 1:
         raise _err(source, f"[scan] block must be >= 1, got {block}")
-    return ScanConfig(system, lc, alpha, cases, margin, block, raw, source)
+    detrend = scan.get("detrend", 2)
+    if isinstance(detrend, str) and detrend.lower() == "none":
+        detrend = None
+    elif isinstance(detrend, bool) or not isinstance(detrend, int) or not 0 <= detrend <= 5:
+        raise _err(source, f"[scan] detrend must be a polynomial order 0..5 or \"none\", got {detrend!r}")
+    baseline = scan.get("baseline", 0.3)
+    if isinstance(baseline, bool) or not isinstance(baseline, (int, float)) or not baseline > margin:
+        raise _err(source, f"[scan] baseline must be a number of days > margin ({margin}), got {baseline!r}")
+    clip = scan.get("clip", 5.0)
+    if isinstance(clip, str) and clip.lower() == "none":
+        clip = None
+    elif isinstance(clip, bool) or not isinstance(clip, (int, float)) or not clip >= 2:
+        raise _err(source, f"[scan] clip must be a threshold >= 2 (robust sigmas) or \"none\", got {clip!r}")
+    return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
+                      None if clip is None else float(clip))

@@ -14,6 +14,7 @@ final outputs are written atomically; a changed config is detected.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import time
@@ -23,11 +24,16 @@ import numpy as np
 
 from ._config import ScanConfig
 from ._sweep import sweep
-from ._system import multi_transits
+from ._lightcurve import LightCurve
+from ._system import MultiTransit, multi_transits
 
-__all__ = ["run_scan", "ScanResult", "geometry_probabilities", "jeffreys", "scan_events", "ppo_table"]
+__all__ = ["run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
+           "scan_events", "ppo_table", "in_transit_mask"]
 
 PROGRESS = "scan_progress.jsonl"
+# Extra width [d] (15 min) of each transit window in the out-of-transit mask:
+# room for ephemeris errors, so no ingress point bends the baseline.
+_TRANSIT_PAD = 15.0 / 1440.0
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -52,22 +58,158 @@ def jeffreys(k: float) -> str:
     return "decisive"
 
 
-def scan_events(cfg: ScanConfig):
-    """Multi-transits of the tilted planet that have data, with their data."""
+@dataclasses.dataclass(frozen=True)
+class ScanWindow:
+    """One multi-transit as the chi^2 sees it.
+
+    ``number``: 1-based, as in ``summary["multi_transits"]``; ``event``: the
+    :class:`MultiTransit`; ``time`` [d], ``flux``, ``flux_err``: the points
+    inside [event.start - margin, event.end + margin] after detrending (each
+    window divided by its out-of-transit polynomial) and outlier removal;
+    ``exposure`` [d] of each point (None: instantaneous). ``baseline_points``:
+    out-of-transit points the trend was fitted to; ``clipped``: points dropped
+    as outliers (out of transit only); ``sigma``: the error estimated from the
+    out-of-transit scatter (None when the data's own errors are used);
+    ``trend``: polynomial coefficients (highest power first) in t - event.mid.
+    """
+
+    number: int
+    event: MultiTransit
+    time: np.ndarray
+    flux: np.ndarray
+    flux_err: np.ndarray
+    exposure: float | None
+    baseline_points: int = 0
+    clipped: int = 0
+    sigma: float | None = None
+    trend: tuple = ()
+
+    def as_dict(self) -> dict:
+        return dict(self.event.as_dict(), number=self.number, points=int(self.time.size),
+                    baseline_points=self.baseline_points, clipped=self.clipped, sigma=self.sigma)
+
+
+def in_transit_mask(system, t, pad: float = 0.0) -> np.ndarray:
+    """True where any planet of ``system`` is between its first and last
+    contact, widened by ``pad`` [d] on both sides (e.g. half an exposure,
+    which smears a transit by that much). Alpha rotates the tilted orbit
+    about the star's centre, which keeps every contact time: the mask holds
+    for all alpha and both cases."""
+    t = np.asarray(t, float)
+    mask = np.zeros(t.size, bool)
+    if t.size == 0:
+        return mask
+    for pl in system.planets:
+        half = float(pl.half_duration())
+        if half <= 0:
+            continue
+        period, t0 = float(pl.period), float(pl.t0)
+        n = np.round((t - t0) / period)
+        mask |= np.abs(t - (t0 + n * period)) < half + pad
+    return mask
+
+
+def _robust_sigma(r: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation: the Gaussian sigma, unmoved by
+    a few outliers."""
+    return float(1.4826 * np.median(np.abs(r - np.median(r))))
+
+
+def _detrend_window(t, f, e, oot, mid, order, clip, estimate):
+    """Fit the polynomial to the out-of-transit points, iteratively dropping
+    those whose residual exceeds ``clip`` robust sigmas (never in-transit
+    points: a PPO bump or a transit cannot be clipped). Returns the kept mask,
+    the trend coefficients and the estimated sigma (or None)."""
+    keep = np.ones(t.size, bool)
+    x = t - mid
+    w = None if estimate else 1.0 / e
+    for _ in range(10):
+        fit_pts = oot & keep
+        coef = np.polyfit(x[fit_pts], f[fit_pts], order, w=None if w is None else w[fit_pts])
+        res = f / np.polyval(coef, x) - 1.0
+        if clip is None:
+            break
+        s_rob = _robust_sigma(res[fit_pts])
+        new = keep & ~(oot & (np.abs(res) > clip * s_rob))
+        if new.sum() == keep.sum():
+            break
+        keep = new
+    fit_pts = oot & keep
+    sigma = None
+    if estimate:
+        # unbiased residual variance of the kept baseline (n - order - 1 dof)
+        r = f[fit_pts] / np.polyval(coef, x[fit_pts]) - 1.0
+        sigma = float(np.sqrt(np.sum(r**2) / (fit_pts.sum() - order - 1)))
+    return keep, coef, sigma
+
+
+def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
+    """The multi-transits of the tilted planet that have data, each with the
+    detrended, outlier-cleaned points the chi^2 uses (paper Sect. 2.2).
+
+    Per event: the baseline is [start - baseline, end + baseline]; its points
+    outside every planet's transit (contact times, widened by half an
+    exposure) fit a polynomial of order ``detrend``, and the window is divided
+    by it. Outliers: baseline points more than ``clip`` x 1.4826 MAD from the
+    trend are dropped (iterated); in-transit points are never clipped. When
+    the data carry no errors (``lightcurve.errors_estimated``), each window's
+    error is the rms of its baseline residuals with n - order - 1 degrees of
+    freedom. Events with too few baseline points (fewer than order + 3 in all
+    or fewer than 2 on a side) are skipped and listed in ``skipped`` of the
+    summary. ``detrend = "none"``: the flux is used as loaded."""
+    return _scan_windows(cfg)[0]
+
+
+def _scan_windows(cfg: ScanConfig):
     sysm, lc = cfg.system, cfg.lightcurve
     tilted_name = sysm.planets[sysm.tilted].name
+    tilted_label = tilted_name or str(sysm.tilted)
     events = [e for e in multi_transits(sysm, float(lc.time.min()) - 1.0, float(lc.time.max()) + 1.0)
-              if tilted_name in e.planets]
-    used = []
+              if tilted_label in e.planets]
+    order, clip = cfg.detrend, cfg.clip
+    pad = 0.5 * (lc.exposure or 0.0) + _TRANSIT_PAD
+    windows, skipped = [], []
     for e in events:
-        sel = (lc.time >= e.start - cfg.margin) & (lc.time <= e.end + cfg.margin)
-        if sel.sum() > 0:
-            used.append((e, sel))
-    if not used:
+        lo, hi = e.start - cfg.margin, e.end + cfg.margin
+        if order is None:
+            sel = (lc.time >= lo) & (lc.time <= hi)
+            if sel.any():
+                windows.append(ScanWindow(len(windows) + 1, e, lc.time[sel], lc.flux[sel], lc.flux_err[sel], lc.exposure))
+            continue
+        base = (lc.time >= e.start - cfg.baseline) & (lc.time <= e.end + cfg.baseline)
+        chi_sel = (lc.time[base] >= lo) & (lc.time[base] <= hi)
+        if not chi_sel.any():
+            continue
+        t, f, err = lc.time[base], lc.flux[base], lc.flux_err[base]
+        oot = ~in_transit_mask(sysm, t, pad)
+        n_left, n_right = int((oot & (t < e.start)).sum()), int((oot & (t > e.end)).sum())
+        if oot.sum() < order + 3 or (order >= 1 and min(n_left, n_right) < 2):
+            skipped.append({"mid": e.mid, "reason": f"{int(oot.sum())} out-of-transit baseline points "
+                            f"({n_left} before, {n_right} after); need >= {order + 3} and >= 2 on each side"})
+            continue
+        keep, coef, sigma = _detrend_window(t, f, err, oot, e.mid, order, clip, lc.errors_estimated)
+        trend = np.polyval(coef, t - e.mid)
+        use = chi_sel & keep
+        fe = np.full(t.size, sigma) if sigma is not None else err / trend
+        windows.append(ScanWindow(
+            len(windows) + 1, e, t[use], f[use] / trend[use], fe[use], lc.exposure,
+            baseline_points=int((oot & keep).sum()), clipped=int((~keep).sum()), sigma=sigma,
+            trend=tuple(float(c) for c in coef)))
+    if not windows:
         raise ValueError(
-            f"{cfg.source}: the data ({lc.time.min():.3f} .. {lc.time.max():.3f}) contain no multi-transit of planet {tilted_name!r}"
+            f"{cfg.source}: the data ({lc.time.min():.3f} .. {lc.time.max():.3f}) contain no usable multi-transit "
+            f"of planet {tilted_label!r}" + (f" (skipped: {skipped})" if skipped else "")
         )
-    return used
+    return windows, skipped
+
+
+def scan_events(cfg: ScanConfig):
+    """(event, mask of ``cfg.lightcurve``) of the multi-transits the scan
+    uses, numbered as :func:`scan_windows` (the mask covers the chi^2 window
+    of the raw light curve; the detrended points are in scan_windows)."""
+    lc = cfg.lightcurve
+    return [(w.event, (lc.time >= w.event.start - cfg.margin) & (lc.time <= w.event.end + cfg.margin))
+            for w in scan_windows(cfg)]
 
 
 def ppo_table(system, times_per_event, alpha, case) -> np.ndarray:
@@ -110,6 +252,20 @@ def geometry_probabilities(alpha, posterior, delta_chi2, case, step) -> dict:
         names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
         names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
         "bayes_factor": float(kk), "favoured": favoured, "jeffreys": jeffreys(kk),
+    }
+
+
+def _detrend_summary(cfg) -> dict:
+    if cfg.detrend is None:
+        return {"order": "none", "flux_err": "estimated from the scatter at load time" if cfg.lightcurve.errors_estimated
+                else "from the data"}
+    return {
+        "order": cfg.detrend, "baseline_days": cfg.baseline, "margin_days": cfg.margin,
+        "clip_sigma": cfg.clip if cfg.clip is not None else "none",
+        "out_of_transit": "outside every planet's first-to-last contact, widened by half an exposure + 15 min",
+        "outliers": "out-of-transit points with |residual| > clip x 1.4826 MAD, iterated; in-transit points never clipped",
+        "flux_err": ("estimated per window: rms of the out-of-transit residuals (n - order - 1 dof); the data have no errors"
+                     if cfg.lightcurve.errors_estimated else "from the data, divided by the trend"),
     }
 
 
@@ -164,11 +320,9 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     # keep the config next to the results (jaxppo plot re-reads it)
     _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "config": cfg.raw}, indent=2, default=str))
 
-    used = scan_events(cfg)
-    sel = np.zeros(lc.time.size, bool)
-    for _, s in used:
-        sel |= s
-    data = lc.select(sel)
+    windows, skipped = _scan_windows(cfg)
+    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                      np.concatenate([w.flux_err for w in windows]), lc.exposure)
     tm, nsub = data.supersampled_times()
     y, sig = data.flux, data.flux_err
 
@@ -195,11 +349,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
 
     # ---- analysis -------------------------------------------------------------
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
-    times_per_event = []
-    for e, _ in used:
-        s = (data.time >= e.start - cfg.margin) & (data.time <= e.end + cfg.margin)
-        t_ev, _ = data.select(s).supersampled_times() if s.any() else (np.zeros(0), 1)
-        times_per_event.append(t_ev)
+    times_per_event = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
     chi2_null = float(np.sum(((y - null) / sig) ** 2))
     rows, summary_cases = [], {}
@@ -237,8 +387,9 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases},
         cases=summary_cases,
-        multi_transits=[dict(e.as_dict(), number=i + 1, points=int(s.sum())) for i, (e, s) in enumerate(used)],
-        points=int(data.time.size), supersampling=nsub,
+        multi_transits=[w.as_dict() for w in windows], skipped_multi_transits=skipped,
+        points=int(data.time.size), supersampling=nsub, exposure=lc.exposure,
+        detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
         tilted=sysm.planets[sysm.tilted].name, seconds=None,
     )
