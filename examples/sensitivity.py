@@ -19,7 +19,7 @@ import jaxppo as jp  # noqa: E402
 from jaxppo._config import load_config  # noqa: E402
 from jaxppo._scan import run_scan  # noqa: E402
 
-TEMPLATE = Path(jp.__file__).parent / "data" / "kepler20_default.toml"
+TEMPLATE = Path(jp.__file__).parent / "data" / "kepler20_synthetic.toml"
 
 
 def largest_probability(scale, noise, step, seed):

@@ -16,13 +16,19 @@ from ._phoenix import data_path, phoenix_star
 from ._star import Star
 from ._system import CASES, Planet, System
 
-__all__ = ["ScanConfig", "load_config", "default_config_path"]
+__all__ = ["ScanConfig", "load_config", "default_config_path", "synthetic_config_path"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 
 
 def default_config_path() -> Path:
-    return data_path("kepler20_default.toml")
+    """The bundled default scan: real Kepler-20 long-cadence data."""
+    return data_path("kepler20_real_llc.toml")
+
+
+def synthetic_config_path() -> Path:
+    """The bundled synthetic example (1-minute cadence, white noise)."""
+    return data_path("kepler20_synthetic.toml")
 
 
 @dataclasses.dataclass
@@ -170,6 +176,15 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
     alpha = np.arange(start, stop, step)
     if alpha.size == 0:
         raise _err(source, f"[scan] alpha grid [{start}, {stop}) with step {step} is empty")
+    # The posterior is normalised over the whole circle (uniform prior on
+    # [0, 360)) and the geometry probabilities integrate it over fixed
+    # ranges: a partial grid would silently drop the prior mass of the
+    # angles it leaves out (e.g. "retrograde 100 %"), so it is refused.
+    n_steps = (stop - start) / step
+    if abs(stop - start - 360.0) > 1e-9 or abs(n_steps - round(n_steps)) > 1e-9:
+        raise _err(source, f"[scan] alpha = {grid!r} covers {start:g} .. {stop:g} deg in steps of {step:g}: the "
+                           "posterior and the geometry probabilities need the whole circle, so alpha must span "
+                           "360 deg with a step that divides 360 (e.g. [0, 360, 1])")
     cases = tuple(scan.get("cases", list(CASES)))
     if not cases:
         raise _err(source, "[scan] cases must not be empty")

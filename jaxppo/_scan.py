@@ -235,23 +235,40 @@ def _geometry_names(case: str) -> tuple[str, str]:
     return "prograde, different hemispheres", "retrograde, same hemisphere"
 
 
-def geometry_probabilities(alpha, posterior, delta_chi2, case, step) -> dict:
-    """Integrate the posterior over the paper's Table 6 ranges: prograde
+def _logsumexp(v: np.ndarray) -> float:
+    if v.size == 0:
+        return -np.inf
+    m = float(np.max(v))
+    return m + float(np.log(np.sum(np.exp(v - m))))
+
+
+def geometry_probabilities(alpha, delta_chi2, case) -> dict:
+    """Integrate the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2) (uniform
+    prior on [0, 360), Eq. 1) over the paper's Table 6 ranges: prograde
     [0, 90] and (270, 360), retrograde (90, 270]; with the sum of positive
-    Delta chi^2 in each range, and the Bayes factor."""
+    Delta chi^2 in each range and the Bayes factor K = p_favoured / p_other
+    (computed in log space: ``log10_bayes_factor`` is always finite;
+    ``bayes_factor`` is None where K overflows a float)."""
     alpha = np.mod(np.asarray(alpha, float), 360.0)
+    dchi2 = np.asarray(delta_chi2, float)
     pro = (alpha <= 90.0) | (alpha > 270.0)
     names = _geometry_names(case)
-    p_pro = float(np.sum(posterior[pro]) * step)
-    p_ret = float(np.sum(posterior[~pro]) * step)
-    pos = np.clip(delta_chi2, 0.0, None)
-    favoured = names[0] if p_pro >= p_ret else names[1]
-    hi, lo = max(p_pro, p_ret), min(p_pro, p_ret)
-    kk = hi / lo if lo > 0 else float("inf")  # a grid covering one range only
+    logw = -0.5 * dchi2
+    log_pro, log_ret = _logsumexp(logw[pro]), _logsumexp(logw[~pro])
+    log_tot = np.logaddexp(log_pro, log_ret)
+    p_pro, p_ret = float(np.exp(log_pro - log_tot)), float(np.exp(log_ret - log_tot))
+    pos = np.clip(dchi2, 0.0, None)
+    favoured = names[0] if log_pro >= log_ret else names[1]
+    log10_k = abs(log_pro - log_ret) / np.log(10.0)
+    if not np.isfinite(log10_k):
+        raise ValueError(f"alpha: the grid leaves the {'retrograde' if np.isinf(log_ret) else 'prograde'} range "
+                         "empty; the geometry probabilities need angles in both")
+    kk = 10.0**log10_k if log10_k < 300 else None
     return {
         names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
         names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
-        "bayes_factor": float(kk), "favoured": favoured, "jeffreys": jeffreys(kk),
+        "bayes_factor": kk, "log10_bayes_factor": float(log10_k), "favoured": favoured,
+        "jeffreys": jeffreys(10.0**min(log10_k, 300.0)),
     }
 
 
@@ -364,7 +381,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         dchi2 = chi2 - chi2_0
         w = np.exp(-0.5 * (dchi2 - dchi2.min()))
         post = w / (np.sum(w) * step)
-        geo = geometry_probabilities(cfg.alpha, post, dchi2, case, step)
+        geo = geometry_probabilities(cfg.alpha, dchi2, case)
         transits = [[int(i + 1) for i in np.nonzero(ppo[ai])[0]] for ai in range(cfg.alpha.size)]
         summary_cases[case] = {
             "chi2_0": chi2_0, "chi2_null_model": chi2_null, "alphas_without_ppo": int(quiet.sum()),
@@ -375,13 +392,6 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         }
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
-        # Cases 3 and 2 (paper Eq. 2): the same geometry at 360 - alpha.
-        mirror = np.mod(360.0 - cfg.alpha, 360.0)
-        label = {"same": "case 3 (= case 1 at 360 - alpha)", "opposite": "case 2 (= case 4 at 360 - alpha)"}[case]
-        summary_cases[case]["mirror"] = {
-            "label": label,
-            "geometries": geometry_probabilities(mirror, post, dchi2, "opposite" if case == "same" else "same", step),
-        }
     _atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
     result = ScanResult(
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
@@ -398,5 +408,6 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
 
         result["figures"] = scan_figures(cfg, out, result)
     result["seconds"] = time.perf_counter() - t_begin
-    _atomic_write(out / "summary.json", json.dumps(result, indent=2))
+    # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
+    _atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))
     return result

@@ -20,7 +20,7 @@ def test_scan_example(tmp_path):
 
 
 def test_injected_ppo_example():
-    res = _load("injected_ppo").main(["--alpha", "151", "--window", "6"])
+    res = _load("injected_ppo").main(["--alpha", "151", "--step", "1"])
     assert abs(res["cases"]["same"]["min_delta_chi2"]["alpha"] - 151) <= 2
 
 

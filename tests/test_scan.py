@@ -35,15 +35,15 @@ radius = {rc}
 path = "{data}"
 
 [scan]
-alpha = [{a0}, {a1}, 1.0]
+alpha = [{a0}, {a1}, {step}]
 cases = ["same", "opposite"]
 block = {block}
 """
 
 
-def _config(tmp_path, lc, a0=0.0, a1=360.0, scale=1.0, block=60, name="scan.toml", inc_c=89.967):
+def _config(tmp_path, lc, a0=0.0, a1=360.0, scale=1.0, block=60, name="scan.toml", inc_c=89.967, step=1.0):
     lc.to_csv(tmp_path / "data.csv")
-    text = CONFIG.format(rb=0.01805 * scale, rc=0.02878 * scale, data="data.csv", a0=a0, a1=a1, block=block)
+    text = CONFIG.format(rb=0.01805 * scale, rc=0.02878 * scale, data="data.csv", a0=a0, a1=a1, block=block, step=step)
     text = text.replace("inc = 89.967", f"inc = {inc_c}")
     (tmp_path / name).write_text(text)
     return tmp_path / name
@@ -110,7 +110,7 @@ def test_null_data_is_exactly_flat_without_ppo(tmp_path):
 
 def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    path = _config(tmp_path, lc, 0.0, 120.0, block=20)
+    path = _config(tmp_path, lc, 0.0, 360.0, block=12, step=5.0)
     cfg = load_config(path)
     full = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
 
@@ -140,9 +140,9 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
 
 def test_changed_config_is_not_mixed(tmp_path):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    cfg = load_config(_config(tmp_path, lc, 0.0, 30.0))
+    cfg = load_config(_config(tmp_path, lc, step=12.0))
     run_scan(cfg, tmp_path / "out", progress=False, figures=False)
-    cfg2 = load_config(_config(tmp_path, lc, 0.0, 30.0, scale=1.1, name="other.toml"))
+    cfg2 = load_config(_config(tmp_path, lc, scale=1.1, name="other.toml", step=12.0))
     with pytest.raises(ValueError, match="different configuration"):
         run_scan(cfg2, tmp_path / "out", progress=False, figures=False)
     run_scan(cfg2, tmp_path / "out", restart=True, progress=False, figures=False)
@@ -155,6 +155,9 @@ def test_changed_config_is_not_mixed(tmp_path):
         (lambda t: t.replace('law = "nonlinear"', 'law = "gaussian"'), "unknown limb-darkening law 'gaussian'"),
         (lambda t: t.replace('path = "data.csv"', 'path = "nowhere.csv"'), "file not found"),
         (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [10.0, 10.0, 1.0]"), "empty"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [100.0, 200.0, 1.0]"), r"\[scan\] alpha = .*whole circle"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 7.0]"), r"\[scan\] alpha = .*divides 360"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [-180.0, 180.0, 2.0]"), None),
         (lambda t: t.replace('cases = ["same", "opposite"]', 'cases = ["sideways"]'), "unknown case"),
         (lambda t: t.replace("radius = 0.01805", "radius = -0.01805"), "radius must be > 0"),
     ],
@@ -163,6 +166,9 @@ def test_bad_configs_fail_before_work(tmp_path, edit, match):
     lc = jp.simulate_kepler20(seed=1)
     path = _config(tmp_path, lc)
     path.write_text(edit(path.read_text()))
+    if match is None:  # a valid edit (any full circle is fine)
+        load_config(path)
+        return
     with pytest.raises(ValueError, match=match):
         load_config(path)
 
@@ -192,8 +198,7 @@ def _write_csv(path, t, f, e=None):
 
 
 def _scan_text(extra="", step=1.0):
-    text = CONFIG.format(rb=0.01805, rc=0.02878, data="data.csv", a0=0.0, a1=360.0, block=120) + extra
-    return text.replace("alpha = [0.0, 360.0, 1.0]", f"alpha = [0.0, 360.0, {step}]")
+    return CONFIG.format(rb=0.01805, rc=0.02878, data="data.csv", a0=0.0, a1=360.0, block=120, step=step) + extra
 
 
 def test_detrending_removes_per_window_levels_slopes_and_curvature(tmp_path):
@@ -282,3 +287,46 @@ def test_in_transit_mask_against_contact_times():
         one = jp.System(system.star, [pl], tilted=0)
         np.testing.assert_array_equal(in_transit_mask(one, t), [False, True, True, False])
         np.testing.assert_array_equal(in_transit_mask(one, t, pad=2e-6), [True, True, True, True])
+
+
+def test_summary_is_strict_json_and_bayes_factor_never_infinite():
+    """A decisive signal (Delta chi^2 of thousands in one range) underflows
+    exp(-Delta chi^2 / 2): the Bayes factor comes from log space, and what
+    cannot be a float is null, never Infinity (invalid JSON)."""
+    from jaxppo._scan import geometry_probabilities
+
+    alpha = np.arange(0.0, 360.0, 1.0)
+    retro = (alpha > 90) & (alpha <= 270)
+    geo = geometry_probabilities(alpha, np.where(retro, 5000.0, 0.0), "same")
+    text = json.dumps(geo, allow_nan=False)
+    assert geo["bayes_factor"] is None and abs(geo["log10_bayes_factor"] - 2500 / np.log(10)) < 1e-9  # 180 angles in each range
+    assert geo["favoured"] == "prograde, same hemisphere" and geo["jeffreys"] == "decisive"
+    assert "Infinity" not in text
+    # a moderate one: K = sum over the ranges of exp(-Delta chi^2 / 2), exactly
+    d = np.where(retro, 3.0, 0.0)
+    geo = geometry_probabilities(alpha, d, "opposite")
+    k = np.exp(1.5)
+    assert abs(geo["bayes_factor"] - k) < 1e-12 * k
+    assert abs(geo["prograde, different hemispheres"]["probability"] - k / (1 + k)) < 1e-14
+
+
+def test_no_mirror_block_with_the_other_cases_names(tmp_path):
+    """Cases 3 and 2 are cases 1 and 4 at 360 - alpha (paper Eq. 2): the
+    same physical geometries, so a case-1 summary may only name case 1's
+    geometries (old code printed case 4's names for "case 3")."""
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    res = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "out", progress=False, figures=False)
+    allowed = {"same": {"prograde, same hemisphere", "retrograde, different hemispheres"},
+               "opposite": {"prograde, different hemispheres", "retrograde, same hemisphere"}}
+
+    def names(obj):
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if "hemisphere" in k:
+                    yield k
+                yield from names(v)
+        elif isinstance(obj, str) and "hemisphere" in obj:
+            yield obj
+
+    for case in ("same", "opposite"):
+        assert set(names(res["cases"][case])) <= allowed[case]
