@@ -44,6 +44,7 @@ class ScanConfig:
     detrend: int | None = 2
     baseline: float = 0.3
     clip: float | None = 5.0
+    events: tuple | None = None
 
     @property
     def digest(self) -> str:
@@ -210,5 +211,10 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
         clip = None
     elif isinstance(clip, bool) or not isinstance(clip, (int, float)) or not clip >= 2:
         raise _err(source, f"[scan] clip must be a threshold >= 2 (robust sigmas) or \"none\", got {clip!r}")
+    events = scan.get("multi_transits")
+    if events is not None:
+        if not (isinstance(events, list) and events and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in events)):
+            raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
+        events = tuple(float(v) for v in events)
     return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
-                      None if clip is None else float(clip))
+                      None if clip is None else float(clip), events)

@@ -34,6 +34,8 @@ PROGRESS = "scan_progress.jsonl"
 # Extra width [d] (15 min) of each transit window in the out-of-transit mask:
 # room for ephemeris errors, so no ingress point bends the baseline.
 _TRANSIT_PAD = 15.0 / 1440.0
+# [scan] multi_transits lists mid-times; an event matches within this [d]
+_EVENT_MATCH = 0.1
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -166,6 +168,13 @@ def _scan_windows(cfg: ScanConfig):
     tilted_label = tilted_name or str(sysm.tilted)
     events = [e for e in multi_transits(sysm, float(lc.time.min()) - 1.0, float(lc.time.max()) + 1.0)
               if tilted_label in e.planets]
+    if cfg.events is not None:
+        # only the listed multi-transits (e.g. the paper's seven)
+        missing = [m for m in cfg.events if not any(abs(e.mid - m) < _EVENT_MATCH for e in events)]
+        if missing:
+            raise ValueError(f"{cfg.source}: [scan] multi_transits: no multi-transit of planet {tilted_label!r} "
+                             f"within {_EVENT_MATCH} d of {missing}; the data hold {[round(e.mid, 2) for e in events]}")
+        events = [e for e in events if any(abs(e.mid - m) < _EVENT_MATCH for m in cfg.events)]
     order, clip = cfg.detrend, cfg.clip
     pad = 0.5 * (lc.exposure or 0.0) + _TRANSIT_PAD
     windows, skipped = [], []
@@ -263,7 +272,7 @@ def geometry_probabilities(alpha, delta_chi2, case) -> dict:
     if not np.isfinite(log10_k):
         raise ValueError(f"alpha: the grid leaves the {'retrograde' if np.isinf(log_ret) else 'prograde'} range "
                          "empty; the geometry probabilities need angles in both")
-    kk = 10.0**log10_k if log10_k < 300 else None
+    kk = float(10.0**log10_k) if log10_k < 300 else None
     return {
         names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
         names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
