@@ -330,3 +330,29 @@ def test_no_mirror_block_with_the_other_cases_names(tmp_path):
 
     for case in ("same", "opposite"):
         assert set(names(res["cases"][case])) <= allowed[case]
+
+
+def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
+    """Paper Table 3 (left columns, T0 in BJD - 2454000) in the bundled
+    config, and its Fig. 5 right panel: with these parameters the scan of the
+    seven double transits has one prominent dip, at alpha = 26 deg (case 1);
+    the long-cadence data show it too."""
+    from jaxppo._phoenix import data_path
+
+    text = data_path("kepler20_buchhave2016_llc.toml").read_text()
+    text = text.replace('path = "', f'path = "{data_path("")}/').replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 2.0]")
+    text = text.replace("[scan]\n", "[scan]\nmulti_transits = [334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93]\n")
+    text = text.replace('cases = ["same", "opposite"]', 'cases = ["same"]')
+    (tmp_path / "b16.toml").write_text(text)
+    cfg = load_config(tmp_path / "b16.toml")
+    b, c = cfg.system.planets
+    table3 = {"b": (0.01774, 87.355, 10.34, 967.502014, 3.69611525), "c": (0.02895, 89.815, 21.17, 971.607955, 10.85409089)}
+    for pl in (b, c):
+        p, i, a, t0, per = table3[pl.name]
+        assert (float(pl.radius), float(pl.inc), float(pl.a), float(pl.period)) == (p, i, a, per)
+        assert abs(float(pl.t0) - (t0 + 2454000 - 2454833)) < 1e-9
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    low = rows["alpha"][(rows["alpha"] < 90) & (rows["delta_chi2"] < -0.5)]
+    assert low.size and np.all((low >= 24) & (low <= 30)), low
+    assert len(res["multi_transits"]) == 7
