@@ -7,17 +7,21 @@ p(alpha | D) ~ exp(-Delta chi^2 / 2) normalised over [0, 360), the geometry
 probabilities (Table 6), the Bayes factor with its Jeffreys rating, and the
 numbers of the transits in which each alpha produces a PPO.
 
-Long runs write their progress as they go (one JSON line per finished
-(case, alpha) block, flushed and fsynced) and resume without recomputing;
-final outputs are written atomically; a changed config is detected.
+Long runs write their progress as they go (one checksummed JSON line per
+finished (case, alpha) block, flushed and fsynced) and resume without
+recomputing; torn or edited lines are recomputed with a note; final outputs
+are written atomically; a changed config is detected; ``restart`` removes the
+old outputs before writing new ones.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -299,33 +303,107 @@ class ScanResult(dict):
     """Summary of a finished scan (also written to summary.json)."""
 
 
-def _read_progress(path: Path, digest: str, restart: bool, out: Path):
-    done = {}
+def _record_line(rec: dict) -> str:
+    """One progress record as a JSON line with its checksum: sha256 of the
+    canonical JSON of the other fields (floats written exactly by repr)."""
+    return json.dumps(dict(rec, sha256=_checksum(rec)), allow_nan=False) + "\n"
+
+
+def _checksum(rec: dict) -> str:
+    body = json.dumps({k: v for k, v in rec.items() if k != "sha256"}, sort_keys=True, allow_nan=False)
+    return hashlib.sha256(body.encode()).hexdigest()[:20]
+
+
+def _read_progress(path: Path, digest: str, out: Path, source: str):
+    """Finished (case, alpha) -> chi^2 from the progress file, and notes on
+    what was not usable. Only complete lines count (a line cut by an
+    interruption is dropped); each record must carry this config's digest and
+    a valid checksum (an edited record is recomputed, with a note). The file
+    is then rewritten atomically with the good records only, so the next
+    append never lands on a torn line."""
+    done, notes, keep = {}, [], []
     if not path.exists():
-        return done
-    lines = path.read_text().splitlines()
-    if not lines:
-        return done
-    try:
-        head = json.loads(lines[0])
-    except json.JSONDecodeError:
-        head = {}
-    if head.get("config_digest") != digest:
-        if not restart:
-            raise ValueError(
-                f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
-                "use another --out folder or --restart to discard them"
-            )
-        path.unlink()
-        return done
-    for line in lines[1:]:
+        return done, notes
+    raw = path.read_bytes()
+    text = raw.decode("utf-8", errors="replace")
+    lines = text.split("\n")
+    if lines and lines[-1] != "":
+        notes.append(f"{path.name}: the last line was cut by an interruption; dropped (recomputed)")
+    lines = [ln for ln in lines[:-1]]
+    head, first_is_record = None, False
+    if lines:
+        try:
+            first = json.loads(lines[0])
+        except json.JSONDecodeError:
+            first = None
+        first_is_record = isinstance(first, dict) and "case" in first
+        if isinstance(first, dict) and "config_digest" in first and not first_is_record:
+            head = first
+    body = lines if first_is_record else lines[1:]
+    if head is None and lines:
+        notes.append(f"{path.name}: the header line is damaged; rewritten (records are checked one by one)")
+    elif head is not None and head.get("config_digest") != digest:
+        raise ValueError(
+            f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
+            "use another --out folder or --restart to discard them"
+        )
+    foreign = set()
+    for n, line in enumerate(body, start=1 if first_is_record else 2):
+        if not line.strip():
+            continue
         try:
             rec = json.loads(line)
+            ok = isinstance(rec, dict) and {"case", "alpha", "chi2"} <= set(rec)
         except json.JSONDecodeError:
-            continue  # a line cut by an interruption: recomputed
+            ok = False
+        if not ok:
+            notes.append(f"{path.name} line {n}: not a progress record; recomputed")
+            continue
+        if rec.get("config_digest") not in (None, digest):
+            foreign.add(rec.get("config_digest"))
+            continue
+        if rec.get("sha256") != _checksum(rec) or rec.get("config_digest") != digest:
+            notes.append(f"{path.name} line {n}: checksum mismatch (record edited or from an older version); "
+                         f"its {len(rec.get('alpha', []))} alphas are recomputed")
+            continue
         for a, c2 in zip(rec["alpha"], rec["chi2"]):
             done[(rec["case"], round(float(a), 9))] = float(c2)
-    return done
+        keep.append(line + "\n")
+    if foreign:
+        raise ValueError(
+            f"{out} holds results of a different configuration (digest {sorted(foreign)[0]}, now {digest}); "
+            "use another --out folder or --restart to discard them"
+        )
+    header = json.dumps({"config_digest": digest, "source": source, "format": 2}) + "\n"
+    _atomic_write(path, header + "".join(keep))
+    return done, notes
+
+
+# Files a scan writes into its folder (figures: see the old summary's list).
+_OUTPUTS = ("summary.json", "scan.csv", "config.json", PROGRESS)
+
+
+def _clear_outputs(out: Path) -> None:
+    """--restart: remove the previous scan's outputs before anything new is
+    written, the finished-scan marker (summary.json) first, so an interrupted
+    restart never leaves old results beside a new config."""
+    figures = []
+    summ = out / "summary.json"
+    if summ.exists():
+        try:
+            figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
+        except (json.JSONDecodeError, OSError, AttributeError, TypeError):
+            figures = []
+    names = ["summary.json", "scan.csv"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    for name in dict.fromkeys(names):
+        p = out / name
+        if p.is_file():
+            p.unlink()
+
+
+# The figure files scan_figures writes (also removed by --restart when the old
+# summary.json is missing or unreadable).
+_FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True, figures: bool = True) -> ScanResult:
@@ -338,11 +416,13 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     sysm, lc = cfg.system, cfg.lightcurve
     digest = cfg.digest
     prog_path = out / PROGRESS
-    if restart and prog_path.exists():
-        prog_path.unlink()
-    done = _read_progress(prog_path, digest, restart, out)
+    if restart:
+        _clear_outputs(out)
+    done, notes = _read_progress(prog_path, digest, out, cfg.source)
+    for note in notes:
+        warnings.warn(note, stacklevel=2)
     if not prog_path.exists():
-        _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source}) + "\n")
+        _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
     # keep the config next to the results (jaxppo plot re-reads it)
     _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "config": cfg.raw}, indent=2, default=str))
 
@@ -365,7 +445,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
             model = sweep(sysm, tm, alphas, cases=(case,))[0]
             model = model.reshape(alphas.size, -1, nsub).mean(-1)
             chi2 = np.sum(((y[None, :] - model) / sig[None, :]) ** 2, axis=1)
-            fh.write(json.dumps({"case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}) + "\n")
+            fh.write(_record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}))
             fh.flush()
             os.fsync(fh.fileno())
             for a, c2 in zip(alphas, chi2):
@@ -410,7 +490,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         points=int(data.time.size), supersampling=nsub, exposure=lc.exposure,
         detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
-        tilted=sysm.planets[sysm.tilted].name, seconds=None,
+        tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
     )
     if figures:
         from ._figures import scan_figures

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -86,7 +87,11 @@ def cmd_scan(args) -> int:
 
     cfg = load_config(args.config)
     t0 = time.perf_counter()
-    result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+    for w in caught:
+        print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
     print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
           f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
     _print_summary(result)
@@ -223,6 +228,12 @@ def main(argv=None) -> int:
         return args.func(args)
     except ValueError as err:
         print(f"jaxppo {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        # a folder that cannot be written, a full disk, a file where a folder
+        # should be: one line, no traceback
+        where = f" ({err.filename})" if getattr(err, "filename", None) else ""
+        print(f"jaxppo {args.command}: error: cannot read or write{where}: {err.strerror or err}", file=sys.stderr)
         return 2
 
 

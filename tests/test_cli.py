@@ -63,3 +63,17 @@ def test_fit_and_sample_commands(tmp_path, capsys):
     assert main(["sample", "--free", "c.radius", "--warmup", "20", "--samples", "20", "--quiet",
                  "--out", str(tmp_path / "s.npz")]) == 0
     assert "r_hat" in capsys.readouterr().out
+
+
+def test_write_failure_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "taken"
+    blocker.write_text("a file where the output folder should be")
+    cfg = tmp_path / "s.toml"
+    from jaxppo._phoenix import data_path
+
+    text = data_path("kepler20_synthetic.toml").read_text().replace('path = "', f'path = "{data_path("")}/')
+    cfg.write_text(text.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 30.0]"))
+    assert main(["scan", str(cfg), "--out", str(blocker / "sub"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("jaxppo scan: error: cannot read or write") and "taken" in err

@@ -1,6 +1,7 @@
 """The obliquity scan end to end (paper Sects. 2.1 and 3.3)."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -356,3 +357,109 @@ def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
     low = rows["alpha"][(rows["alpha"] < 90) & (rows["delta_chi2"] < -0.5)]
     assert low.size and np.all((low >= 24) & (low <= 30)), low
     assert len(res["multi_transits"]) == 7
+
+
+# ---- progress bookkeeping -------------------------------------------------------
+
+def _small(tmp_path, **kw):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    return load_config(_config(tmp_path, lc, block=6, step=12.0, **kw))  # 2 cases x 30 alphas: 10 blocks
+
+
+def _interrupt_after(monkeypatch, n_blocks):
+    import jaxppo._scan as scan_mod
+
+    real, calls = scan_mod.sweep, {"n": 0}
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > n_blocks:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scan_mod, "sweep", flaky)
+    return lambda: monkeypatch.setattr(scan_mod, "sweep", real)
+
+
+def test_torn_last_line_is_truncated_before_appending(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    ref = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 3)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    with open(prog, "a") as fh:
+        fh.write('{"config_digest": "x", "case": "same", "alpha": [0.0, 12')  # killed mid-write
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)  # and once more: the file stays sound
+    for line in prog.read_text().splitlines():
+        json.loads(line)  # every line whole: nothing appended onto the torn one
+    assert len(prog.read_text().splitlines()) == 1 + 10
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+    assert res["chi2_0"] == ref["chi2_0"]
+    assert any("cut by an interruption" in str(w.message) for w in caught)
+
+
+def test_edited_record_is_rejected_and_recomputed(tmp_path):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    good = (tmp_path / "out" / "scan.csv").read_text()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    rec = json.loads(lines[2])
+    rec["chi2"][0] -= 50.0  # a hand-edited chi^2 must not be used
+    lines[2] = json.dumps(rec)
+    prog.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert (tmp_path / "out" / "scan.csv").read_text() == good
+    assert any("line 3: checksum mismatch" in str(w.message) for w in caught)
+
+
+def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 4)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    lines[0] = lines[0][:17]  # damaged header, four good records behind it
+    prog.write_text("\n".join(lines) + "\n")
+    import jaxppo._scan as scan_mod
+
+    calls = {"n": 0}
+    real = scan_mod.sweep
+
+    def counting(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(scan_mod, "sweep", counting)
+    with pytest.warns(UserWarning, match="header line is damaged"):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert calls["n"] == 10 - 4 + 1  # the four good blocks kept (+1: the null model)
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+
+
+def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    out = tmp_path / "out"
+    run_scan(cfg, out, progress=False, figures=False)
+    (out / "fig5_delta_chi2.png").write_bytes(b"old figure")
+    cfg2 = _small(tmp_path, scale=1.1, name="other.toml")
+    undo = _interrupt_after(monkeypatch, 1)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg2, out, restart=True, progress=False, figures=False)
+    undo()
+    # an interrupted restart leaves no result of the old config beside the new one
+    for name in ("scan.csv", "summary.json", "fig5_delta_chi2.png"):
+        assert not (out / name).exists(), name
+    assert json.loads((out / "config.json").read_text())["digest"] == cfg2.digest
+    run_scan(cfg2, out, progress=False, figures=False)  # resumes the restarted scan
+    assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
