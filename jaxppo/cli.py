@@ -99,6 +99,18 @@ def cmd_scan(args) -> int:
     return 0
 
 
+def cmd_init(args) -> int:
+    """Write a commented config template (every key, units, defaults)."""
+    from jaxppo._config import config_template
+
+    path = Path(args.path)
+    if path.exists() and not args.force:
+        raise ValueError(f"{path} exists; choose another PATH or add --force to overwrite it")
+    path.write_text(config_template())
+    print(f"wrote {path}; run it with: jaxppo scan {path} --out scan_out")
+    return 0
+
+
 def cmd_plot(args) -> int:
     """Redraw the figures of a finished scan from DIR/scan.csv and its config."""
     _enable_x64()
@@ -209,6 +221,10 @@ def main(argv=None) -> int:
             p.add_argument("--seed", type=int, default=0)
             p.add_argument("--quiet", action="store_true")
         p.set_defaults(func=func)
+    p = sub.add_parser("init", help="write a commented scan config template (every key, units, defaults)")
+    p.add_argument("path", nargs="?", default="jaxppo_scan.toml", help="where to write it (default: jaxppo_scan.toml)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.set_defaults(func=cmd_init)
     p = sub.add_parser("plot", help="redraw the figures of a finished scan")
     p.add_argument("dir", help="the scan's output folder")
     p.set_defaults(func=cmd_plot)

@@ -9,7 +9,7 @@ import pytest
 from jaxppo.cli import main
 
 
-@pytest.mark.parametrize("sub", ["scan", "plot", "simulate", "demo", "fit", "sample"])
+@pytest.mark.parametrize("sub", ["scan", "plot", "simulate", "demo", "fit", "sample", "init"])
 def test_help(sub, capsys):
     with pytest.raises(SystemExit) as e:
         main([sub, "--help"])
