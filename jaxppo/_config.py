@@ -17,7 +17,7 @@ from ._phoenix import data_path, phoenix_star
 from ._star import Star
 from ._system import CASES, Planet, System
 
-__all__ = ["ScanConfig", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
+__all__ = ["ScanConfig", "check_alpha_grid", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 
@@ -107,6 +107,28 @@ def _star_from(section: dict, base: Path, source: str) -> Star:
         return Star.from_law(law, section.get("coefficients", []))
     except ValueError as e:
         raise _err(source, f"[star] {e}") from e
+
+
+def check_alpha_grid(alpha) -> float:
+    """The step [deg] of a valid tilt grid, or ValueError naming ``alpha``.
+
+    The posterior is normalised over the whole circle (uniform prior on
+    [0, 360)) and the geometry probabilities integrate it over fixed ranges:
+    a partial grid would silently drop the prior mass of the angles it leaves
+    out (e.g. "retrograde 100 %"), so the grid must be evenly spaced, span
+    360 deg, and have a step that divides 360."""
+    a = np.asarray(alpha, float)
+    if a.ndim != 1 or a.size < 2 or not np.all(np.isfinite(a)):
+        raise ValueError(f"alpha must be a 1D grid of at least 2 finite angles [deg], got shape {a.shape}")
+    step = float(a[1] - a[0])
+    n = 360.0 / step if step > 0 else 0.0
+    if not (step > 0 and np.allclose(np.diff(a), step, rtol=0, atol=1e-9) and abs(n - round(n)) < 1e-9
+            and round(n) == a.size):
+        raise ValueError(
+            f"alpha covers {a[0]:g} .. {a[-1]:g} deg ({a.size} angles): the posterior and the geometry probabilities "
+            "need the whole circle, so alpha must be evenly spaced, span 360 deg and have a step that divides 360 "
+            "(e.g. [0, 360, 1])")
+    return step
 
 
 def _is_fits(p: Path) -> bool:
@@ -217,15 +239,10 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
     alpha = np.arange(start, stop, step)
     if alpha.size == 0:
         raise _err(source, f"[scan] alpha grid [{start}, {stop}) with step {step} is empty")
-    # The posterior is normalised over the whole circle (uniform prior on
-    # [0, 360)) and the geometry probabilities integrate it over fixed
-    # ranges: a partial grid would silently drop the prior mass of the
-    # angles it leaves out (e.g. "retrograde 100 %"), so it is refused.
-    n_steps = (stop - start) / step
-    if abs(stop - start - 360.0) > 1e-9 or abs(n_steps - round(n_steps)) > 1e-9:
-        raise _err(source, f"[scan] alpha = {grid!r} covers {start:g} .. {stop:g} deg in steps of {step:g}: the "
-                           "posterior and the geometry probabilities need the whole circle, so alpha must span "
-                           "360 deg with a step that divides 360 (e.g. [0, 360, 1])")
+    try:
+        check_alpha_grid(alpha)
+    except ValueError as e:
+        raise _err(source, f"[scan] alpha = {grid!r}: {e}") from None
     cases = tuple(scan.get("cases", list(CASES)))
     if not cases:
         raise _err(source, "[scan] cases must not be empty")

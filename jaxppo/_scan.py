@@ -31,7 +31,7 @@ from ._sweep import sweep
 from ._lightcurve import LightCurve
 from ._system import MultiTransit, multi_transits
 
-__all__ = ["run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
+__all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
            "scan_events", "ppo_table", "in_transit_mask"]
 
 PROGRESS = "scan_progress.jsonl"
@@ -300,7 +300,45 @@ def _detrend_summary(cfg) -> dict:
 
 
 class ScanResult(dict):
-    """Summary of a finished scan (also written to summary.json)."""
+    """A finished scan: the summary (this dict, also written to
+    summary.json: chi2_0, geometry probabilities, Bayes factors, the
+    multi-transits used, the detrending), ``table`` (the rows of scan.csv),
+    ``windows`` (the :class:`ScanWindow` data the chi^2 used) and ``plot()``."""
+
+    table: np.ndarray
+    windows: list
+
+    @property
+    def summary(self) -> dict:
+        return dict(self)
+
+    def delta_chi2(self, case: str) -> tuple[np.ndarray, np.ndarray]:
+        """(alpha [deg], Delta chi^2) of one case."""
+        if case not in set(self.table["case"]):
+            raise ValueError(f"case must be one of {sorted(set(self.table['case']))}, got {case!r}")
+        sel = self.table["case"] == case
+        return self.table["alpha"][sel], self.table["delta_chi2"][sel]
+
+    def plot(self, ax=None):
+        """Delta chi^2(alpha) of every case (paper Fig. 5); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(8, 3.6))
+        for case in dict.fromkeys(self.table["case"]):
+            a, d = self.delta_chi2(case)
+            geo = self["probabilities"][case]
+            fav = geo["favoured"]
+            ax.plot(a, d, lw=1, label=f"case {case} ({fav} {100 * geo[fav]['probability']:.1f} %)")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel("tilt angle alpha [deg]")
+        ax.set_ylabel("Delta chi^2")
+        ax.set_xlim(0, 360)
+        ax.legend(fontsize=8)
+        return ax
+
+
+_TABLE_DTYPE = [("case", "U8"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
 
 
 def _record_line(rec: dict) -> str:
@@ -458,7 +496,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     times_per_event = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
     chi2_null = float(np.sum(((y - null) / sig) ** 2))
-    rows, summary_cases = [], {}
+    rows, summary_cases, table = [], {}, []
     for case in cfg.cases:
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
         ppo = ppo_table(sysm, times_per_event, cfg.alpha, case)
@@ -481,6 +519,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         }
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
+            table.append((case, float(a), float(c2), float(dc), float(p)))
     _atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
     result = ScanResult(
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
@@ -492,6 +531,8 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
         tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
     )
+    result.table = np.array(table, dtype=_TABLE_DTYPE)
+    result.windows = windows
     if figures:
         from ._figures import scan_figures
 
@@ -500,3 +541,94 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
     _atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))
     return result
+
+
+def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out=None, margin: float = 0.05,
+         detrend: int | str | None = 2, baseline: float = 0.3, clip: float | str | None = 5.0,
+         multi_transits=None, block: int = 60, restart: bool = False, progress: bool = False,
+         figures: bool = False) -> ScanResult:
+    """The orbital obliquity scan (Mueller et al. 2021, Sects. 2.1 and 3.3).
+
+    ``jp.scan(system, lightcurve, alpha=np.arange(0, 360, 1.0))`` or
+    ``jp.scan(jp.load_config(path))`` (a config carries its own settings).
+
+    Args:
+        system: :class:`System` (``system.tilted`` is rotated by alpha), or a
+            :class:`ScanConfig` from :func:`load_config`.
+        lightcurve: :class:`LightCurve` (not with a config).
+        alpha: tilt grid [deg]; evenly spaced over 360 deg with a step that
+            divides 360 (default 0, 1, ..., 359).
+        cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
+        out: folder for scan.csv, summary.json, the progress file (resumes)
+            and, with ``figures``, the figures; None: a temporary folder.
+        margin [d], detrend (order or "none"), baseline [d], clip (robust
+            sigmas or "none"), multi_transits (mid-times [d]), block: as the
+            config keys of the same names (docs/config.md).
+
+    Returns:
+        :class:`ScanResult`: the summary dict with ``table``, ``windows`` and
+        ``plot()``.
+    """
+    import tempfile
+
+    from ._config import ScanConfig, check_alpha_grid
+
+    if isinstance(system, ScanConfig):
+        if lightcurve is not None:
+            raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
+        cfg = system
+    else:
+        cfg = _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block)
+        check_alpha_grid(cfg.alpha)
+    if out is None:
+        with tempfile.TemporaryDirectory(prefix="jaxppo_scan_") as tmp:
+            return run_scan(cfg, tmp, restart=restart, progress=progress, figures=False)
+    return run_scan(cfg, out, restart=restart, progress=progress, figures=figures)
+
+
+def _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block):
+    from ._config import ScanConfig
+    from ._system import CASES, System
+
+    if not isinstance(system, System):
+        raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    if not isinstance(lightcurve, LightCurve):
+        raise ValueError(f"lightcurve must be a jaxppo.LightCurve, got {type(lightcurve).__name__}")
+    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
+    cases = (cases,) if isinstance(cases, str) else tuple(cases)
+    if not cases or any(c not in CASES for c in cases):
+        raise ValueError(f"cases must be a non-empty sequence of {CASES}, got {cases!r}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin must be >= 0 days, got {margin!r}")
+    if isinstance(detrend, str):
+        if detrend.lower() != "none":
+            raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
+        detrend = None
+    if detrend is not None and (isinstance(detrend, bool) or int(detrend) != detrend or not 0 <= detrend <= 5):
+        raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
+    if not baseline > margin:
+        raise ValueError(f"baseline must be > margin ({margin} d), got {baseline!r}")
+    if isinstance(clip, str):
+        if clip.lower() != "none":
+            raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
+        clip = None
+    if clip is not None and not clip >= 2:
+        raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
+    if int(block) < 1:
+        raise ValueError(f"block must be >= 1, got {block!r}")
+    events = None if multi_transits is None else tuple(float(m) for m in np.atleast_1d(multi_transits))
+    star = system.star
+    # what determines the results goes into the digest (resuming, --restart)
+    raw = {
+        "star": {"law": star.law, "params": np.asarray(star.params).tolist(),
+                 "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
+                 "interpolation": star.interpolation},
+        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")}}
+                   for pl in system.planets],
+        "tilted": system.tilted,
+        "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
+        "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": float(margin), "detrend": detrend,
+                 "baseline": float(baseline), "clip": clip, "multi_transits": events, "block": int(block)},
+    }
+    return ScanConfig(system, lightcurve, alpha, cases, float(margin), int(block), raw, "<jaxppo.scan>",
+                      detrend, float(baseline), clip, events)

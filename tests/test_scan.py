@@ -463,3 +463,27 @@ def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
     assert json.loads((out / "config.json").read_text())["digest"] == cfg2.digest
     run_scan(cfg2, out, progress=False, figures=False)  # resumes the restarted scan
     assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
+
+
+# ---- public API ---------------------------------------------------------------------
+
+def test_public_scan_matches_the_config_route(tmp_path):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    via_file = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "cfg", progress=False, figures=False)
+    lc_read = jp.load_config(tmp_path / "scan.toml").lightcurve  # the same (CSV-rounded) points
+    res = jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0))
+    np.testing.assert_array_equal(res.table["chi2"], via_file.table["chi2"])
+    assert res["probabilities"] == via_file["probabilities"]
+    assert list(res.table.dtype.names) == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
+    a, d = res.delta_chi2("opposite")
+    assert a.size == 60 and np.all(d[a < 15] == 0)
+    assert len(res.windows) == 7 and isinstance(res.windows[0], jp.ScanWindow)
+    ax = res.plot()
+    assert len(ax.get_lines()) == 3  # two cases and the zero line
+    import matplotlib.pyplot as plt
+
+    plt.close(ax.figure)
+    with pytest.raises(ValueError, match="alpha covers 100 .. 199 deg"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(100.0, 200.0, 1.0))
+    with pytest.raises(ValueError, match="cases must be"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0), cases=("sideways",))
