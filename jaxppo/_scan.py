@@ -136,8 +136,11 @@ def _detrend_window(t, f, e, oot, mid, order, clip, estimate):
         if clip is None:
             break
         s_rob = _robust_sigma(res[fit_pts])
+        if not s_rob > 0:  # noise-free data: nothing is an outlier
+            break
         new = keep & ~(oot & (np.abs(res) > clip * s_rob))
-        if new.sum() == keep.sum():
+        # stop when nothing changes, or before the baseline gets too thin
+        if new.sum() == keep.sum() or (oot & new).sum() < order + 3:
             break
         keep = new
     fit_pts = oot & keep
