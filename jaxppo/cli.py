@@ -71,7 +71,9 @@ def cmd_demo(args) -> int:
 
 def _print_summary(result) -> None:
     for case, geo in result["probabilities"].items():
-        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}")
+        n = result.get("points")
+        per = f" for {n} points (chi2_0 / N = {result['chi2_0'][case] / n:.3f})" if n else ""
+        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}{per}")
         for name, v in geo.items():
             if isinstance(v, dict):
                 print(f"   {name:36s} p = {100 * v['probability']:6.2f} %   sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
@@ -94,6 +96,10 @@ def cmd_scan(args) -> int:
         print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
     print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
           f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
+    det = result.get("detrending", {})
+    if det.get("order") not in (None, "none"):
+        print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
+              f"{sum(m.get('clipped', 0) for m in result['multi_transits'])} outliers clipped; errors {det['flux_err']}")
     _print_summary(result)
     print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json and {len(result.get('figures', []))} figures")
     return 0
