@@ -420,10 +420,6 @@ def _read_progress(path: Path, digest: str, out: Path, source: str):
     return done, notes
 
 
-# Files a scan writes into its folder (figures: see the old summary's list).
-_OUTPUTS = ("summary.json", "scan.csv", "config.json", PROGRESS)
-
-
 def _clear_outputs(out: Path) -> None:
     """--restart: remove the previous scan's outputs before anything new is
     written, the finished-scan marker (summary.json) first, so an interrupted
