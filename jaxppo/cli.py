@@ -128,6 +128,9 @@ def cmd_plot(args) -> int:
         if not (out / name).exists():
             raise ValueError(f"{out} holds no finished scan ({name} missing)")
     summary = json.loads((out / "summary.json").read_text())
+    if summary["config"] == "<jaxppo.scan>":
+        raise ValueError(f"{out} was written by jaxppo.scan() from Python, without a config file; "
+                         "redraw it there with ScanResult.plot()")
     cfg = load_config(summary["config"])
     if cfg.digest != summary["config_digest"]:
         raise ValueError(f"the config {summary['config']} changed since the scan in {out}; rerun the scan")
