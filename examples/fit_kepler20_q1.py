@@ -6,6 +6,7 @@ Table 3 and save a figure of data, model and residuals.
 """
 
 import argparse
+from pathlib import Path
 
 import jax
 
@@ -17,17 +18,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo._phoenix import data_path  # noqa: E402
 
 PAPER = {"b.t0": 134.501962, "b.radius": 0.01805, "c.t0": 138.608470, "c.radius": 0.02878}
-LONG_CADENCE = 6.019802903 * 270 / 86400  # Kepler long-cadence exposure [d]
+LONG_CADENCE = 0.0204335982  # [d] Kepler long cadence: the flux is averaged over TIMEDEL = 29.4 min (not INT_TIME x NUM_FRM = 27.1 min)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="kepler20_q1_fit.png")
     args = ap.parse_args(argv)
-    lc = jp.LightCurve.from_csv(data_path("kepler20_kic6850504_q1_llc_BKJD159.0-161.5.csv"), exposure=LONG_CADENCE)
+    data = Path(jp.__file__).parent / "data" / "kepler20_kic6850504_q1_llc_BKJD159.0-161.5.csv"
+    lc = jp.LightCurve.from_csv(data, exposure=LONG_CADENCE)
     print("loaded:", lc.report)
     system = jp.kepler20_system(jp.Star.quadratic(0.495, 0.154))  # the paper's PHOENIX quadratic fit
     t_sub, n = lc.supersampled_times()

@@ -40,3 +40,9 @@ from ._fit import fit as fit
 from ._fit import parameter_names as parameter_names
 from ._sample import SampleResult as SampleResult
 from ._sample import sample as sample
+from ._config import ScanConfig as ScanConfig
+from ._config import load_config as load_config
+from ._scan import ScanResult as ScanResult
+from ._scan import ScanWindow as ScanWindow
+from ._scan import scan as scan
+from ._scan import scan_windows as scan_windows

@@ -7,27 +7,39 @@ p(alpha | D) ~ exp(-Delta chi^2 / 2) normalised over [0, 360), the geometry
 probabilities (Table 6), the Bayes factor with its Jeffreys rating, and the
 numbers of the transits in which each alpha produces a PPO.
 
-Long runs write their progress as they go (one JSON line per finished
-(case, alpha) block, flushed and fsynced) and resume without recomputing;
-final outputs are written atomically; a changed config is detected.
+Long runs write their progress as they go (one checksummed JSON line per
+finished (case, alpha) block, flushed and fsynced) and resume without
+recomputing; torn or edited lines are recomputed with a note; final outputs
+are written atomically; a changed config is detected; ``restart`` removes the
+old outputs before writing new ones.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import os
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ._config import ScanConfig
 from ._sweep import sweep
-from ._system import multi_transits
+from ._lightcurve import LightCurve
+from ._system import MultiTransit, multi_transits
 
-__all__ = ["run_scan", "ScanResult", "geometry_probabilities", "jeffreys", "scan_events", "ppo_table"]
+__all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
+           "scan_events", "ppo_table", "in_transit_mask"]
 
 PROGRESS = "scan_progress.jsonl"
+# Extra width [d] (15 min) of each transit window in the out-of-transit mask:
+# room for ephemeris errors, so no ingress point bends the baseline.
+_TRANSIT_PAD = 15.0 / 1440.0
+# [scan] multi_transits lists mid-times; an event matches within this [d]
+_EVENT_MATCH = 0.1
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -52,22 +64,168 @@ def jeffreys(k: float) -> str:
     return "decisive"
 
 
-def scan_events(cfg: ScanConfig):
-    """Multi-transits of the tilted planet that have data, with their data."""
+@dataclasses.dataclass(frozen=True)
+class ScanWindow:
+    """One multi-transit as the chi^2 sees it.
+
+    ``number``: 1-based, as in ``summary["multi_transits"]``; ``event``: the
+    :class:`MultiTransit`; ``time`` [d], ``flux``, ``flux_err``: the points
+    inside [event.start - margin, event.end + margin] after detrending (each
+    window divided by its out-of-transit polynomial) and outlier removal;
+    ``exposure`` [d] of each point (None: instantaneous). ``baseline_points``:
+    out-of-transit points the trend was fitted to; ``clipped``: points dropped
+    as outliers (out of transit only); ``sigma``: the error estimated from the
+    out-of-transit scatter (None when the data's own errors are used);
+    ``trend``: polynomial coefficients (highest power first) in t - event.mid.
+    """
+
+    number: int
+    event: MultiTransit
+    time: np.ndarray
+    flux: np.ndarray
+    flux_err: np.ndarray
+    exposure: float | None
+    baseline_points: int = 0
+    clipped: int = 0
+    sigma: float | None = None
+    trend: tuple = ()
+
+    def as_dict(self) -> dict:
+        return dict(self.event.as_dict(), number=self.number, points=int(self.time.size),
+                    baseline_points=self.baseline_points, clipped=self.clipped, sigma=self.sigma)
+
+
+def in_transit_mask(system, t, pad: float = 0.0) -> np.ndarray:
+    """True where any planet of ``system`` is between its first and last
+    contact, widened by ``pad`` [d] on both sides (e.g. half an exposure,
+    which smears a transit by that much). Alpha rotates the tilted orbit
+    about the star's centre, which keeps every contact time: the mask holds
+    for all alpha and both cases."""
+    t = np.asarray(t, float)
+    mask = np.zeros(t.size, bool)
+    if t.size == 0:
+        return mask
+    for pl in system.planets:
+        half = float(pl.half_duration())
+        if half <= 0:
+            continue
+        period, t0 = float(pl.period), float(pl.t0)
+        n = np.round((t - t0) / period)
+        mask |= np.abs(t - (t0 + n * period)) < half + pad
+    return mask
+
+
+def _robust_sigma(r: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation: the Gaussian sigma, unmoved by
+    a few outliers."""
+    return float(1.4826 * np.median(np.abs(r - np.median(r))))
+
+
+def _detrend_window(t, f, e, oot, mid, order, clip, estimate):
+    """Fit the polynomial to the out-of-transit points, iteratively dropping
+    those whose residual exceeds ``clip`` robust sigmas (never in-transit
+    points: a PPO bump or a transit cannot be clipped). Returns the kept mask,
+    the trend coefficients and the estimated sigma (or None)."""
+    keep = np.ones(t.size, bool)
+    x = t - mid
+    w = None if estimate else 1.0 / e
+    for _ in range(10):
+        fit_pts = oot & keep
+        coef = np.polyfit(x[fit_pts], f[fit_pts], order, w=None if w is None else w[fit_pts])
+        res = f / np.polyval(coef, x) - 1.0
+        if clip is None:
+            break
+        s_rob = _robust_sigma(res[fit_pts])
+        if not s_rob > 0:  # noise-free data: nothing is an outlier
+            break
+        new = keep & ~(oot & (np.abs(res) > clip * s_rob))
+        # stop when nothing changes, or before the baseline gets too thin
+        if new.sum() == keep.sum() or (oot & new).sum() < order + 3:
+            break
+        keep = new
+    fit_pts = oot & keep
+    sigma = None
+    if estimate:
+        # unbiased residual variance of the kept baseline (n - order - 1 dof)
+        r = f[fit_pts] / np.polyval(coef, x[fit_pts]) - 1.0
+        sigma = float(np.sqrt(np.sum(r**2) / (fit_pts.sum() - order - 1)))
+    return keep, coef, sigma
+
+
+def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
+    """The multi-transits of the tilted planet that have data, each with the
+    detrended, outlier-cleaned points the chi^2 uses (paper Sect. 2.2).
+
+    Per event: the baseline is [start - baseline, end + baseline]; its points
+    outside every planet's transit (contact times, widened by half an
+    exposure) fit a polynomial of order ``detrend``, and the window is divided
+    by it. Outliers: baseline points more than ``clip`` x 1.4826 MAD from the
+    trend are dropped (iterated); in-transit points are never clipped. When
+    the data carry no errors (``lightcurve.errors_estimated``), each window's
+    error is the rms of its baseline residuals with n - order - 1 degrees of
+    freedom. Events with too few baseline points (fewer than order + 3 in all
+    or fewer than 2 on a side) are skipped and listed in ``skipped`` of the
+    summary. ``detrend = "none"``: the flux is used as loaded."""
+    return _scan_windows(cfg)[0]
+
+
+def _scan_windows(cfg: ScanConfig):
     sysm, lc = cfg.system, cfg.lightcurve
     tilted_name = sysm.planets[sysm.tilted].name
+    tilted_label = tilted_name or str(sysm.tilted)
     events = [e for e in multi_transits(sysm, float(lc.time.min()) - 1.0, float(lc.time.max()) + 1.0)
-              if tilted_name in e.planets]
-    used = []
+              if tilted_label in e.planets]
+    if cfg.events is not None:
+        # only the listed multi-transits (e.g. the paper's seven)
+        missing = [m for m in cfg.events if not any(abs(e.mid - m) < _EVENT_MATCH for e in events)]
+        if missing:
+            raise ValueError(f"{cfg.source}: [scan] multi_transits: no multi-transit of planet {tilted_label!r} "
+                             f"within {_EVENT_MATCH} d of {missing}; the data hold {[round(e.mid, 2) for e in events]}")
+        events = [e for e in events if any(abs(e.mid - m) < _EVENT_MATCH for m in cfg.events)]
+    order, clip = cfg.detrend, cfg.clip
+    pad = 0.5 * (lc.exposure or 0.0) + _TRANSIT_PAD
+    windows, skipped = [], []
     for e in events:
-        sel = (lc.time >= e.start - cfg.margin) & (lc.time <= e.end + cfg.margin)
-        if sel.sum() > 0:
-            used.append((e, sel))
-    if not used:
+        lo, hi = e.start - cfg.margin, e.end + cfg.margin
+        if order is None:
+            sel = (lc.time >= lo) & (lc.time <= hi)
+            if sel.any():
+                windows.append(ScanWindow(len(windows) + 1, e, lc.time[sel], lc.flux[sel], lc.flux_err[sel], lc.exposure))
+            continue
+        base = (lc.time >= e.start - cfg.baseline) & (lc.time <= e.end + cfg.baseline)
+        chi_sel = (lc.time[base] >= lo) & (lc.time[base] <= hi)
+        if not chi_sel.any():
+            continue
+        t, f, err = lc.time[base], lc.flux[base], lc.flux_err[base]
+        oot = ~in_transit_mask(sysm, t, pad)
+        n_left, n_right = int((oot & (t < e.start)).sum()), int((oot & (t > e.end)).sum())
+        if oot.sum() < order + 3 or (order >= 1 and min(n_left, n_right) < 2):
+            skipped.append({"mid": e.mid, "reason": f"{int(oot.sum())} out-of-transit baseline points "
+                            f"({n_left} before, {n_right} after); need >= {order + 3} and >= 2 on each side"})
+            continue
+        keep, coef, sigma = _detrend_window(t, f, err, oot, e.mid, order, clip, lc.errors_estimated)
+        trend = np.polyval(coef, t - e.mid)
+        use = chi_sel & keep
+        fe = np.full(t.size, sigma) if sigma is not None else err / trend
+        windows.append(ScanWindow(
+            len(windows) + 1, e, t[use], f[use] / trend[use], fe[use], lc.exposure,
+            baseline_points=int((oot & keep).sum()), clipped=int((~keep).sum()), sigma=sigma,
+            trend=tuple(float(c) for c in coef)))
+    if not windows:
         raise ValueError(
-            f"{cfg.source}: the data ({lc.time.min():.3f} .. {lc.time.max():.3f}) contain no multi-transit of planet {tilted_name!r}"
+            f"{cfg.source}: the data ({lc.time.min():.3f} .. {lc.time.max():.3f}) contain no usable multi-transit "
+            f"of planet {tilted_label!r}" + (f" (skipped: {skipped})" if skipped else "")
         )
-    return used
+    return windows, skipped
+
+
+def scan_events(cfg: ScanConfig):
+    """(event, mask of ``cfg.lightcurve``) of the multi-transits the scan
+    uses, numbered as :func:`scan_windows` (the mask covers the chi^2 window
+    of the raw light curve; the detrended points are in scan_windows)."""
+    lc = cfg.lightcurve
+    return [(w.event, (lc.time >= w.event.start - cfg.margin) & (lc.time <= w.event.end + cfg.margin))
+            for w in scan_windows(cfg)]
 
 
 def ppo_table(system, times_per_event, alpha, case) -> np.ndarray:
@@ -93,57 +251,196 @@ def _geometry_names(case: str) -> tuple[str, str]:
     return "prograde, different hemispheres", "retrograde, same hemisphere"
 
 
-def geometry_probabilities(alpha, posterior, delta_chi2, case, step) -> dict:
-    """Integrate the posterior over the paper's Table 6 ranges: prograde
+def _logsumexp(v: np.ndarray) -> float:
+    if v.size == 0:
+        return -np.inf
+    m = float(np.max(v))
+    return m + float(np.log(np.sum(np.exp(v - m))))
+
+
+def geometry_probabilities(alpha, delta_chi2, case) -> dict:
+    """Integrate the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2) (uniform
+    prior on [0, 360), Eq. 1) over the paper's Table 6 ranges: prograde
     [0, 90] and (270, 360), retrograde (90, 270]; with the sum of positive
-    Delta chi^2 in each range, and the Bayes factor."""
+    Delta chi^2 in each range and the Bayes factor K = p_favoured / p_other
+    (computed in log space: ``log10_bayes_factor`` is always finite;
+    ``bayes_factor`` is None where K overflows a float)."""
     alpha = np.mod(np.asarray(alpha, float), 360.0)
+    dchi2 = np.asarray(delta_chi2, float)
     pro = (alpha <= 90.0) | (alpha > 270.0)
     names = _geometry_names(case)
-    p_pro = float(np.sum(posterior[pro]) * step)
-    p_ret = float(np.sum(posterior[~pro]) * step)
-    pos = np.clip(delta_chi2, 0.0, None)
-    favoured = names[0] if p_pro >= p_ret else names[1]
-    hi, lo = max(p_pro, p_ret), min(p_pro, p_ret)
-    kk = hi / lo if lo > 0 else float("inf")  # a grid covering one range only
+    logw = -0.5 * dchi2
+    log_pro, log_ret = _logsumexp(logw[pro]), _logsumexp(logw[~pro])
+    log_tot = np.logaddexp(log_pro, log_ret)
+    p_pro, p_ret = float(np.exp(log_pro - log_tot)), float(np.exp(log_ret - log_tot))
+    pos = np.clip(dchi2, 0.0, None)
+    favoured = names[0] if log_pro >= log_ret else names[1]
+    log10_k = abs(log_pro - log_ret) / np.log(10.0)
+    if not np.isfinite(log10_k):
+        raise ValueError(f"alpha: the grid leaves the {'retrograde' if np.isinf(log_ret) else 'prograde'} range "
+                         "empty; the geometry probabilities need angles in both")
+    kk = float(10.0**log10_k) if log10_k < 300 else None
     return {
         names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
         names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
-        "bayes_factor": float(kk), "favoured": favoured, "jeffreys": jeffreys(kk),
+        "bayes_factor": kk, "log10_bayes_factor": float(log10_k), "favoured": favoured,
+        "jeffreys": jeffreys(10.0**min(log10_k, 300.0)),
+    }
+
+
+def _detrend_summary(cfg) -> dict:
+    if cfg.detrend is None:
+        return {"order": "none", "flux_err": "estimated from the scatter at load time" if cfg.lightcurve.errors_estimated
+                else "from the data"}
+    return {
+        "order": cfg.detrend, "baseline_days": cfg.baseline, "margin_days": cfg.margin,
+        "clip_sigma": cfg.clip if cfg.clip is not None else "none",
+        "out_of_transit": "outside every planet's first-to-last contact, widened by half an exposure + 15 min",
+        "outliers": "out-of-transit points with |residual| > clip x 1.4826 MAD, iterated; in-transit points never clipped",
+        "flux_err": ("estimated per window: rms of the out-of-transit residuals (n - order - 1 dof); the data have no errors"
+                     if cfg.lightcurve.errors_estimated else "from the data, divided by the trend"),
     }
 
 
 class ScanResult(dict):
-    """Summary of a finished scan (also written to summary.json)."""
+    """A finished scan: the summary (this dict, also written to
+    summary.json: chi2_0, geometry probabilities, Bayes factors, the
+    multi-transits used, the detrending), ``table`` (the rows of scan.csv),
+    ``windows`` (the :class:`ScanWindow` data the chi^2 used) and ``plot()``."""
+
+    table: np.ndarray
+    windows: list
+
+    @property
+    def summary(self) -> dict:
+        return dict(self)
+
+    def delta_chi2(self, case: str) -> tuple[np.ndarray, np.ndarray]:
+        """(alpha [deg], Delta chi^2) of one case."""
+        if case not in set(self.table["case"]):
+            raise ValueError(f"case must be one of {sorted(set(self.table['case']))}, got {case!r}")
+        sel = self.table["case"] == case
+        return self.table["alpha"][sel], self.table["delta_chi2"][sel]
+
+    def plot(self, ax=None):
+        """Delta chi^2(alpha) of every case (paper Fig. 5); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(8, 3.6))
+        for case in dict.fromkeys(self.table["case"]):
+            a, d = self.delta_chi2(case)
+            geo = self["probabilities"][case]
+            fav = geo["favoured"]
+            ax.plot(a, d, lw=1, label=f"case {case} ({fav} {100 * geo[fav]['probability']:.1f} %)")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel("tilt angle alpha [deg]")
+        ax.set_ylabel("Delta chi^2")
+        ax.set_xlim(0, 360)
+        ax.legend(fontsize=8)
+        return ax
 
 
-def _read_progress(path: Path, digest: str, restart: bool, out: Path):
-    done = {}
+_TABLE_DTYPE = [("case", "U8"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
+
+
+def _record_line(rec: dict) -> str:
+    """One progress record as a JSON line with its checksum: sha256 of the
+    canonical JSON of the other fields (floats written exactly by repr)."""
+    return json.dumps(dict(rec, sha256=_checksum(rec)), allow_nan=False) + "\n"
+
+
+def _checksum(rec: dict) -> str:
+    body = json.dumps({k: v for k, v in rec.items() if k != "sha256"}, sort_keys=True, allow_nan=False)
+    return hashlib.sha256(body.encode()).hexdigest()[:20]
+
+
+def _read_progress(path: Path, digest: str, out: Path, source: str):
+    """Finished (case, alpha) -> chi^2 from the progress file, and notes on
+    what was not usable. Only complete lines count (a line cut by an
+    interruption is dropped); each record must carry this config's digest and
+    a valid checksum (an edited record is recomputed, with a note). The file
+    is then rewritten atomically with the good records only, so the next
+    append never lands on a torn line."""
+    done, notes, keep = {}, [], []
     if not path.exists():
-        return done
-    lines = path.read_text().splitlines()
-    if not lines:
-        return done
-    try:
-        head = json.loads(lines[0])
-    except json.JSONDecodeError:
-        head = {}
-    if head.get("config_digest") != digest:
-        if not restart:
-            raise ValueError(
-                f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
-                "use another --out folder or --restart to discard them"
-            )
-        path.unlink()
-        return done
-    for line in lines[1:]:
+        return done, notes
+    raw = path.read_bytes()
+    text = raw.decode("utf-8", errors="replace")
+    lines = text.split("\n")
+    if lines and lines[-1] != "":
+        notes.append(f"{path.name}: the last line was cut by an interruption; dropped (recomputed)")
+    lines = [ln for ln in lines[:-1]]
+    head, first_is_record = None, False
+    if lines:
+        try:
+            first = json.loads(lines[0])
+        except json.JSONDecodeError:
+            first = None
+        first_is_record = isinstance(first, dict) and "case" in first
+        if isinstance(first, dict) and "config_digest" in first and not first_is_record:
+            head = first
+    body = lines if first_is_record else lines[1:]
+    if head is None and lines:
+        notes.append(f"{path.name}: the header line is damaged; rewritten (records are checked one by one)")
+    elif head is not None and head.get("config_digest") != digest:
+        raise ValueError(
+            f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
+            "use another --out folder or --restart to discard them"
+        )
+    foreign = set()
+    for n, line in enumerate(body, start=1 if first_is_record else 2):
+        if not line.strip():
+            continue
         try:
             rec = json.loads(line)
+            ok = isinstance(rec, dict) and {"case", "alpha", "chi2"} <= set(rec)
         except json.JSONDecodeError:
-            continue  # a line cut by an interruption: recomputed
+            ok = False
+        if not ok:
+            notes.append(f"{path.name} line {n}: not a progress record; recomputed")
+            continue
+        if rec.get("config_digest") not in (None, digest):
+            foreign.add(rec.get("config_digest"))
+            continue
+        if rec.get("sha256") != _checksum(rec) or rec.get("config_digest") != digest:
+            notes.append(f"{path.name} line {n}: checksum mismatch (record edited or from an older version); "
+                         f"its {len(rec.get('alpha', []))} alphas are recomputed")
+            continue
         for a, c2 in zip(rec["alpha"], rec["chi2"]):
             done[(rec["case"], round(float(a), 9))] = float(c2)
-    return done
+        keep.append(line + "\n")
+    if foreign:
+        raise ValueError(
+            f"{out} holds results of a different configuration (digest {sorted(foreign)[0]}, now {digest}); "
+            "use another --out folder or --restart to discard them"
+        )
+    header = json.dumps({"config_digest": digest, "source": source, "format": 2}) + "\n"
+    _atomic_write(path, header + "".join(keep))
+    return done, notes
+
+
+def _clear_outputs(out: Path) -> None:
+    """--restart: remove the previous scan's outputs before anything new is
+    written, the finished-scan marker (summary.json) first, so an interrupted
+    restart never leaves old results beside a new config."""
+    figures = []
+    summ = out / "summary.json"
+    if summ.exists():
+        try:
+            figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
+        except (json.JSONDecodeError, OSError, AttributeError, TypeError):
+            figures = []
+    names = ["summary.json", "scan.csv"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    for name in dict.fromkeys(names):
+        p = out / name
+        if p.is_file():
+            p.unlink()
+
+
+# The figure files scan_figures writes (also removed by --restart when the old
+# summary.json is missing or unreadable).
+_FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True, figures: bool = True) -> ScanResult:
@@ -156,19 +453,19 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     sysm, lc = cfg.system, cfg.lightcurve
     digest = cfg.digest
     prog_path = out / PROGRESS
-    if restart and prog_path.exists():
-        prog_path.unlink()
-    done = _read_progress(prog_path, digest, restart, out)
+    if restart:
+        _clear_outputs(out)
+    done, notes = _read_progress(prog_path, digest, out, cfg.source)
+    for note in notes:
+        warnings.warn(note, stacklevel=2)
     if not prog_path.exists():
-        _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source}) + "\n")
+        _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
     # keep the config next to the results (jaxppo plot re-reads it)
     _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "config": cfg.raw}, indent=2, default=str))
 
-    used = scan_events(cfg)
-    sel = np.zeros(lc.time.size, bool)
-    for _, s in used:
-        sel |= s
-    data = lc.select(sel)
+    windows, skipped = _scan_windows(cfg)
+    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                      np.concatenate([w.flux_err for w in windows]), lc.exposure)
     tm, nsub = data.supersampled_times()
     y, sig = data.flux, data.flux_err
 
@@ -185,7 +482,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
             model = sweep(sysm, tm, alphas, cases=(case,))[0]
             model = model.reshape(alphas.size, -1, nsub).mean(-1)
             chi2 = np.sum(((y[None, :] - model) / sig[None, :]) ** 2, axis=1)
-            fh.write(json.dumps({"case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}) + "\n")
+            fh.write(_record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}))
             fh.flush()
             os.fsync(fh.fileno())
             for a, c2 in zip(alphas, chi2):
@@ -195,14 +492,10 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
 
     # ---- analysis -------------------------------------------------------------
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
-    times_per_event = []
-    for e, _ in used:
-        s = (data.time >= e.start - cfg.margin) & (data.time <= e.end + cfg.margin)
-        t_ev, _ = data.select(s).supersampled_times() if s.any() else (np.zeros(0), 1)
-        times_per_event.append(t_ev)
+    times_per_event = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
     chi2_null = float(np.sum(((y - null) / sig) ** 2))
-    rows, summary_cases = [], {}
+    rows, summary_cases, table = [], {}, []
     for case in cfg.cases:
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
         ppo = ppo_table(sysm, times_per_event, cfg.alpha, case)
@@ -214,7 +507,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         dchi2 = chi2 - chi2_0
         w = np.exp(-0.5 * (dchi2 - dchi2.min()))
         post = w / (np.sum(w) * step)
-        geo = geometry_probabilities(cfg.alpha, post, dchi2, case, step)
+        geo = geometry_probabilities(cfg.alpha, dchi2, case)
         transits = [[int(i + 1) for i in np.nonzero(ppo[ai])[0]] for ai in range(cfg.alpha.size)]
         summary_cases[case] = {
             "chi2_0": chi2_0, "chi2_null_model": chi2_null, "alphas_without_ppo": int(quiet.sum()),
@@ -225,27 +518,116 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         }
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
-        # Cases 3 and 2 (paper Eq. 2): the same geometry at 360 - alpha.
-        mirror = np.mod(360.0 - cfg.alpha, 360.0)
-        label = {"same": "case 3 (= case 1 at 360 - alpha)", "opposite": "case 2 (= case 4 at 360 - alpha)"}[case]
-        summary_cases[case]["mirror"] = {
-            "label": label,
-            "geometries": geometry_probabilities(mirror, post, dchi2, "opposite" if case == "same" else "same", step),
-        }
+            table.append((case, float(a), float(c2), float(dc), float(p)))
     _atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
     result = ScanResult(
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases},
         cases=summary_cases,
-        multi_transits=[dict(e.as_dict(), number=i + 1, points=int(s.sum())) for i, (e, s) in enumerate(used)],
-        points=int(data.time.size), supersampling=nsub,
+        multi_transits=[w.as_dict() for w in windows], skipped_multi_transits=skipped,
+        points=int(data.time.size), supersampling=nsub, exposure=lc.exposure,
+        detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
-        tilted=sysm.planets[sysm.tilted].name, seconds=None,
+        tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
     )
+    result.table = np.array(table, dtype=_TABLE_DTYPE)
+    result.windows = windows
     if figures:
         from ._figures import scan_figures
 
         result["figures"] = scan_figures(cfg, out, result)
     result["seconds"] = time.perf_counter() - t_begin
-    _atomic_write(out / "summary.json", json.dumps(result, indent=2))
+    # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
+    _atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))
     return result
+
+
+def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out=None, margin: float = 0.05,
+         detrend: int | str | None = 2, baseline: float = 0.3, clip: float | str | None = 5.0,
+         multi_transits=None, block: int = 60, restart: bool = False, progress: bool = False,
+         figures: bool = False) -> ScanResult:
+    """The orbital obliquity scan (Mueller et al. 2021, Sects. 2.1 and 3.3).
+
+    ``jp.scan(system, lightcurve, alpha=np.arange(0, 360, 1.0))`` or
+    ``jp.scan(jp.load_config(path))`` (a config carries its own settings).
+
+    Args:
+        system: :class:`System` (``system.tilted`` is rotated by alpha), or a
+            :class:`ScanConfig` from :func:`load_config`.
+        lightcurve: :class:`LightCurve` (not with a config).
+        alpha: tilt grid [deg]; evenly spaced over 360 deg with a step that
+            divides 360 (default 0, 1, ..., 359).
+        cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
+        out: folder for scan.csv, summary.json, the progress file (resumes)
+            and, with ``figures``, the figures; None: a temporary folder.
+        margin [d], detrend (order or "none"), baseline [d], clip (robust
+            sigmas or "none"), multi_transits (mid-times [d]), block: as the
+            config keys of the same names (docs/config.md).
+
+    Returns:
+        :class:`ScanResult`: the summary dict with ``table``, ``windows`` and
+        ``plot()``.
+    """
+    import tempfile
+
+    from ._config import ScanConfig, check_alpha_grid
+
+    if isinstance(system, ScanConfig):
+        if lightcurve is not None:
+            raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
+        cfg = system
+    else:
+        cfg = _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block)
+        check_alpha_grid(cfg.alpha)
+    if out is None:
+        with tempfile.TemporaryDirectory(prefix="jaxppo_scan_") as tmp:
+            return run_scan(cfg, tmp, restart=restart, progress=progress, figures=False)
+    return run_scan(cfg, out, restart=restart, progress=progress, figures=figures)
+
+
+def _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block):
+    from ._config import ScanConfig
+    from ._system import CASES, System
+
+    if not isinstance(system, System):
+        raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    if not isinstance(lightcurve, LightCurve):
+        raise ValueError(f"lightcurve must be a jaxppo.LightCurve, got {type(lightcurve).__name__}")
+    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
+    cases = (cases,) if isinstance(cases, str) else tuple(cases)
+    if not cases or any(c not in CASES for c in cases):
+        raise ValueError(f"cases must be a non-empty sequence of {CASES}, got {cases!r}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin must be >= 0 days, got {margin!r}")
+    if isinstance(detrend, str):
+        if detrend.lower() != "none":
+            raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
+        detrend = None
+    if detrend is not None and (isinstance(detrend, bool) or int(detrend) != detrend or not 0 <= detrend <= 5):
+        raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
+    if not baseline > margin:
+        raise ValueError(f"baseline must be > margin ({margin} d), got {baseline!r}")
+    if isinstance(clip, str):
+        if clip.lower() != "none":
+            raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
+        clip = None
+    if clip is not None and not clip >= 2:
+        raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
+    if int(block) < 1:
+        raise ValueError(f"block must be >= 1, got {block!r}")
+    events = None if multi_transits is None else tuple(float(m) for m in np.atleast_1d(multi_transits))
+    star = system.star
+    # what determines the results goes into the digest (resuming, --restart)
+    raw = {
+        "star": {"law": star.law, "params": np.asarray(star.params).tolist(),
+                 "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
+                 "interpolation": star.interpolation},
+        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")}}
+                   for pl in system.planets],
+        "tilted": system.tilted,
+        "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
+        "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": float(margin), "detrend": detrend,
+                 "baseline": float(baseline), "clip": clip, "multi_transits": events, "block": int(block)},
+    }
+    return ScanConfig(system, lightcurve, alpha, cases, float(margin), int(block), raw, "<jaxppo.scan>",
+                      detrend, float(baseline), clip, events)

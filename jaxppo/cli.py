@@ -6,9 +6,12 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
+
+_SYNTHETIC = Path(__file__).resolve().parent / "data" / "kepler20_synthetic.toml"
 
 
 def _enable_x64() -> None:
@@ -68,11 +71,14 @@ def cmd_demo(args) -> int:
 
 def _print_summary(result) -> None:
     for case, geo in result["probabilities"].items():
-        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}")
+        n = result.get("points")
+        per = f" for {n} points (chi2_0 / N = {result['chi2_0'][case] / n:.3f})" if n else ""
+        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}{per}")
         for name, v in geo.items():
             if isinstance(v, dict):
                 print(f"   {name:36s} p = {100 * v['probability']:6.2f} %   sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
-        print(f"   Bayes factor {geo['bayes_factor']:.3f} for '{geo['favoured']}': {geo['jeffreys']}")
+        k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
+        print(f"   Bayes factor {k} for '{geo['favoured']}': {geo['jeffreys']}")
 
 
 def cmd_scan(args) -> int:
@@ -83,11 +89,31 @@ def cmd_scan(args) -> int:
 
     cfg = load_config(args.config)
     t0 = time.perf_counter()
-    result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+    for w in caught:
+        print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
     print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
           f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
+    det = result.get("detrending", {})
+    if det.get("order") not in (None, "none"):
+        print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
+              f"{sum(m.get('clipped', 0) for m in result['multi_transits'])} outliers clipped; errors {det['flux_err']}")
     _print_summary(result)
     print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json and {len(result.get('figures', []))} figures")
+    return 0
+
+
+def cmd_init(args) -> int:
+    """Write a commented config template (every key, units, defaults)."""
+    from jaxppo._config import config_template
+
+    path = Path(args.path)
+    if path.exists() and not args.force:
+        raise ValueError(f"{path} exists; choose another PATH or add --force to overwrite it")
+    path.write_text(config_template())
+    print(f"wrote {path}; run it with: jaxppo scan {path} --out scan_out")
     return 0
 
 
@@ -102,6 +128,9 @@ def cmd_plot(args) -> int:
         if not (out / name).exists():
             raise ValueError(f"{out} holds no finished scan ({name} missing)")
     summary = json.loads((out / "summary.json").read_text())
+    if summary["config"] == "<jaxppo.scan>":
+        raise ValueError(f"{out} was written by jaxppo.scan() from Python, without a config file; "
+                         "redraw it there with ScanResult.plot()")
     cfg = load_config(summary["config"])
     if cfg.digest != summary["config_digest"]:
         raise ValueError(f"the config {summary['config']} changed since the scan in {out}; rerun the scan")
@@ -177,7 +206,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="jaxppo", description="Planet-planet occultations in JAX")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures")
-    p.add_argument("config", nargs="?", default=None, help="CONFIG.toml (default: the bundled Kepler-20 scan)")
+    p.add_argument("config", nargs="?", default=None,
+                   help="CONFIG.toml (default: the bundled scan of the real Kepler-20 long-cadence data)")
     p.add_argument("--out", default="scan_out", help="output folder (default: scan_out)")
     p.add_argument("--restart", action="store_true", help="discard earlier results in --out instead of resuming")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -185,7 +215,10 @@ def main(argv=None) -> int:
     for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
                                  ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
         p = sub.add_parser(name, help=helptext)
-        p.add_argument("config", nargs="?", default=None, help="CONFIG.toml (default: the bundled Kepler-20 set)")
+        # fit/sample default to the synthetic example: the real default data
+        # (64,792 raw long cadences with stellar variability) need the scan's
+        # per-window detrending, which the fits do not do.
+        p.add_argument("config", nargs="?", default=str(_SYNTHETIC), help="CONFIG.toml (default: the bundled synthetic Kepler-20 set)")
         p.add_argument("--free", nargs="+", default=["b.t0", "b.radius", "c.t0", "c.radius"],
                        help="free parameters, e.g. b.t0 b.radius b.a b.inc c.t0 star.c1")
         p.add_argument("--windows", action="store_true", help="use only the multi-transit windows of the data")
@@ -197,6 +230,10 @@ def main(argv=None) -> int:
             p.add_argument("--seed", type=int, default=0)
             p.add_argument("--quiet", action="store_true")
         p.set_defaults(func=func)
+    p = sub.add_parser("init", help="write a commented scan config template (every key, units, defaults)")
+    p.add_argument("path", nargs="?", default="jaxppo_scan.toml", help="where to write it (default: jaxppo_scan.toml)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.set_defaults(func=cmd_init)
     p = sub.add_parser("plot", help="redraw the figures of a finished scan")
     p.add_argument("dir", help="the scan's output folder")
     p.set_defaults(func=cmd_plot)
@@ -216,6 +253,12 @@ def main(argv=None) -> int:
         return args.func(args)
     except ValueError as err:
         print(f"jaxppo {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        # a folder that cannot be written, a full disk, a file where a folder
+        # should be: one line, no traceback
+        where = f" ({err.filename})" if getattr(err, "filename", None) else ""
+        print(f"jaxppo {args.command}: error: cannot read or write{where}: {err.strerror or err}", file=sys.stderr)
         return 2
 
 

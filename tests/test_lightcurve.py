@@ -15,8 +15,13 @@ def _kepler_fits(path, columns=("TIME", "PDCSAP_FLUX", "PDCSAP_FLUX_ERR", "SAP_Q
     data["PDCSAP_FLUX"][3] = np.nan
     cols = [fits.Column(name=c, format="J" if c == "SAP_QUALITY" else "D", array=data[c]) for c in columns]
     hdu = fits.BinTableHDU.from_columns(cols, name="LIGHTCURVE")
+    # the header values of a real Kepler long-cadence file (Q1, kplr006850504-2009166043257_llc.fits)
     hdu.header["INT_TIME"] = 6.019802903
+    hdu.header["READTIME"] = 0.518948526
+    hdu.header["FRAMETIM"] = 6.538751429
     hdu.header["NUM_FRM"] = 270
+    hdu.header["TIMEDEL"] = 0.02043359821692
+    hdu.header["DEADC"] = 0.92063492
     fits.HDUList([fits.PrimaryHDU(), hdu]).writeto(path)
 
 
@@ -26,7 +31,10 @@ def test_kepler_fits_reader(tmp_path):
     _kepler_fits(tmp_path / "k.fits", quality=q)
     lc = jp.LightCurve.from_kepler_fits(tmp_path / "k.fits")
     assert lc.report["flagged"] == 2 and lc.report["non_finite"] == 1 and len(lc) == 47
-    assert abs(lc.exposure - 6.019802903 * 270 / 86400) < 1e-12
+    # A long cadence averages the flux over the cadence (29.42 min), not
+    # over the summed photon time INT_TIME x NUM_FRM (27.09 min).
+    assert abs(lc.exposure * 1440 - 29.4244) < 1e-3
+    assert abs(lc.exposure - 6.538751429 * 270 / 86400) < 1e-8
     assert abs(np.median(lc.flux) - 1) < 1e-12
 
 
@@ -72,3 +80,51 @@ def test_bad_lightcurves(tmp_path):
         jp.LightCurve([1.0], [1.0], [0.1], exposure=-1)
     with pytest.raises(ValueError, match="not found"):
         jp.LightCurve.from_csv(tmp_path / "none.csv")
+
+
+def _write(path, header, cols, gz=False):
+    import gzip
+
+    text = header + "\n" + "\n".join(",".join(f"{v:.10g}" for v in row) for row in zip(*cols)) + "\n"
+    if gz:
+        with gzip.open(path, "wt") as fh:
+            fh.write(text)
+    else:
+        path.write_text(text)
+
+
+def test_csv_column_names_gzip_and_estimated_errors(tmp_path):
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 5, 2000)
+    f = 1 + rng.normal(0, 3e-4, t.size)
+    _write(tmp_path / "a.csv", "bjd,rel_flux,error", (t, f, np.full(t.size, 3e-4)))
+    lc = jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"time": "bjd", "flux": "rel_flux", "flux_err": "error"})
+    np.testing.assert_allclose(lc.flux, f, rtol=0, atol=1e-9)  # not renormalised (10 digits written)
+    assert not lc.errors_estimated
+    with pytest.raises(ValueError, match=r"columns.flux_err = 'sigma_f' is not a column"):
+        jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"time": "bjd", "flux": "rel_flux", "flux_err": "sigma_f"})
+    with pytest.raises(ValueError, match="unknown role 'fluxerr'"):
+        jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"fluxerr": "error"})
+    # gzip, no error column: the error comes from the scatter (white noise 3e-4 here)
+    _write(tmp_path / "b.csv.gz", "time,flux", (t, f), gz=True)
+    lc = jp.LightCurve.from_csv(tmp_path / "b.csv.gz")
+    assert lc.errors_estimated and "estimated" in lc.report["flux_err"]
+    assert abs(lc.flux_err[0] / 3e-4 - 1) < 0.05
+
+
+def test_quarters_normalised_separately(tmp_path):
+    t = np.arange(0, 20, 0.02)
+    q = np.where(t < 10, 1, 2)
+    level = np.where(q == 1, 1.5e5, 0.9e5)
+    _write(tmp_path / "q.csv", "time_bkjd,pdcsap_flux,quarter", (t, level * (1 + 1e-4 * np.sin(t * 7)), q))
+    lc = jp.LightCurve.from_csv(tmp_path / "q.csv")
+    assert abs(np.median(lc.flux[lc.time < 10]) - 1) < 1e-5 and abs(np.median(lc.flux[lc.time > 10]) - 1) < 1e-5
+    assert set(lc.report["divided_by"]) == {"1", "2"}
+    # the same as two files, one per quarter
+    for k in (1, 2):
+        m = q == k
+        _write(tmp_path / f"q{k}.csv", "time_bkjd,pdcsap_flux,pdcsap_flux_err", (t[m], level[m] * (1 + 1e-4 * np.sin(t[m] * 7)), 10 + 0 * t[m]))
+    both = jp.LightCurve.concatenate([jp.LightCurve.from_csv(tmp_path / f"q{k}.csv") for k in (1, 2)])
+    np.testing.assert_allclose(both.flux, lc.flux, rtol=1e-12)
+    with pytest.raises(ValueError, match="share 500 time stamps"):
+        jp.LightCurve.concatenate([jp.LightCurve.from_csv(tmp_path / "q1.csv")] * 2)

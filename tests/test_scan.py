@@ -1,6 +1,7 @@
 """The obliquity scan end to end (paper Sects. 2.1 and 3.3)."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -35,15 +36,15 @@ radius = {rc}
 path = "{data}"
 
 [scan]
-alpha = [{a0}, {a1}, 1.0]
+alpha = [{a0}, {a1}, {step}]
 cases = ["same", "opposite"]
 block = {block}
 """
 
 
-def _config(tmp_path, lc, a0=0.0, a1=360.0, scale=1.0, block=60, name="scan.toml", inc_c=89.967):
+def _config(tmp_path, lc, a0=0.0, a1=360.0, scale=1.0, block=60, name="scan.toml", inc_c=89.967, step=1.0):
     lc.to_csv(tmp_path / "data.csv")
-    text = CONFIG.format(rb=0.01805 * scale, rc=0.02878 * scale, data="data.csv", a0=a0, a1=a1, block=block)
+    text = CONFIG.format(rb=0.01805 * scale, rc=0.02878 * scale, data="data.csv", a0=a0, a1=a1, block=block, step=step)
     text = text.replace("inc = 89.967", f"inc = {inc_c}")
     (tmp_path / name).write_text(text)
     return tmp_path / name
@@ -110,7 +111,7 @@ def test_null_data_is_exactly_flat_without_ppo(tmp_path):
 
 def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    path = _config(tmp_path, lc, 0.0, 120.0, block=20)
+    path = _config(tmp_path, lc, 0.0, 360.0, block=12, step=5.0)
     cfg = load_config(path)
     full = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
 
@@ -140,9 +141,9 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
 
 def test_changed_config_is_not_mixed(tmp_path):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    cfg = load_config(_config(tmp_path, lc, 0.0, 30.0))
+    cfg = load_config(_config(tmp_path, lc, step=12.0))
     run_scan(cfg, tmp_path / "out", progress=False, figures=False)
-    cfg2 = load_config(_config(tmp_path, lc, 0.0, 30.0, scale=1.1, name="other.toml"))
+    cfg2 = load_config(_config(tmp_path, lc, scale=1.1, name="other.toml", step=12.0))
     with pytest.raises(ValueError, match="different configuration"):
         run_scan(cfg2, tmp_path / "out", progress=False, figures=False)
     run_scan(cfg2, tmp_path / "out", restart=True, progress=False, figures=False)
@@ -155,6 +156,9 @@ def test_changed_config_is_not_mixed(tmp_path):
         (lambda t: t.replace('law = "nonlinear"', 'law = "gaussian"'), "unknown limb-darkening law 'gaussian'"),
         (lambda t: t.replace('path = "data.csv"', 'path = "nowhere.csv"'), "file not found"),
         (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [10.0, 10.0, 1.0]"), "empty"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [100.0, 200.0, 1.0]"), r"\[scan\] alpha = .*whole circle"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 7.0]"), r"\[scan\] alpha = .*divides 360"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [-180.0, 180.0, 2.0]"), None),
         (lambda t: t.replace('cases = ["same", "opposite"]', 'cases = ["sideways"]'), "unknown case"),
         (lambda t: t.replace("radius = 0.01805", "radius = -0.01805"), "radius must be > 0"),
     ],
@@ -163,6 +167,9 @@ def test_bad_configs_fail_before_work(tmp_path, edit, match):
     lc = jp.simulate_kepler20(seed=1)
     path = _config(tmp_path, lc)
     path.write_text(edit(path.read_text()))
+    if match is None:  # a valid edit (any full circle is fine)
+        load_config(path)
+        return
     with pytest.raises(ValueError, match=match):
         load_config(path)
 
@@ -174,5 +181,309 @@ def test_unreadable_data(tmp_path):
     with pytest.raises(ValueError, match="unreadable row"):
         load_config(path)
     (tmp_path / "data.csv").write_text("when,what\n1,2\n")
-    with pytest.raises(ValueError, match="no column named"):
+    with pytest.raises(ValueError, match="no time column"):
         load_config(path)
+
+
+# ---- per-window detrending (paper Sect. 2.2) ---------------------------------
+
+def _wide_windows(system, half_width=0.4, cadence=2 / 1440):
+    events = [e for e in jp.multi_transits(system, 300, 1600)]
+    return events, [np.arange(e.start - half_width, e.end + half_width, cadence) for e in events]
+
+
+def _write_csv(path, t, f, e=None):
+    cols = (t, f) if e is None else (t, f, e)
+    head = "time,flux" if e is None else "time,flux,flux_err"
+    path.write_text(head + "\n" + "\n".join(",".join(f"{v:.12g}" for v in r) for r in zip(*cols)) + "\n")
+
+
+def _scan_text(extra="", step=1.0):
+    return CONFIG.format(rb=0.01805, rc=0.02878, data="data.csv", a0=0.0, a1=360.0, block=120, step=step) + extra
+
+
+def test_detrending_removes_per_window_levels_slopes_and_curvature(tmp_path):
+    """Each multi-transit gets its own level (raw quarter fluxes differ by
+    per cent), slope and curvature. Dividing every window by its
+    out-of-transit polynomial must give the same geometry probabilities
+    (0.5 percentage points) and chi^2_0 (3 %) as the clean data; without
+    the detrending chi^2_0 is in the millions."""
+    system = jp.kepler20_system()
+    events, ts = _wide_windows(system)
+    rng = np.random.default_rng(11)
+    clean, trended = [], []
+    for e, t in zip(events, ts):
+        lc = jp.simulate(system, t, noise=2e-4, seed=int(rng.integers(1 << 30)))
+        x = t - e.mid
+        trend = rng.uniform(0.97, 1.03) * (1 + rng.uniform(-3e-3, 3e-3) * x + rng.uniform(-6e-3, 6e-3) * x**2)
+        clean.append(lc.flux)
+        trended.append(lc.flux * trend)
+    t = np.concatenate(ts)
+    err = np.full(t.size, 2e-4)
+    results = {}
+    for name, f in (("clean", np.concatenate(clean)), ("trended", np.concatenate(trended))):
+        d = tmp_path / name
+        d.mkdir()
+        _write_csv(d / "data.csv", t, f, err)
+        (d / "scan.toml").write_text(_scan_text("detrend = 2\nbaseline = 0.35\n", step=2.0))
+        results[name] = run_scan(load_config(d / "scan.toml"), d / "out", progress=False, figures=False)
+    a, b = results["clean"], results["trended"]
+    for case in ("same", "opposite"):
+        assert abs(b["chi2_0"][case] / a["chi2_0"][case] - 1) < 0.03, (a["chi2_0"], b["chi2_0"])
+        for geo, v in a["probabilities"][case].items():
+            if isinstance(v, dict):
+                assert abs(100 * (b["probabilities"][case][geo]["probability"] - v["probability"])) < 0.5
+    n = b["points"]
+    assert 0.8 < b["chi2_0"]["same"] / n < 1.2
+    assert b["detrending"]["order"] == 2
+
+
+def test_errors_estimated_and_outliers_clipped_out_of_transit_only(tmp_path):
+    system = jp.kepler20_system()
+    events, ts = _wide_windows(system, cadence=4 / 1440)
+    t = np.concatenate(ts)
+    lc = jp.simulate(system, t, noise=3e-4, seed=8)
+    f = lc.flux.copy()
+    e0 = events[0]
+    from jaxppo._scan import in_transit_mask
+
+    in_tr = in_transit_mask(system, t)
+    # three out-of-transit outliers inside the chi^2 window of event 1, and a
+    # 10-sigma "bump" in transit (a PPO-like brightening that must survive)
+    oot_idx = np.nonzero((t > e0.end + 0.015) & (t < e0.end + 0.05) & ~in_tr)[0][:3]
+    f[oot_idx] += 0.01
+    bump = np.nonzero((t > e0.overlap_start) & (t < e0.overlap_end))[0][0]
+    f[bump] += 3e-3
+    _write_csv(tmp_path / "data.csv", t, f)  # no flux_err column
+    (tmp_path / "scan.toml").write_text(_scan_text())
+    cfg = load_config(tmp_path / "scan.toml")
+    assert cfg.lightcurve.errors_estimated
+    from jaxppo._scan import scan_windows
+
+    w = scan_windows(cfg)[0]
+    def kept(tt):
+        return np.min(np.abs(w.time - tt)) < 1e-7  # times went through the CSV (12 digits)
+
+    assert w.clipped == 3 and not any(kept(tt) for tt in t[oot_idx])
+    assert kept(t[bump])  # in-transit points are never clipped
+    assert abs(w.sigma / 3e-4 - 1) < 0.15
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert "estimated" in res["detrending"]["flux_err"]
+    assert res["multi_transits"][0]["clipped"] == 3
+
+
+def test_in_transit_mask_against_contact_times():
+    """First to last contact of a circular orbit (Winn 2010, Eq. 14):
+    T14 = P / pi * asin(sqrt((1 + p)^2 - b^2) / (a sin i))."""
+    from jaxppo._scan import in_transit_mask
+
+    system = jp.kepler20_system()
+    for k, pl in enumerate(system.planets):
+        P, a, inc, p = float(pl.period), float(pl.a), np.deg2rad(float(pl.inc)), float(pl.radius)
+        b = a * np.cos(inc)
+        half = P / (2 * np.pi) * np.arcsin(np.sqrt((1 + p) ** 2 - b**2) / (a * np.sin(inc)))
+        mid = float(pl.t0) + 40 * P
+        t = mid + np.array([-half - 1e-6, -half + 1e-6, half - 1e-6, half + 1e-6])
+        # the other planet must not be in transit at these times
+        one = jp.System(system.star, [pl], tilted=0)
+        np.testing.assert_array_equal(in_transit_mask(one, t), [False, True, True, False])
+        np.testing.assert_array_equal(in_transit_mask(one, t, pad=2e-6), [True, True, True, True])
+
+
+def test_summary_is_strict_json_and_bayes_factor_never_infinite():
+    """A decisive signal (Delta chi^2 of thousands in one range) underflows
+    exp(-Delta chi^2 / 2): the Bayes factor comes from log space, and what
+    cannot be a float is null, never Infinity (invalid JSON)."""
+    from jaxppo._scan import geometry_probabilities
+
+    alpha = np.arange(0.0, 360.0, 1.0)
+    retro = (alpha > 90) & (alpha <= 270)
+    geo = geometry_probabilities(alpha, np.where(retro, 5000.0, 0.0), "same")
+    text = json.dumps(geo, allow_nan=False)
+    assert geo["bayes_factor"] is None and abs(geo["log10_bayes_factor"] - 2500 / np.log(10)) < 1e-9  # 180 angles in each range
+    assert geo["favoured"] == "prograde, same hemisphere" and geo["jeffreys"] == "decisive"
+    assert "Infinity" not in text
+    # a moderate one: K = sum over the ranges of exp(-Delta chi^2 / 2), exactly
+    d = np.where(retro, 3.0, 0.0)
+    geo = geometry_probabilities(alpha, d, "opposite")
+    k = np.exp(1.5)
+    assert abs(geo["bayes_factor"] - k) < 1e-12 * k
+    assert abs(geo["prograde, different hemispheres"]["probability"] - k / (1 + k)) < 1e-14
+
+
+def test_no_mirror_block_with_the_other_cases_names(tmp_path):
+    """Cases 3 and 2 are cases 1 and 4 at 360 - alpha (paper Eq. 2): the
+    same physical geometries, so a case-1 summary may only name case 1's
+    geometries (old code printed case 4's names for "case 3")."""
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    res = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "out", progress=False, figures=False)
+    allowed = {"same": {"prograde, same hemisphere", "retrograde, different hemispheres"},
+               "opposite": {"prograde, different hemispheres", "retrograde, same hemisphere"}}
+
+    def names(obj):
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if "hemisphere" in k:
+                    yield k
+                yield from names(v)
+        elif isinstance(obj, str) and "hemisphere" in obj:
+            yield obj
+
+    for case in ("same", "opposite"):
+        assert set(names(res["cases"][case])) <= allowed[case]
+
+
+def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
+    """Paper Table 3 (left columns, T0 in BJD - 2454000) in the bundled
+    config, and its Fig. 5 right panel: with these parameters the scan of the
+    seven double transits has one prominent dip, at alpha = 26 deg (case 1);
+    the long-cadence data show it too."""
+    from jaxppo._phoenix import data_path
+
+    text = data_path("kepler20_buchhave2016_llc.toml").read_text()
+    text = text.replace('path = "', f'path = "{data_path("")}/').replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 2.0]")
+    text = text.replace("[scan]\n", "[scan]\nmulti_transits = [334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93]\n")
+    text = text.replace('cases = ["same", "opposite"]', 'cases = ["same"]')
+    (tmp_path / "b16.toml").write_text(text)
+    cfg = load_config(tmp_path / "b16.toml")
+    b, c = cfg.system.planets
+    table3 = {"b": (0.01774, 87.355, 10.34, 967.502014, 3.69611525), "c": (0.02895, 89.815, 21.17, 971.607955, 10.85409089)}
+    for pl in (b, c):
+        p, i, a, t0, per = table3[pl.name]
+        assert (float(pl.radius), float(pl.inc), float(pl.a), float(pl.period)) == (p, i, a, per)
+        assert abs(float(pl.t0) - (t0 + 2454000 - 2454833)) < 1e-9
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    low = rows["alpha"][(rows["alpha"] < 90) & (rows["delta_chi2"] < -0.5)]
+    assert low.size and np.all((low >= 24) & (low <= 30)), low
+    assert len(res["multi_transits"]) == 7
+
+
+# ---- progress bookkeeping -------------------------------------------------------
+
+def _small(tmp_path, **kw):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    return load_config(_config(tmp_path, lc, block=6, step=12.0, **kw))  # 2 cases x 30 alphas: 10 blocks
+
+
+def _interrupt_after(monkeypatch, n_blocks):
+    import jaxppo._scan as scan_mod
+
+    real, calls = scan_mod.sweep, {"n": 0}
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > n_blocks:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scan_mod, "sweep", flaky)
+    return lambda: monkeypatch.setattr(scan_mod, "sweep", real)
+
+
+def test_torn_last_line_is_truncated_before_appending(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    ref = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 3)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    with open(prog, "a") as fh:
+        fh.write('{"config_digest": "x", "case": "same", "alpha": [0.0, 12')  # killed mid-write
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)  # and once more: the file stays sound
+    for line in prog.read_text().splitlines():
+        json.loads(line)  # every line whole: nothing appended onto the torn one
+    assert len(prog.read_text().splitlines()) == 1 + 10
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+    assert res["chi2_0"] == ref["chi2_0"]
+    assert any("cut by an interruption" in str(w.message) for w in caught)
+
+
+def test_edited_record_is_rejected_and_recomputed(tmp_path):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    good = (tmp_path / "out" / "scan.csv").read_text()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    rec = json.loads(lines[2])
+    rec["chi2"][0] -= 50.0  # a hand-edited chi^2 must not be used
+    lines[2] = json.dumps(rec)
+    prog.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert (tmp_path / "out" / "scan.csv").read_text() == good
+    assert any("line 3: checksum mismatch" in str(w.message) for w in caught)
+
+
+def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 4)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    lines[0] = lines[0][:17]  # damaged header, four good records behind it
+    prog.write_text("\n".join(lines) + "\n")
+    import jaxppo._scan as scan_mod
+
+    calls = {"n": 0}
+    real = scan_mod.sweep
+
+    def counting(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(scan_mod, "sweep", counting)
+    with pytest.warns(UserWarning, match="header line is damaged"):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert calls["n"] == 10 - 4 + 1  # the four good blocks kept (+1: the null model)
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+
+
+def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    out = tmp_path / "out"
+    run_scan(cfg, out, progress=False, figures=False)
+    (out / "fig5_delta_chi2.png").write_bytes(b"old figure")
+    cfg2 = _small(tmp_path, scale=1.1, name="other.toml")
+    undo = _interrupt_after(monkeypatch, 1)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg2, out, restart=True, progress=False, figures=False)
+    undo()
+    # an interrupted restart leaves no result of the old config beside the new one
+    for name in ("scan.csv", "summary.json", "fig5_delta_chi2.png"):
+        assert not (out / name).exists(), name
+    assert json.loads((out / "config.json").read_text())["digest"] == cfg2.digest
+    run_scan(cfg2, out, progress=False, figures=False)  # resumes the restarted scan
+    assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
+
+
+# ---- public API ---------------------------------------------------------------------
+
+def test_public_scan_matches_the_config_route(tmp_path):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    via_file = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "cfg", progress=False, figures=False)
+    lc_read = jp.load_config(tmp_path / "scan.toml").lightcurve  # the same (CSV-rounded) points
+    res = jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0))
+    np.testing.assert_array_equal(res.table["chi2"], via_file.table["chi2"])
+    assert res["probabilities"] == via_file["probabilities"]
+    assert list(res.table.dtype.names) == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
+    a, d = res.delta_chi2("opposite")
+    assert a.size == 60 and np.all(d[a < 15] == 0)
+    assert len(res.windows) == 7 and isinstance(res.windows[0], jp.ScanWindow)
+    ax = res.plot()
+    assert len(ax.get_lines()) == 3  # two cases and the zero line
+    import matplotlib.pyplot as plt
+
+    plt.close(ax.figure)
+    with pytest.raises(ValueError, match="alpha covers 100 .. 199 deg"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(100.0, 200.0, 1.0))
+    with pytest.raises(ValueError, match="cases must be"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0), cases=("sideways",))
