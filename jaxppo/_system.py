@@ -18,9 +18,84 @@ from jaxtyping import Array, ArrayLike
 from ._flux import occultation_flux
 from ._star import Star
 
-__all__ = ["Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES"]
+__all__ = [
+    "Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES",
+    "hemisphere_cases", "case_label", "case_signs",
+]
 
+# Named hemisphere cases: every untilted planet in the tilted planet's
+# hemisphere ("same", paper case 1) or every one in the other ("opposite",
+# paper case 4). Systems of k planets have 2^(k-1) distinct configurations,
+# given as a tuple of +-1 signs (one per untilted planet, in planet order).
 CASES = ("same", "opposite")
+
+
+def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
+    """Hemisphere sign of every planet [n_planets] for ``case``: +1 for the
+    tilted planet and for untilted planets on its side of the stellar equator,
+    -1 for the mirrored ones.
+
+    ``case``: "same" (all +1), "opposite" (all -1), a tuple of +-1 (one per
+    untilted planet, in planet order), or a string of "+"/"-" of that length
+    (as written by :func:`case_label`).
+    """
+    k = n_planets - 1
+    if isinstance(case, str):
+        if case == "same":
+            rel = (1,) * k
+        elif case == "opposite":
+            rel = (-1,) * k
+        elif case and set(case) <= {"+", "-"}:
+            rel = tuple(1 if ch == "+" else -1 for ch in case)
+        else:
+            raise ValueError(
+                f"case must be one of {CASES}, a tuple of +-1 or a '+'/'-' string (one per untilted planet), got {case!r}"
+            )
+    else:
+        try:
+            rel = tuple(case)
+        except TypeError:
+            raise ValueError(f"case must be one of {CASES} or a tuple of +-1, got {case!r}") from None
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and v in (1, -1) for v in rel):
+            raise ValueError(f"case signs must each be +1 or -1, got {case!r}")
+    if len(rel) != k:
+        raise ValueError(f"case must give {k} sign(s) (one per untilted planet), got {case!r}")
+    signs = list(rel)
+    signs.insert(tilted, 1)
+    return np.asarray(signs, float)
+
+
+def case_label(case) -> str:
+    """Text name of a case: "same", "opposite", or a "+"/"-" string for mixed
+    sign tuples (safe in CSV files; :func:`case_signs` reads it back)."""
+    if isinstance(case, str):
+        return case
+    rel = tuple(int(v) for v in case)
+    if all(v == 1 for v in rel):
+        return "same"
+    if all(v == -1 for v in rel):
+        return "opposite"
+    return "".join("+" if v == 1 else "-" for v in rel)
+
+
+def hemisphere_cases(system: "System") -> tuple:
+    """The 2^(k-1) hemisphere configurations of a k-planet system that give
+    different light curves, "same" first and "opposite" last; mixed ones as
+    tuples of +-1 (one per untilted planet, in planet order).
+
+    Only the untilted planets' signs relative to the tilted planet matter: a
+    mirror y -> -y of the whole sky maps any configuration at alpha to its
+    mirror image at 360 - alpha, and a radially symmetric star gives both the
+    same flux, so a full alpha scan covers both signs of the tilted planet.
+    """
+    k = len(system.planets) - 1
+    if k == 0:
+        return ("same",)
+    out = []
+    for bits in range(2**k):
+        rel = tuple(-1 if (bits >> (k - 1 - j)) & 1 else 1 for j in range(k))
+        out.append(case_label(rel) if len(set(rel)) == 1 else rel)
+    return tuple(out)
 
 
 def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
@@ -134,34 +209,44 @@ class System(eqx.Module):
                 return i
         raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
 
-    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", xp=jnp):
+    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", xp=jnp):
         """Sky positions (x, y, r) with the disks on the last axis; planets
         behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
         ``xp=numpy`` computes on the host without tracing (fast geometry for
-        concrete inputs)."""
-        if case not in CASES:
-            raise ValueError(f"case must be one of {CASES}, got {case!r}")
+        concrete inputs).
+
+        Hemispheres come from |b| only (transits cannot measure the sign of
+        cos i): before the tilt every planet crosses y > 0 (y uses |cos i|);
+        then ``case`` mirrors untilted planets (y -> -y) into the other
+        hemisphere ("same": none, "opposite": all, or a tuple of +-1 signs,
+        see :func:`case_signs`), and the tilted planet is rotated by alpha.
+        So i -> 180 - i of any planet changes nothing.
+        """
+        signs = case_signs(len(self.planets), self.tilted, case)
         t = xp.asarray(t, dtype=float)
         alpha_rad = xp.deg2rad(xp.asarray(alpha, dtype=float))
         shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
         xs, ys, rs = [], [], []
         for i, pl in enumerate(self.planets):
             x, y, z = pl.position(t, xp)
+            # |cos i| instead of cos i: the sign of b is not observable
+            y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
             if i == self.tilted:
                 ca, sa = xp.cos(alpha_rad), xp.sin(alpha_rad)
                 x, y = x * ca + y * sa, -x * sa + y * ca
-            elif case == "opposite":
+            elif signs[i] < 0:
                 y = -y
             xs.append(xp.broadcast_to(x, shape))
             ys.append(xp.broadcast_to(y, shape))
             rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
         return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
 
-    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", method: str = "auto", **kwargs) -> Array:
+    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d].
 
         ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
-        [alpha, time]. ``case``: "same" or "opposite" (CONVENTIONS).
+        [alpha, time]. ``case``: "same", "opposite" or a tuple of +-1 signs
+        of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
         """
         t = jnp.asarray(t, float)
         if not isinstance(t, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(t))):
