@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import equinox as eqx
 import jax
@@ -110,6 +111,38 @@ def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
         raise ValueError(f"{name} must be {op} {lower}, got {value!r}")
 
 
+def _is_quantity(value) -> bool:
+    # astropy Quantities (and Time) carry a unit; plain numbers and jax arrays do not
+    return hasattr(value, "unit") and hasattr(value, "to")
+
+
+def _from_quantity(name: str, value, unit: str):
+    """Convert an astropy Quantity to the plain number the API expects:
+    ``unit`` "deg" (angles), "d" (times) or "" (dimensionless ratios).
+    Plain numbers pass unchanged (their units are the documented ones)."""
+    if type(value).__name__ == "Time":
+        raise ValueError(
+            f"{name} must be a number of days or a time Quantity, got an astropy Time ({value!r}); "
+            "subtract your zero point first, e.g. (time - Time(2454833, format='jd')).to(u.day) for BKJD"
+        )
+    if not _is_quantity(value):
+        return value
+    import astropy.units as u
+
+    target = {"deg": u.deg, "d": u.day, "": u.dimensionless_unscaled}[unit]
+    try:
+        return np.asarray(value.to_value(target), float)
+    except u.UnitConversionError:
+        pass
+    if unit == "" and value.unit.physical_type == "length":
+        raise ValueError(
+            f"{name} must be in stellar radii (a plain number or a dimensionless Quantity), got {value!r}: "
+            f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
+        )
+    want = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}[unit]
+    raise ValueError(f"{name} must be {want}, got the Quantity {value!r}")
+
+
 class Planet(eqx.Module):
     """A planet on a circular orbit.
 
@@ -120,6 +153,12 @@ class Planet(eqx.Module):
         inc: inclination i [deg] in [0, 180]; b = a cos(i).
         radius: radius ratio p = R_p / R*, > 0.
         name: optional label used in free-parameter names ("b.t0").
+
+    astropy Quantities are converted (inc: any angle unit; period, t0: any
+    time unit; a, radius: dimensionless, e.g. ``(a / R_star).decompose()``;
+    a bare length is refused as ambiguous). Plain numbers mean deg and days.
+    A planet whose |b| >= 1 + radius can never transit: that warns
+    (``inc=1.53`` in radians by habit means 1.53 deg, b ~ a).
     """
 
     period: Array
@@ -130,6 +169,11 @@ class Planet(eqx.Module):
     name: str = eqx.field(static=True, default="")
 
     def __init__(self, period, t0, a, inc, radius, name: str = ""):
+        period = _from_quantity("period", period, "d")
+        t0 = _from_quantity("t0", t0, "d")
+        a = _from_quantity("a", a, "")
+        inc = _from_quantity("inc", inc, "deg")
+        radius = _from_quantity("radius", radius, "")
         _positive("period", period)
         _positive("t0", t0, strict=False, lower=-np.inf)
         _positive("a", a, lower=1.0)
@@ -144,6 +188,14 @@ class Planet(eqx.Module):
         self.inc = jnp.asarray(inc, float)
         self.radius = jnp.asarray(radius, float)
         self.name = str(name)
+        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius)):
+            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float))))
+            if np.any(b >= 1.0 + np.asarray(radius, float)):
+                warnings.warn(
+                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = a |cos i| = {np.max(b):.4g} >= 1 + radius, "
+                    "so it never transits (inc is in degrees; a Quantity in radians is converted)",
+                    UserWarning, stacklevel=2,
+                )
 
     @property
     def impact(self) -> Array:
@@ -249,9 +301,16 @@ class System(eqx.Module):
         of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
         """
         t = jnp.asarray(t, float)
-        if not isinstance(t, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(t))):
-            raise ValueError("t must be finite")
+        if not isinstance(t, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(t))
+            if bad.any():
+                raise ValueError(f"t must be finite, got {float(np.asarray(t)[bad][0])} at index {np.argwhere(bad)[0].tolist()}")
+        alpha = _from_quantity("alpha", alpha, "deg")
         alpha = jnp.asarray(alpha, float)
+        if not isinstance(alpha, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(alpha))
+            if bad.any():
+                raise ValueError(f"alpha must be finite [deg], got {float(np.asarray(alpha)[bad][0])}")
         if alpha.ndim > 1:
             raise ValueError(f"alpha must be a scalar or 1D array, got shape {alpha.shape}")
         if alpha.ndim == 1:

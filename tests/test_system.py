@@ -212,3 +212,56 @@ def test_bad_system_inputs(system):
         system.flux(np.array([np.inf]))
     with pytest.raises(ValueError, match="t_end"):
         jp.multi_transits(system, 10.0, 5.0)
+
+
+def test_flux_bad_alpha_and_t_name_the_parameter(system):
+    """Issue 16 item 9: the message names alpha (it said "x must be finite")."""
+    with pytest.raises(ValueError, match=r"alpha must be finite .*nan"):
+        system.flux(np.array([844.1]), alpha=np.nan)
+    with pytest.raises(ValueError, match=r"alpha must be finite .*inf"):
+        system.flux(np.array([844.1]), alpha=np.array([0.0, np.inf]))
+    with pytest.raises(ValueError, match=r"t must be finite, got nan at index \[1\]"):
+        system.flux(np.array([844.1, np.nan]))
+
+
+def test_planet_accepts_quantities():
+    """Issue 15 item 4: a Quantity is converted, not stripped (87.7 deg given
+    in radians became 1.53 deg)."""
+    u = pytest.importorskip("astropy.units")
+    ref = jp.Planet(period=3.6961159, t0=134.501962, a=10.6, inc=87.687, radius=0.01805)
+    pl = jp.Planet(period=3.6961159 * 24 * u.hour, t0=(134.501962 * u.day).to(u.s), a=10.6 * u.dimensionless_unscaled,
+                   inc=(87.687 * u.deg).to(u.rad), radius=(0.01805 * u.R_sun / u.R_sun))
+    for f in ("period", "t0", "a", "inc", "radius"):
+        np.testing.assert_allclose(float(getattr(pl, f)), float(getattr(ref, f)), rtol=1e-14)
+    np.testing.assert_allclose(float(pl.impact), 10.6 * np.cos(np.deg2rad(87.687)), rtol=1e-12)  # 0.4267, not 10.6
+    # a ratio of lengths decomposes to a number
+    pl2 = jp.Planet(period=3.0, t0=0.0, a=(0.0453 * u.au / (1.1 * u.R_sun)).decompose(), inc=89.0, radius=0.02)
+    np.testing.assert_allclose(float(pl2.a), 0.0453 * 215.032 / 1.1, rtol=1e-4)
+    with pytest.raises(ValueError, match="a must be in stellar radii.*ambiguous"):
+        jp.Planet(period=3.0, t0=0.0, a=10.0 * u.R_sun, inc=89.0, radius=0.02)
+    with pytest.raises(ValueError, match="radius must be in stellar radii"):
+        jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=2.0 * u.R_earth)
+    with pytest.raises(ValueError, match="inc must be an angle"):
+        jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0 * u.m, radius=0.02)
+    with pytest.raises(ValueError, match="period must be a time"):
+        jp.Planet(period=3.0 * u.m, t0=0.0, a=10.0, inc=89.0, radius=0.02)
+    with pytest.raises(ValueError, match="t0 must be a number of days"):
+        from astropy.time import Time
+
+        jp.Planet(period=3.0, t0=Time(2455000.0, format="jd"), a=10.0, inc=89.0, radius=0.02)
+    # flux takes an angle Quantity for alpha too
+    sysm = kepler20_system(jp.Star.quadratic(0.495, 0.154))
+    t = np.linspace(670.40, 670.47, 30)
+    np.testing.assert_allclose(np.asarray(sysm.flux(t, alpha=(313 * u.deg).to(u.rad))), np.asarray(sysm.flux(t, alpha=313.0)), atol=1e-15)
+
+
+def test_planet_that_never_transits_warns():
+    with pytest.warns(UserWarning, match=r"inc = 1.53 deg gives \|b\| = a \|cos i\| = 10.6"):
+        jp.Planet(period=3.0, t0=0.0, a=10.6, inc=1.53, radius=0.02, name="b")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.Planet(period=3.0, t0=0.0, a=10.6, inc=87.687, radius=0.02)  # transits: silent
+        jp.Planet(period=3.0, t0=0.0, a=10.6, inc=180 - 87.687, radius=0.02)
+        jax.jit(lambda inc: jp.Planet(period=3.0, t0=0.0, a=10.6, inc=inc, radius=0.02).impact)(1.0)  # traced: no check
