@@ -265,3 +265,143 @@ def test_planet_that_never_transits_warns():
         jp.Planet(period=3.0, t0=0.0, a=10.6, inc=87.687, radius=0.02)  # transits: silent
         jp.Planet(period=3.0, t0=0.0, a=10.6, inc=180 - 87.687, radius=0.02)
         jax.jit(lambda inc: jp.Planet(period=3.0, t0=0.0, a=10.6, inc=inc, radius=0.02).impact)(1.0)  # traced: no check
+
+
+def _planet_on_window(t_mid, half, a=20.0, radius=0.03, name=""):
+    """A central (b = 0) planet whose transit window is t_mid +- half [d]:
+    half = P / (2 pi) asin((1 + p) / a) for i = 90 (independent of jaxppo)."""
+    period = 2 * np.pi * half / np.arcsin((1 + radius) / a)
+    return jp.Planet(period=period, t0=t_mid, a=a, inc=90.0, radius=radius, name=name)
+
+
+def test_triple_only_when_all_on_the_disk_at_once():
+    """Issue 10 item 11: a chain b-c then c-d with no common time is two
+    doubles, not a triple (old code listed one event with planets b, c, d)."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    chain = jp.System(star, [_planet_on_window(10.0, 0.10, name="b"), _planet_on_window(10.15, 0.10, name="c"),
+                             _planet_on_window(10.30, 0.10, name="d")])
+    ev = jp.multi_transits(chain, 9.5, 10.8)
+    assert [e.planets for e in ev] == [("b", "c"), ("c", "d")]
+    np.testing.assert_allclose([ev[0].overlap_start, ev[0].overlap_end], [10.05, 10.10], atol=1e-9)
+    np.testing.assert_allclose([ev[1].overlap_start, ev[1].overlap_end], [10.20, 10.25], atol=1e-9)
+    triple = jp.System(star, [_planet_on_window(10.0, 0.10, name="b"), _planet_on_window(10.12, 0.10, name="c"),
+                              _planet_on_window(10.16, 0.10, name="d")])
+    ev = jp.multi_transits(triple, 9.5, 10.8)
+    # all three from 10.06 to 10.10: one event (c and d alone afterwards are
+    # part of it, not a second one: Table 2 counts each multi-transit once)
+    assert [e.planets for e in ev] == [("b", "c", "d")]
+    np.testing.assert_allclose([ev[0].overlap_start, ev[0].overlap_end], [10.06, 10.10], atol=1e-9)
+    from jaxppo._system import multi_transit_counts
+
+    # observed only where a cadence covers the time all are on the disk
+    assert multi_transit_counts(triple, np.array([10.08])) == {("b", "c", "d"): 1}
+    assert multi_transit_counts(triple, np.array([10.13])) == {}
+    assert multi_transit_counts(triple, np.array([10.13]), exposure=0.02) == {}
+    assert multi_transit_counts(triple, np.array([10.13]), exposure=0.08) == {("b", "c", "d"): 1}
+    assert multi_transit_counts(chain, np.array([10.07, 10.22])) == {("b", "c"): 1, ("c", "d"): 1}
+
+
+def _five_planets():
+    import tomllib
+    from importlib.resources import files
+
+    raw = tomllib.loads((files("jaxppo") / "data" / "kepler20_five_planets.toml").read_text())
+    pls = [jp.Planet(**{k: p[k] for k in ("period", "t0", "a", "inc", "radius")}, name=p["name"]) for p in raw["planet"]]
+    star = jp.Star.from_law(raw["star"]["law"], raw["star"]["coefficients"])
+    return jp.System(star, pls, tilted=[p.get("tilted", False) for p in raw["planet"]].index(True)), raw
+
+
+# Paper Table 2 (short cadence, Q3-Q17): unique multi-transits per planet set.
+PAPER_TABLE2 = {("b", "c"): 7, ("b", "e"): 11, ("b", "f"): 5, ("c", "e"): 3, ("c", "f"): 1,
+                ("d", "e"): 1, ("d", "f"): 1, ("e", "f"): 2, ("c", "e", "f"): 1}
+# Where our count from the real long-cadence time stamps (Q3-Q17) differs, and why:
+TABLE2_DIFFERENCES = {
+    # BKJD 703.0: f leaves the disk at 703.027, e enters at 703.039, so c, e
+    # and f are never on the star together: a c+f and a c+e, not a triple.
+    ("c", "e", "f"): -1, ("c", "e"): +1, ("c", "f"): +1,
+    # BKJD 496.77 (Q5) has long-cadence data; it is not among the paper's
+    # seven b+c transits (Sect. 3.3.1), presumably absent from its
+    # short-cadence set (not verifiable with the bundled data).
+    ("b", "c"): +1,
+    # BKJD 1172.76: e and f share the disk for only 4.6 min (e's egress, f's
+    # ingress), covered by one 29.4-min cadence; the product model is barely
+    # deeper there than either transit.
+    ("e", "f"): +1,
+    # The model has only 4 b+f overlaps in Q3-Q17 (BKJD 585.5, 781.3, 1114.0,
+    # 1309.9; the 5th, 252.71, lies in Q2, before the paper's span).
+    ("b", "f"): -1,
+}
+
+
+def test_table2_counts_from_real_time_stamps():
+    """Issue 10 item 11: Table 2 of the paper from the bundled five-planet
+    system and the REAL Kepler time stamps of the bundled data (Q3-Q17, the
+    paper's short-cadence span); each difference explained above."""
+    from importlib.resources import files
+
+    from jaxppo._system import multi_transit_counts
+
+    system, raw = _five_planets()
+    path = files("jaxppo") / "data" / raw["data"]["path"]
+    data = np.loadtxt(str(path), delimiter=",", comments="#", skiprows=3)
+    t = data[data[:, 2] >= 3, 0]
+    counts = multi_transit_counts(system, t, exposure=raw["data"]["exposure"])
+    expected = dict(PAPER_TABLE2)
+    for k, v in TABLE2_DIFFERENCES.items():
+        expected[k] = expected.get(k, 0) + v
+    expected = {k: v for k, v in expected.items() if v}
+    assert counts == expected
+    # as in the paper: 23 multi-transits with planet b
+    assert sum(v for k, v in counts.items() if "b" in k) == 23
+    # without data the model lists one more (c+d at BKJD 475.2, in a gap)
+    model = jp.multi_transits(system, float(t.min()), float(t.max()))
+    assert sum(e.planets == ("c", "d") for e in model) == 1 and ("c", "d") not in counts
+
+
+def test_hemisphere_cases_of_three_planets():
+    """k planets: 2^(k-1) configurations; a tuple of signs places each
+    untilted planet relative to the tilted one; sweep (one-disk terms plus
+    union frames, including an untilted pair that overlaps only in some
+    cases) equals the exact union integral for each."""
+    from jaxppo._system import case_label, case_signs, hemisphere_cases
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    # b (tilted, |b| = 0.2) and c, d with |b| = 0.3 and 0.35: each pair
+    # overlaps when on the same side of the equator, not when mirrored apart
+    b = jp.Planet(period=5.0, t0=0.0, a=12.0, inc=float(np.degrees(np.arccos(0.2 / 12.0))), radius=0.08, name="b")
+    c = jp.Planet(period=9.0, t0=0.01, a=20.0, inc=float(np.degrees(np.arccos(0.30 / 20.0))), radius=0.1, name="c")
+    d = jp.Planet(period=13.0, t0=-0.01, a=26.0, inc=180 - float(np.degrees(np.arccos(0.35 / 26.0))), radius=0.09, name="d")
+    sysm = jp.System(star, [b, c, d], tilted=0)
+    cases = hemisphere_cases(sysm)
+    assert cases == ("same", (1, -1), (-1, 1), "opposite")
+    assert [case_label(cs) for cs in cases] == ["same", "+-", "-+", "opposite"]
+    np.testing.assert_array_equal(case_signs(3, 0, "+-"), [1, 1, -1])
+    np.testing.assert_array_equal(case_signs(3, 1, (1, -1)), [1, 1, -1])
+    t = np.linspace(-0.12, 0.12, 61)
+    alpha = np.array([0.0, 30.0, 90.0, 180.0, 250.0])
+    x0, y0, _ = (np.asarray(v) for v in sysm.positions(t, 0.0, "same"))
+    for cs in cases:
+        x, y, r = (np.asarray(v) for v in sysm.positions(t, 0.0, cs))
+        s = case_signs(3, 0, cs)
+        # CONVENTIONS orbit equations with |cos i|, then the case's signs
+        phi = 2 * np.pi * (t[:, None] - np.array([0.0, 0.01, -0.01])) / np.array([5.0, 9.0, 13.0])
+        np.testing.assert_allclose(y, s * np.cos(phi) * np.array([0.2, 0.30, 0.35]), atol=1e-12)
+        np.testing.assert_allclose(x, x0)
+        assert np.all(r > 0)
+    sw = jp.sweep(sysm, t, alpha, cases=cases)
+    for ci, cs in enumerate(cases):
+        exact = np.asarray(sysm.flux(t, alpha, case=cs, method="exact"))
+        np.testing.assert_allclose(sw[ci], exact, atol=1e-13, rtol=0)
+    # the four configurations differ at alpha = 0 (c-d overlap or not, b-c, b-d)
+    for i in range(4):
+        for j in range(i + 1, 4):
+            assert np.abs(sw[i, 0] - sw[j, 0]).max() > 1e-4, (cases[i], cases[j])
+    # i -> 180 - i of any planet (here all three) changes no configuration
+    flipped = sysm.replace(planets=[p.replace(inc=180.0 - float(p.inc)) for p in (b, c, d)])
+    np.testing.assert_allclose(jp.sweep(flipped, t, alpha, cases=cases), sw, atol=1e-15, rtol=0)
+    with pytest.raises(ValueError, match="case must give 2 sign"):
+        sysm.flux(t, 0.0, case=(1,))
+    with pytest.raises(ValueError, match="case signs must each be"):
+        sysm.flux(t, 0.0, case=(1, 0))
+    with pytest.raises(ValueError, match="case must be one of"):
+        jp.sweep(sysm, t, alpha, cases=("sideways",))
