@@ -219,6 +219,19 @@ class Planet(eqx.Module):
         phase = jnp.arccos(jnp.sqrt(jnp.clip(c2, 0.0, 1.0)))
         return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
 
+    def __repr__(self) -> str:
+        """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805)."""
+        fields = (("period", " d"), ("t0", " d"), ("a", " R*"), ("inc", " deg"), ("radius", ""))
+        parts = [f"name={self.name!r}"] if self.name else []
+        for f, unit in fields:
+            v = getattr(self, f)
+            if isinstance(v, jax.core.Tracer):
+                parts.append(f"{f}={v}")
+                continue
+            arr = np.asarray(v)
+            parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
+        return "Planet(" + ", ".join(parts) + ")"
+
     def replace(self, **changes) -> "Planet":
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name")}
         fields.update(changes)
@@ -319,6 +332,11 @@ class System(eqx.Module):
         else:
             x, y, r = self.positions(t, alpha, case)
         return occultation_flux(self.star, x, y, r, method=method, **kwargs)
+
+    def __repr__(self) -> str:
+        tilted = self.planets[self.tilted].name or self.tilted
+        inner = ",\n".join("    " + repr(p) for p in self.planets)
+        return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r})"
 
     def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
         return System(

@@ -405,3 +405,11 @@ def test_hemisphere_cases_of_three_planets():
         sysm.flux(t, 0.0, case=(1, 0))
     with pytest.raises(ValueError, match="case must be one of"):
         jp.sweep(sysm, t, alpha, cases=("sideways",))
+
+
+def test_repr_shows_the_numbers(system):
+    """Issue 15 item 8: repr shows values with units, not the PyTree layout."""
+    r = repr(system.planets[0])
+    assert r == "Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805)"
+    rs = repr(system)
+    assert "period=10.85408479 d" in rs and "tilted='b'" in rs and rs.startswith("System(star=")
