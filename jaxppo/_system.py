@@ -199,7 +199,9 @@ class Planet(eqx.Module):
 
     @property
     def impact(self) -> Array:
-        """Impact parameter b = a cos(i) [R*] (signed: > 0 crosses y > 0)."""
+        """Impact parameter b = a cos(i) [R*], signed as the inclination
+        gives it. Transits measure only |b|: :meth:`System.positions` places
+        the planets by |b| and the hemisphere case (docs/conventions.md)."""
         return self.a * jnp.cos(jnp.deg2rad(self.inc))
 
     def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
