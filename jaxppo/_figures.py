@@ -176,10 +176,9 @@ def _window_chi2(system, w, alphas, case):
     return np.sum(((w.flux[None, :] - m) / w.flux_err[None, :]) ** 2, axis=1)
 
 
-def _fig6(plt, out, summary, table, system, windows, cases, colors):
-    """One multi-transit with its own best (lowest chi^2) and worst (highest)
-    alpha among the angles that give it a PPO, zoomed on the PPO (paper
-    Fig. 6), with residuals."""
+def _fig6_choice(summary, table, system, windows, cases):
+    """(score, case, window, alpha_best, alpha_worst) for Fig. 6, or None
+    when no alpha gives any transit a PPO."""
     # The transit: the one responsible for the deepest dip of Delta chi^2
     # (the paper's transit 2 at alpha_1 = 313 deg); without dips, the one
     # whose chi^2 changes most with alpha. Best and worst alpha are then that
@@ -198,6 +197,14 @@ def _fig6(plt, out, summary, table, system, windows, cases, colors):
             score = (dip > 0.15, dip if dip > 0.15 else float(c2.max() - c2.min()))
             if choice is None or score > choice[0]:
                 choice = (score, case, w, alphas[has][np.argmin(c2)], alphas[has][np.argmax(c2)])
+    return choice
+
+
+def _fig6(plt, out, summary, table, system, windows, cases, colors):
+    """One multi-transit with its own best (lowest chi^2) and worst (highest)
+    alpha among the angles that give it a PPO, zoomed on the PPO (paper
+    Fig. 6), with residuals."""
+    choice = _fig6_choice(summary, table, system, windows, cases)
     fig, (ax, rax) = plt.subplots(2, 1, figsize=(6.4, 5.0), sharex=True, gridspec_kw={"height_ratios": [2.2, 1]})
     if choice is None:
         ax.text(0.5, 0.5, "no alpha of the grid gives a planet-planet occultation", ha="center", va="center",

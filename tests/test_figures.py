@@ -110,3 +110,23 @@ def test_bad_figure_input(tmp_path):
         scan_figures(tmp_path, summary, table, system, [], cases)
     with pytest.raises(ValueError, match="out must be an existing folder"):
         scan_figures(tmp_path / "missing", summary, table, system, windows, cases)
+
+
+def test_fig6_shows_one_transit_with_its_own_best_and_worst_alpha():
+    """Issue 10 item 6: the old Fig. 6 took the best alpha (global min of
+    Delta chi^2, here transit 2) and the worst (global max, transit 3) from
+    different transits. Now both are the chosen transit's own, checked with
+    chi^2 of that transit alone from System.flux (exact method)."""
+    from jaxppo._figures import _fig6_choice
+
+    system, windows, table, summary, cases = small_scan()
+    _, case, w, a_best, a_worst = _fig6_choice(summary, table, system, windows, cases)
+    assert (case, w.number) == ("same", 2)  # the injected PPO: the deepest dip
+    own = np.array([a for a in table["same"]["alpha"] if 2 in summary["cases"]["same"]["ppo_transits"].get(f"{a:g}", ())])
+    f = np.asarray(system.flux(w.time, own, "same", method="exact"))
+    chi2 = np.sum(((w.flux - f) / w.flux_err) ** 2, axis=1)
+    assert a_best == own[np.argmin(chi2)] == 312.0
+    assert a_worst == own[np.argmax(chi2)]
+    d = table["same"]
+    # the global maximum lies in another transit: the old choice mixed them
+    assert 2 not in summary["cases"]["same"]["ppo_transits"][f"{d['alpha'][np.argmax(d['delta_chi2'])]:g}"]
