@@ -2,8 +2,8 @@
 the scene needs.
 
 Rotating the tilted planet about the star's centre does not change its
-distance from the centre, and mirroring the other planets (case "opposite")
-does not change theirs. So wherever no two disks overlap, the flux is the sum
+distance from the centre, and mirroring the other planets into the other
+hemisphere (the hemisphere case) does not change theirs. So wherever no two disks overlap, the flux is the sum
 of one-disk terms that depend on neither alpha nor the case: they are computed
 once per time. Only the (case, alpha, time) frames in which two disks overlap
 run the exact union integral, in bounded chunks, sharded over all devices.
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._flux import LENS_MIN_PAIRS, _exact_frames, _run_padded, auto_frames, one_disk_sum
-from ._system import CASES, System
+from ._system import CASES, System, case_signs
 
 __all__ = ["sweep", "SweepStats"]
 
@@ -41,7 +41,8 @@ def sweep(
         system: the planets; ``system.tilted`` is rotated by alpha.
         t: times [d], 1D.
         alpha: tilt angles [deg], 1D.
-        cases: sequence of "same" / "opposite".
+        cases: sequence of hemisphere cases: "same", "opposite" or tuples of
+            +-1 signs of the untilted planets (see ``hemisphere_cases``).
         method: "auto" (default; see module doc), "exact" (union integral for
             every frame) or "raster".
         return_stats: also return a :class:`SweepStats`.
@@ -54,10 +55,10 @@ def sweep(
         raise ValueError(f"t and alpha must be 1D, got shapes {t.shape} and {alpha.shape}")
     if not np.all(np.isfinite(t)) or not np.all(np.isfinite(alpha)):
         raise ValueError("t and alpha must be finite")
+    if isinstance(cases, str):
+        cases = (cases,)
     cases = tuple(cases)
-    for c in cases:
-        if c not in CASES:
-            raise ValueError(f"case must be one of {CASES}, got {c!r}")
+    signs_of = [case_signs(len(system.planets), system.tilted, c) for c in cases]  # validates
     n_c, n_a, n_t = len(cases), alpha.size, t.size
     if method != "auto" or not system.star.symmetric:
         out = [np.asarray(system.flux(t, alpha, case=c, method=method, order=order, chunk=chunk)) for c in cases]
@@ -88,29 +89,28 @@ def sweep(
     xa, ya, _ = system.positions(t[None, :], alpha[:, None], "same", xp=np)
     xt, yt = xa[..., tilted], ya[..., tilted]  # [alpha, time]
     jobs = []  # (case index, alpha index, time index)
-    for ci, case in enumerate(cases):
-        sign = -1.0 if case == "opposite" else 1.0
+    for ci, signs in enumerate(signs_of):
         hit = np.zeros((n_a, n_t), bool)
         for j in range(k):
             if j == tilted:
                 continue
-            xj, yj = x0[:, j], sign * y0[:, j]
+            xj, yj = x0[:, j], signs[j] * y0[:, j]
             both = on[:, tilted] & on[:, j]
             dist2 = (xt - xj) ** 2 + (yt - yj) ** 2
             hit |= both[None, :] & (dist2 < (r0[:, tilted] + r0[:, j])[None, :] ** 2)
             for m in range(j + 1, k):
                 if m == tilted:
                     continue
-                dd = np.hypot(x0[:, j] - x0[:, m], y0[:, j] - y0[:, m])
+                # two untilted planets: their relative hemisphere depends on the case
+                dd = np.hypot(x0[:, j] - x0[:, m], signs[j] * y0[:, j] - signs[m] * y0[:, m])
                 hit |= (on[:, j] & on[:, m] & (dd < r0[:, j] + r0[:, m]))[None, :]
         ai, ti = np.nonzero(hit)
         if ai.size:
-            jobs.append((ci, ai, ti, sign))
+            jobs.append((ci, ai, ti, signs))
     n_union = 0
-    for ci, ai, ti, sign in jobs:
+    for ci, ai, ti, signs in jobs:
         X = np.array(x0[ti])
-        Y = np.array(y0[ti]) * sign
-        Y[:, tilted] = y0[ti, tilted]
+        Y = np.array(y0[ti]) * signs[None, :]
         X[:, tilted] = xt[ai, ti]
         Y[:, tilted] = yt[ai, ti]
         vals = overlap_flux(system.star, X, Y, r0[ti], order, chunk)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import equinox as eqx
 import jax
@@ -18,9 +19,84 @@ from jaxtyping import Array, ArrayLike
 from ._flux import occultation_flux
 from ._star import Star
 
-__all__ = ["Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES"]
+__all__ = [
+    "Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES",
+    "hemisphere_cases", "case_label", "case_signs", "multi_transit_counts",
+]
 
+# Named hemisphere cases: every untilted planet in the tilted planet's
+# hemisphere ("same", paper case 1) or every one in the other ("opposite",
+# paper case 4). Systems of k planets have 2^(k-1) distinct configurations,
+# given as a tuple of +-1 signs (one per untilted planet, in planet order).
 CASES = ("same", "opposite")
+
+
+def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
+    """Hemisphere sign of every planet [n_planets] for ``case``: +1 for the
+    tilted planet and for untilted planets on its side of the stellar equator,
+    -1 for the mirrored ones.
+
+    ``case``: "same" (all +1), "opposite" (all -1), a tuple of +-1 (one per
+    untilted planet, in planet order), or a string of "+"/"-" of that length
+    (as written by :func:`case_label`).
+    """
+    k = n_planets - 1
+    if isinstance(case, str):
+        if case == "same":
+            rel = (1,) * k
+        elif case == "opposite":
+            rel = (-1,) * k
+        elif case and set(case) <= {"+", "-"}:
+            rel = tuple(1 if ch == "+" else -1 for ch in case)
+        else:
+            raise ValueError(
+                f"case must be one of {CASES}, a tuple of +-1 or a '+'/'-' string (one per untilted planet), got {case!r}"
+            )
+    else:
+        try:
+            rel = tuple(case)
+        except TypeError:
+            raise ValueError(f"case must be one of {CASES} or a tuple of +-1, got {case!r}") from None
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and v in (1, -1) for v in rel):
+            raise ValueError(f"case signs must each be +1 or -1, got {case!r}")
+    if len(rel) != k:
+        raise ValueError(f"case must give {k} sign(s) (one per untilted planet), got {case!r}")
+    signs = list(rel)
+    signs.insert(tilted, 1)
+    return np.asarray(signs, float)
+
+
+def case_label(case) -> str:
+    """Text name of a case: "same", "opposite", or a "+"/"-" string for mixed
+    sign tuples (safe in CSV files; :func:`case_signs` reads it back)."""
+    if isinstance(case, str):
+        return case
+    rel = tuple(int(v) for v in case)
+    if all(v == 1 for v in rel):
+        return "same"
+    if all(v == -1 for v in rel):
+        return "opposite"
+    return "".join("+" if v == 1 else "-" for v in rel)
+
+
+def hemisphere_cases(system: "System") -> tuple:
+    """The 2^(k-1) hemisphere configurations of a k-planet system that give
+    different light curves, "same" first and "opposite" last; mixed ones as
+    tuples of +-1 (one per untilted planet, in planet order).
+
+    Only the untilted planets' signs relative to the tilted planet matter: a
+    mirror y -> -y of the whole sky maps any configuration at alpha to its
+    mirror image at 360 - alpha, and a radially symmetric star gives both the
+    same flux, so a full alpha scan covers both signs of the tilted planet.
+    """
+    k = len(system.planets) - 1
+    if k == 0:
+        return ("same",)
+    out = []
+    for bits in range(2**k):
+        rel = tuple(-1 if (bits >> (k - 1 - j)) & 1 else 1 for j in range(k))
+        out.append(case_label(rel) if len(set(rel)) == 1 else rel)
+    return tuple(out)
 
 
 def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
@@ -35,6 +111,38 @@ def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
         raise ValueError(f"{name} must be {op} {lower}, got {value!r}")
 
 
+def _is_quantity(value) -> bool:
+    # astropy Quantities (and Time) carry a unit; plain numbers and jax arrays do not
+    return hasattr(value, "unit") and hasattr(value, "to")
+
+
+def _from_quantity(name: str, value, unit: str):
+    """Convert an astropy Quantity to the plain number the API expects:
+    ``unit`` "deg" (angles), "d" (times) or "" (dimensionless ratios).
+    Plain numbers pass unchanged (their units are the documented ones)."""
+    if type(value).__name__ == "Time":
+        raise ValueError(
+            f"{name} must be a number of days or a time Quantity, got an astropy Time ({value!r}); "
+            "subtract your zero point first, e.g. (time - Time(2454833, format='jd')).to(u.day) for BKJD"
+        )
+    if not _is_quantity(value):
+        return value
+    import astropy.units as u
+
+    target = {"deg": u.deg, "d": u.day, "": u.dimensionless_unscaled}[unit]
+    try:
+        return np.asarray(value.to_value(target), float)
+    except u.UnitConversionError:
+        pass
+    if unit == "" and value.unit.physical_type == "length":
+        raise ValueError(
+            f"{name} must be in stellar radii (a plain number or a dimensionless Quantity), got {value!r}: "
+            f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
+        )
+    want = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}[unit]
+    raise ValueError(f"{name} must be {want}, got the Quantity {value!r}")
+
+
 class Planet(eqx.Module):
     """A planet on a circular orbit.
 
@@ -45,6 +153,12 @@ class Planet(eqx.Module):
         inc: inclination i [deg] in [0, 180]; b = a cos(i).
         radius: radius ratio p = R_p / R*, > 0.
         name: optional label used in free-parameter names ("b.t0").
+
+    astropy Quantities are converted (inc: any angle unit; period, t0: any
+    time unit; a, radius: dimensionless, e.g. ``(a / R_star).decompose()``;
+    a bare length is refused as ambiguous). Plain numbers mean deg and days.
+    A planet whose |b| >= 1 + radius can never transit: that warns
+    (``inc=1.53`` in radians by habit means 1.53 deg, b ~ a).
     """
 
     period: Array
@@ -55,6 +169,11 @@ class Planet(eqx.Module):
     name: str = eqx.field(static=True, default="")
 
     def __init__(self, period, t0, a, inc, radius, name: str = ""):
+        period = _from_quantity("period", period, "d")
+        t0 = _from_quantity("t0", t0, "d")
+        a = _from_quantity("a", a, "")
+        inc = _from_quantity("inc", inc, "deg")
+        radius = _from_quantity("radius", radius, "")
         _positive("period", period)
         _positive("t0", t0, strict=False, lower=-np.inf)
         _positive("a", a, lower=1.0)
@@ -69,10 +188,20 @@ class Planet(eqx.Module):
         self.inc = jnp.asarray(inc, float)
         self.radius = jnp.asarray(radius, float)
         self.name = str(name)
+        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius)):
+            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float))))
+            if np.any(b >= 1.0 + np.asarray(radius, float)):
+                warnings.warn(
+                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = a |cos i| = {np.max(b):.4g} >= 1 + radius, "
+                    "so it never transits (inc is in degrees; a Quantity in radians is converted)",
+                    UserWarning, stacklevel=2,
+                )
 
     @property
     def impact(self) -> Array:
-        """Impact parameter b = a cos(i) [R*] (signed: > 0 crosses y > 0)."""
+        """Impact parameter b = a cos(i) [R*], signed as the inclination
+        gives it. Transits measure only |b|: :meth:`System.positions` places
+        the planets by |b| and the hemisphere case (docs/conventions.md)."""
         return self.a * jnp.cos(jnp.deg2rad(self.inc))
 
     def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
@@ -91,6 +220,19 @@ class Planet(eqx.Module):
         transits = (jnp.abs(self.impact) < 1.0 + self.radius) & (c2 < 1.0)
         phase = jnp.arccos(jnp.sqrt(jnp.clip(c2, 0.0, 1.0)))
         return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
+
+    def __repr__(self) -> str:
+        """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805)."""
+        fields = (("period", " d"), ("t0", " d"), ("a", " R*"), ("inc", " deg"), ("radius", ""))
+        parts = [f"name={self.name!r}"] if self.name else []
+        for f, unit in fields:
+            v = getattr(self, f)
+            if isinstance(v, jax.core.Tracer):
+                parts.append(f"{f}={v}")
+                continue
+            arr = np.asarray(v)
+            parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
+        return "Planet(" + ", ".join(parts) + ")"
 
     def replace(self, **changes) -> "Planet":
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name")}
@@ -134,39 +276,56 @@ class System(eqx.Module):
                 return i
         raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
 
-    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", xp=jnp):
+    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", xp=jnp):
         """Sky positions (x, y, r) with the disks on the last axis; planets
         behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
         ``xp=numpy`` computes on the host without tracing (fast geometry for
-        concrete inputs)."""
-        if case not in CASES:
-            raise ValueError(f"case must be one of {CASES}, got {case!r}")
+        concrete inputs).
+
+        Hemispheres come from |b| only (transits cannot measure the sign of
+        cos i): before the tilt every planet crosses y > 0 (y uses |cos i|);
+        then ``case`` mirrors untilted planets (y -> -y) into the other
+        hemisphere ("same": none, "opposite": all, or a tuple of +-1 signs,
+        see :func:`case_signs`), and the tilted planet is rotated by alpha.
+        So i -> 180 - i of any planet changes nothing.
+        """
+        signs = case_signs(len(self.planets), self.tilted, case)
         t = xp.asarray(t, dtype=float)
         alpha_rad = xp.deg2rad(xp.asarray(alpha, dtype=float))
         shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
         xs, ys, rs = [], [], []
         for i, pl in enumerate(self.planets):
             x, y, z = pl.position(t, xp)
+            # |cos i| instead of cos i: the sign of b is not observable
+            y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
             if i == self.tilted:
                 ca, sa = xp.cos(alpha_rad), xp.sin(alpha_rad)
                 x, y = x * ca + y * sa, -x * sa + y * ca
-            elif case == "opposite":
+            elif signs[i] < 0:
                 y = -y
             xs.append(xp.broadcast_to(x, shape))
             ys.append(xp.broadcast_to(y, shape))
             rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
         return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
 
-    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case: str = "same", method: str = "auto", **kwargs) -> Array:
+    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d].
 
         ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
-        [alpha, time]. ``case``: "same" or "opposite" (CONVENTIONS).
+        [alpha, time]. ``case``: "same", "opposite" or a tuple of +-1 signs
+        of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
         """
         t = jnp.asarray(t, float)
-        if not isinstance(t, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(t))):
-            raise ValueError("t must be finite")
+        if not isinstance(t, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(t))
+            if bad.any():
+                raise ValueError(f"t must be finite, got {float(np.asarray(t)[bad][0])} at index {np.argwhere(bad)[0].tolist()}")
+        alpha = _from_quantity("alpha", alpha, "deg")
         alpha = jnp.asarray(alpha, float)
+        if not isinstance(alpha, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(alpha))
+            if bad.any():
+                raise ValueError(f"alpha must be finite [deg], got {float(np.asarray(alpha)[bad][0])}")
         if alpha.ndim > 1:
             raise ValueError(f"alpha must be a scalar or 1D array, got shape {alpha.shape}")
         if alpha.ndim == 1:
@@ -175,6 +334,11 @@ class System(eqx.Module):
         else:
             x, y, r = self.positions(t, alpha, case)
         return occultation_flux(self.star, x, y, r, method=method, **kwargs)
+
+    def __repr__(self) -> str:
+        tilted = self.planets[self.tilted].name or self.tilted
+        inner = ",\n".join("    " + repr(p) for p in self.planets)
+        return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r})"
 
     def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
         return System(
@@ -238,25 +402,10 @@ def _label(system: System, i: int) -> str:
     return system.planets[i].name or str(i)
 
 
-def multi_transits(
-    system: System, t_start: float, t_end: float, planets: tuple | None = None
-) -> list[MultiTransit]:
-    """Events in [t_start, t_end] in which the transit windows (first to last
-    contact) of two or more planets overlap.
-
-    ``planets``: restrict to these planets (names or indices); default all.
-    Windows come from the circular-orbit contact times, so events that fall in
-    data gaps are listed too.
-    """
-    for name, v in (("t_start", t_start), ("t_end", t_end)):
-        if not np.isfinite(v):
-            raise ValueError(f"{name} must be finite, got {v!r}")
-    if t_end <= t_start:
-        raise ValueError(f"t_end must be after t_start, got {t_start} .. {t_end}")
-    idx = range(len(system.planets)) if planets is None else [
-        system.index(p) if isinstance(p, str) else int(p) for p in planets
-    ]
-    windows = []  # (start, end, planet index, mid)
+def _transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
+    """(first contact, last contact, planet index, mid-transit) [d] of every
+    transit that touches [t_start, t_end], sorted by first contact."""
+    windows = []
     for i in idx:
         pl = system.planets[i]
         half = float(pl.half_duration())
@@ -270,32 +419,101 @@ def multi_transits(
             if mid + half >= t_start and mid - half <= t_end:
                 windows.append((mid - half, mid + half, i, mid))
     windows.sort()
+    return windows
+
+
+def _simultaneous_sets(windows: list) -> list[list]:
+    """Maximal sets of transit windows that share a common time (all those
+    planets on the stellar disk at once): the maximal cliques of the interval
+    overlap graph, found by sweeping the contact times. Windows that only
+    touch (last contact = first contact) do not overlap."""
+    points = [(w[0], 1, k) for k, w in enumerate(windows)] + [(w[1], 0, k) for k, w in enumerate(windows)]
+    points.sort()  # at equal times, ends (0) before starts (1)
+    active: set[int] = set()
+    grew = False
+    out = []
+    for _, is_start, k in points:
+        if is_start:
+            active.add(k)
+            grew = True
+        else:
+            if grew and len(active) >= 2:
+                out.append([windows[j] for j in sorted(active)])
+            grew = False
+            active.discard(k)
+    return out
+
+
+def multi_transits(
+    system: System, t_start: float, t_end: float, planets: tuple | None = None
+) -> list[MultiTransit]:
+    """Events in [t_start, t_end] in which two or more planets are on the
+    stellar disk at the same time (their first-to-last-contact windows share
+    a common time).
+
+    An event lists exactly the planets that are all on the disk at once: a
+    triple needs a moment with all three in transit; a chain b-c then c-d
+    with no common time is two double transits, not a triple.
+
+    ``planets``: restrict to these planets (names or indices); default all.
+    Windows come from the circular-orbit contact times, so events that fall in
+    data gaps are listed too (see :func:`multi_transit_counts` for observed ones).
+    """
+    for name, v in (("t_start", t_start), ("t_end", t_end)):
+        if not np.isfinite(v):
+            raise ValueError(f"{name} must be finite, got {v!r}")
+    if t_end <= t_start:
+        raise ValueError(f"t_end must be after t_start, got {t_start} .. {t_end}")
+    idx = range(len(system.planets)) if planets is None else [
+        system.index(p) if isinstance(p, str) else int(p) for p in planets
+    ]
     events: list[MultiTransit] = []
-    group: list = []
-    group_end = -np.inf
-
-    def flush():
-        members = {w[2] for w in group}
-        if len(members) >= 2:
-            start = min(w[0] for w in group)
-            end = max(w[1] for w in group)
-            # When are all members on the star at once (if ever)?
-            ov_start = max(w[0] for w in group)
-            ov_end = min(w[1] for w in group)
-            events.append(MultiTransit(
-                number=len(events) + 1,
-                planets=tuple(_label(system, i) for i in sorted(members)),
-                start=start, end=end, mid=0.5 * (start + end),
-                overlap_start=ov_start, overlap_end=max(ov_end, ov_start),
-                transit_mid=tuple(w[3] for w in sorted(group, key=lambda w: w[2])),
-            ))
-
-    for w in windows:
-        if group and w[0] > group_end:
-            flush()
-            group = []
-        group.append(w)
-        group_end = max(group_end, w[1]) if len(group) > 1 else w[1]
-    if group:
-        flush()
+    for group in _simultaneous_sets(_transit_windows(system, idx, t_start, t_end)):
+        group = sorted(group, key=lambda w: w[2])
+        start = min(w[0] for w in group)
+        end = max(w[1] for w in group)
+        events.append(MultiTransit(
+            number=len(events) + 1,
+            planets=tuple(_label(system, w[2]) for w in group),
+            start=start, end=end, mid=0.5 * (start + end),
+            overlap_start=max(w[0] for w in group), overlap_end=min(w[1] for w in group),
+            transit_mid=tuple(w[3] for w in group),
+        ))
     return events
+
+
+def multi_transit_counts(
+    system: System, times, exposure: float | None = None, planets: tuple | None = None
+) -> dict[tuple[str, ...], int]:
+    """Number of observed multi-transits for each set of planets (paper
+    Table 2: each event counted once, under all the planets on the disk at
+    once, so a triple is not also counted as three doubles).
+
+    Args:
+        system: the planets.
+        times: observation time stamps [d] (e.g. the cadence mid-times of
+            the light curve), 1D.
+        exposure: cadence length [d]; a cadence covers t +- exposure / 2.
+            None: the time stamps are instants.
+        planets: restrict to these planets (names or indices).
+
+    An event counts as observed when some cadence covers part of the time
+    during which all its planets are on the disk (``overlap_start`` ..
+    ``overlap_end``); events in data gaps do not count.
+    """
+    t = np.sort(np.asarray(times, float).ravel())
+    if t.size == 0:
+        raise ValueError("times must hold at least one time stamp")
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"times must be finite, got {float(t[~np.isfinite(t)][0])}")
+    half = 0.0 if exposure is None else 0.5 * float(exposure)
+    if not half >= 0:
+        raise ValueError(f"exposure must be >= 0 days, got {exposure!r}")
+    counts: dict[tuple[str, ...], int] = {}
+    # one day of padding: a single time stamp is a valid (empty-width) span
+    for e in multi_transits(system, float(t[0]) - half - 1.0, float(t[-1]) + half + 1.0, planets):
+        # first cadence ending after the overlap starts: does it begin before the overlap ends?
+        j = np.searchsorted(t, e.overlap_start - half, side="right")
+        if j < t.size and t[j] - half < e.overlap_end:
+            counts[e.planets] = counts.get(e.planets, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (len(kv[0]), kv[0])))
