@@ -20,6 +20,9 @@ from ._system import Planet as Planet
 from ._system import System as System
 from ._system import alpha_limits as alpha_limits
 from ._system import multi_transits as multi_transits
+from ._system import multi_transit_counts as multi_transit_counts
+from ._system import hemisphere_cases as hemisphere_cases
+from ._system import case_label as case_label
 
 __version__ = "0.1.0"
 from ._raster import RasterSettings as RasterSettings

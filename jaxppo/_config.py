@@ -15,7 +15,7 @@ import numpy as np
 from ._lightcurve import _ROLES, LightCurve
 from ._phoenix import data_path, phoenix_star
 from ._star import Star
-from ._system import CASES, Planet, System
+from ._system import CASES, Planet, System, scan_cases
 
 __all__ = ["ScanConfig", "check_alpha_grid", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
@@ -243,12 +243,11 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
         check_alpha_grid(alpha)
     except ValueError as e:
         raise _err(source, f"[scan] alpha = {grid!r}: {e}") from None
-    cases = tuple(scan.get("cases", list(CASES)))
-    if not cases:
-        raise _err(source, "[scan] cases must not be empty")
-    for c in cases:
-        if c not in CASES:
-            raise _err(source, f"[scan] unknown case {c!r}; expected {CASES}")
+    cases = scan.get("cases", list(CASES))
+    try:
+        cases = scan_cases(system, cases)
+    except ValueError as e:
+        raise _err(source, f"[scan] cases = {cases!r}: {e}") from None
     margin = float(scan.get("margin", 0.05))
     if margin < 0:
         raise _err(source, f"[scan] margin must be >= 0 days, got {margin}")

@@ -20,13 +20,12 @@ and Table 6), drawn from plain data so that any scan driver can call them.
 
 from __future__ import annotations
 
-import types
 from pathlib import Path
 
 import numpy as np
 
 from ._sweep import sweep
-from ._system import case_label, case_signs, multi_transits
+from ._system import case_label, case_signs
 from ._tables import peaks_and_dips
 
 __all__ = ["scan_figures", "read_scan_csv"]
@@ -332,7 +331,7 @@ def _fig_probabilities(plt, out, summary, cases, colors):
         bars = ax.bar(range(len(names)), vals, color=colors[_key(case)], alpha=0.75, width=0.6)
         for bar, v, n in zip(bars, vals, names):
             s = geo[n].get("sum_positive_delta_chi2")
-            txt = f"{v:.2f} %" + (f"\n" + r"$\Sigma(\Delta\chi^2 > 0)$" + f" = {s:.1f}" if s is not None else "")
+            txt = f"{v:.2f} %" + ("\n" + r"$\Sigma(\Delta\chi^2 > 0)$" + f" = {s:.1f}" if s is not None else "")
             # inside a tall bar (below the 50 % line), above a short one
             ypos, va = (min(v, 50.0) * 0.5, "center") if v >= 25 else (v + 2.0, "bottom")
             ax.text(bar.get_x() + bar.get_width() / 2, ypos, txt, ha="center", va=va, fontsize=7,
@@ -355,9 +354,6 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     the arguments) and return their paths: fig4_multitransits.png,
     fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png.
     """
-    if hasattr(out, "system") and hasattr(out, "lightcurve"):
-        # legacy call scan_figures(cfg, out, result): adapt (until the scan passes plain data)
-        return _legacy(out, summary, table)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -384,20 +380,3 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
         _fig_probabilities(plt, out, summary, cases, colors),
     ]
     return [str(f) for f in files]
-
-
-def _legacy(cfg, out, result) -> list[str]:
-    """Adapter for the old call ``scan_figures(cfg, out, result)``: windows
-    are the configured light curve around each multi-transit of the tilted
-    planet (no detrending), as the scan selects them."""
-    out = Path(out)
-    sysm, lc = cfg.system, cfg.lightcurve
-    name = sysm.planets[sysm.tilted].name
-    events = [e for e in multi_transits(sysm, float(lc.time.min()) - 1.0, float(lc.time.max()) + 1.0) if name in e.planets]
-    windows = []
-    for e in events:
-        sel = (lc.time >= e.start - cfg.margin) & (lc.time <= e.end + cfg.margin)
-        if sel.any():
-            windows.append(types.SimpleNamespace(number=len(windows) + 1, event=e, time=lc.time[sel],
-                                                 flux=lc.flux[sel], flux_err=lc.flux_err[sel], exposure=lc.exposure))
-    return scan_figures(out, result, read_scan_csv(out / "scan.csv"), sysm, windows, cfg.cases)

@@ -30,6 +30,7 @@ from ._config import ScanConfig
 from ._sweep import sweep
 from ._lightcurve import LightCurve
 from ._system import MultiTransit, multi_transits
+from ._tables import table5_rows, write_table5
 
 __all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
            "scan_events", "ppo_table", "in_transit_mask"]
@@ -246,9 +247,16 @@ def ppo_table(system, times_per_event, alpha, case) -> np.ndarray:
 
 
 def _geometry_names(case: str) -> tuple[str, str]:
+    """Names of the prograde and retrograde ranges of a case. With one
+    untilted planet, a retrograde tilt puts the tilted planet in the other
+    hemisphere (paper Table 6). With more, a mixed case ("+-": the untilted
+    planets' hemispheres relative to the tilted planet's before its tilt) is
+    named by its signs."""
     if case == "same":
         return "prograde, same hemisphere", "retrograde, different hemispheres"
-    return "prograde, different hemispheres", "retrograde, same hemisphere"
+    if case == "opposite":
+        return "prograde, different hemispheres", "retrograde, same hemisphere"
+    return f"prograde, hemispheres {case}", f"retrograde, hemispheres {case}"
 
 
 def _logsumexp(v: np.ndarray) -> float:
@@ -341,7 +349,7 @@ class ScanResult(dict):
         return ax
 
 
-_TABLE_DTYPE = [("case", "U8"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
+_TABLE_DTYPE = [("case", "U16"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
 
 
 def _record_line(rec: dict) -> str:
@@ -532,10 +540,15 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
     )
     result.table = np.array(table, dtype=_TABLE_DTYPE)
     result.windows = windows
+    # Table 5 of the paper: the peaks and dips of Delta chi^2 (and cases 3/2 by Eq. 2)
+    by_case = {c: {k: result.table[k][result.table["case"] == c] for k in ("alpha", "chi2", "delta_chi2", "posterior")}
+               for c in cfg.cases}
+    result["table5"] = table5_rows(by_case, result, cfg.cases)
+    result["table5_files"] = write_table5(out, by_case, result, cfg.cases)
     if figures:
         from ._figures import scan_figures
 
-        result["figures"] = scan_figures(cfg, out, result)
+        result["figures"] = scan_figures(out, result, by_case, sysm, windows, cfg.cases)
     result["seconds"] = time.perf_counter() - t_begin
     # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
     _atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))
@@ -587,16 +600,17 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
 
 def _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block):
     from ._config import ScanConfig
-    from ._system import CASES, System
+    from ._system import System, scan_cases
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
     if not isinstance(lightcurve, LightCurve):
         raise ValueError(f"lightcurve must be a jaxppo.LightCurve, got {type(lightcurve).__name__}")
     alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
-    cases = (cases,) if isinstance(cases, str) else tuple(cases)
-    if not cases or any(c not in CASES for c in cases):
-        raise ValueError(f"cases must be a non-empty sequence of {CASES}, got {cases!r}")
+    try:
+        cases = scan_cases(system, cases)
+    except ValueError as e:
+        raise ValueError(f"cases = {cases!r}: {e}") from None
     if not (np.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin must be >= 0 days, got {margin!r}")
     if isinstance(detrend, str):

@@ -19,7 +19,7 @@ from jaxtyping import Array, ArrayLike
 from ._flux import occultation_flux
 from ._star import Star
 
-__all__ = [
+__all__ = ["scan_cases", 
     "Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES",
     "hemisphere_cases", "case_label", "case_signs", "multi_transit_counts",
 ]
@@ -50,7 +50,8 @@ def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
             rel = tuple(1 if ch == "+" else -1 for ch in case)
         else:
             raise ValueError(
-                f"case must be one of {CASES}, a tuple of +-1 or a '+'/'-' string (one per untilted planet), got {case!r}"
+                f"unknown case {case!r}: case must be one of {CASES}, a tuple of +-1 or a '+'/'-' string "
+                "(one per untilted planet)"
             )
     else:
         try:
@@ -77,6 +78,31 @@ def case_label(case) -> str:
     if all(v == -1 for v in rel):
         return "opposite"
     return "".join("+" if v == 1 else "-" for v in rel)
+
+
+def scan_cases(system: "System", cases) -> tuple[str, ...]:
+    """The hemisphere cases of a scan as text labels (:func:`case_label`):
+    ``"all"`` gives every configuration that differs (:func:`hemisphere_cases`),
+    otherwise a non-empty list of "same", "opposite" or "+"/"-" strings (one
+    sign per untilted planet). Raises ValueError naming the bad entry."""
+    if isinstance(cases, str):
+        if cases != "all":
+            cases = [cases]
+        else:
+            return tuple(case_label(c) for c in hemisphere_cases(system))
+    cases = list(cases)
+    if not cases:
+        raise ValueError("cases must not be empty")
+    out = []
+    for c in cases:
+        if not isinstance(c, str):
+            raise ValueError(f"each case must be a string ('same', 'opposite', or '+'/'-' signs), got {c!r}")
+        case_signs(len(system.planets), system.tilted, c)  # raises with the reason
+        label = case_label(c)
+        if label in out:
+            raise ValueError(f"case {c!r} is listed twice")
+        out.append(label)
+    return tuple(out)
 
 
 def hemisphere_cases(system: "System") -> tuple:

@@ -101,7 +101,10 @@ def cmd_scan(args) -> int:
         print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
               f"{sum(m.get('clipped', 0) for m in result['multi_transits'])} outliers clipped; errors {det['flux_err']}")
     _print_summary(result)
-    print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json and {len(result.get('figures', []))} figures")
+    from jaxppo._tables import table5_text
+
+    print(table5_text(result["table5"], cfg.cases), end="")
+    print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
     return 0
 
 
@@ -134,7 +137,10 @@ def cmd_plot(args) -> int:
     cfg = load_config(summary["config"])
     if cfg.digest != summary["config_digest"]:
         raise ValueError(f"the config {summary['config']} changed since the scan in {out}; rerun the scan")
-    files = scan_figures(cfg, out, summary)
+    from jaxppo._figures import read_scan_csv
+    from jaxppo._scan import scan_windows
+
+    files = scan_figures(out, summary, read_scan_csv(out / "scan.csv"), cfg.system, scan_windows(cfg), cfg.cases)
     print("wrote " + ", ".join(files))
     return 0
 
