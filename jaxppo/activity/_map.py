@@ -145,12 +145,14 @@ def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: 
     ax.set_ylabel("relative flux [%]")
     ax.set_title("stitched light curve (transits masked, outliers dropped)")
     ax = axes[1]
-    ax.plot(1.0 / rotation.frequency, rotation.power, lw=0.7, color="k")
+    ax.plot(1.0 / rotation.frequency, rotation.power, lw=0.7, color="k", label="GLS, one sinusoid")
+    if rotation.doubled:
+        ax.plot(1.0 / rotation.frequency, rotation.power2, lw=0.6, color="C1", alpha=0.7,
+                label="GLS, two harmonics")
+        ax.axvline(rotation.single_peak, color="C2", ls=":", lw=1,
+                   label=f"one-sinusoid peak {rotation.single_peak:.3f} d")
     ax.axvline(rotation.period, color="C0", ls="--", lw=1,
-               label=f"peak {rotation.period:.3f} +- {rotation.period_err:.3f} d (nterms={rotation.nterms})")
-    if rotation.nterms != 1:
-        ax.axvline(rotation.harmonic_peak, color="C2", ls=":", lw=1,
-                   label=f"nterms=1 peak {rotation.harmonic_peak:.3f} d")
+               label=f"P = {rotation.period:.3f} +- {rotation.period_err:.3f} d (HWHM)")
     if paper_period is not None:
         ax.axvline(paper_period, color="C3", ls="-.", lw=1, label=f"paper {paper_period} d")
     ax.set_xscale("log")

@@ -35,7 +35,7 @@ def _clean(x):
 
 
 def activity_report(time, flux, out=None, system=None, quarters=None, period_min: float = 2.0,
-                    period_max: float = 45.0, nterms: int = 2, bootstrap: int = 100, seed: int = 0,
+                    period_max: float = 45.0, bootstrap: int = 50, seed: int = 0,
                     bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
                     compare_paper: bool = True) -> dict:
     """Rotation period, per-quarter variability and brightness map.
@@ -46,7 +46,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
             activity_map.png (created); None writes nothing.
         system: jaxppo.System whose transits are masked (default Kepler-20 b, c).
         quarters: quarter label per point; None: segments split at gaps > 0.5 d.
-        period_min, period_max [d], nterms: periodogram (see rotation_period).
+        period_min, period_max [d]: periodogram search range (see rotation_period).
         bootstrap: quarter-bootstrap draws for the period spread (0: none).
         bins: phase bins per rotation in the map.
         compare_paper: include Mueller et al. (2021)'s Kepler-20 numbers.
@@ -58,7 +58,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
                                mask_transits=mask_transits, margin=margin)
     n_quarters = np.unique(prep.quarter).size
     rot = rotation_period(prep.time, prep.flux, period_min=period_min, period_max=period_max,
-                          nterms=nterms, quarters=prep.quarter,
+                          quarters=prep.quarter,
                           bootstrap=bootstrap if n_quarters > 1 else 0, seed=seed)
     var = quarter_variability(prep)
     bmap = brightness_map(prep.time, prep.flux, rot.period, bins=bins)
@@ -71,8 +71,10 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
             "period_err_method": "half width at half maximum of the GLS peak, P^2 * HWHM_f",
             "bootstrap_percentiles_16_50_84_d": rot.bootstrap,
             "bootstrap_draws": bootstrap if rot.bootstrap is not None else 0,
-            "nterms": rot.nterms,
-            "single_sinusoid_peak_d": rot.harmonic_peak,
+            "single_sinusoid_peak_d": rot.single_peak,
+            "doubled": rot.doubled,
+            "delta_bic_doubled": rot.delta_bic,
+            "rule": "single-sinusoid GLS peak P1, or the two-harmonic (nterms=2) peak within 10 % of 2 P1 if it lowers the BIC by > 10",
             "false_alarm_probability": rot.false_alarm,
             "peaks": [{"period_d": p, "power": w} for p, w in rot.peaks],
             "period_range_d": [period_min, period_max],

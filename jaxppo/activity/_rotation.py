@@ -10,9 +10,9 @@ Pipeline (each step documented in docs/activity.md):
 3. drop outliers: points further than ``clip`` robust sigmas (1.4826 MAD)
    from a running median of ``smooth`` cadences within their quarter;
 4. generalised (floating-mean) Lomb-Scargle periodogram, astropy's
-   ``LombScargle`` (Zechmeister & Kuerster 2009), by default with two
-   harmonics (``nterms=2``) so that a spot signal with two dips per rotation
-   is found at its rotation period and not at half of it;
+   ``LombScargle`` (Zechmeister & Kuerster 2009); its highest peak P1 is the
+   period unless a two-harmonic model near 2 P1 wins a BIC test (a spot
+   signal with two dips per rotation has most power at half the period);
 5. period uncertainty: the half width at half maximum of the chosen peak,
    sigma_P = P^2 sigma_f; optionally also the spread of the peak over a
    bootstrap that resamples whole quarters (spot evolution);
@@ -248,23 +248,29 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
 class RotationResult:
     """Rotation period from the generalised Lomb-Scargle periodogram.
 
-    period [d]: highest peak in [period_min, period_max]; period_err [d]:
-    its half width at half maximum converted to period (P^2 sigma_f);
-    bootstrap [d]: 15.87th, 50th and 84.13th percentiles of the peak period
-    when whole quarters are resampled (None without bootstrap); frequency [1/d] and power: the periodogram;
-    peaks: the strongest distinct peaks (period [d], power), best first;
-    harmonic_peak [d]: highest peak of the single-sinusoid (nterms=1)
-    periodogram, for comparison; nterms: harmonics used."""
+    period [d] and period_err [d] (HWHM of the chosen peak, P^2 sigma_f);
+    single_peak [d]: highest peak of the single-sinusoid periodogram;
+    doubled: True when the two-harmonic model at about twice single_peak
+    won the BIC test (a two-spot light curve); delta_bic: its BIC gain (> 0
+    favours the doubled period); bootstrap [d]: 15.87th, 50th and 84.13th
+    percentiles of the period when whole quarters are resampled (None
+    without bootstrap); frequency [1/d], power (nterms=1) and power2
+    (nterms=2): the periodograms; peaks: strongest distinct nterms=1 peaks
+    (period [d], power); false_alarm: astropy's Baluev false-alarm
+    probability of the single-sinusoid peak (white noise assumed; spot
+    evolution makes it far too small to mean much)."""
 
     period: float
     period_err: float
+    single_peak: float
+    doubled: bool
+    delta_bic: float
     bootstrap: list | None
     frequency: np.ndarray
     power: np.ndarray
+    power2: np.ndarray
     peaks: list
-    harmonic_peak: float
-    nterms: int
-    false_alarm: float | None
+    false_alarm: float
 
 
 def _grid(t: np.ndarray, period_min: float, period_max: float, oversample: int) -> np.ndarray:
@@ -308,28 +314,71 @@ def _distinct_peaks(freq, power, n, min_sep=0.05):
     return out
 
 
-def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.0, nterms: int = 2,
-                    oversample: int = 10, quarters=None, bootstrap: int = 0, seed: int = 0,
-                    n_peaks: int = 6) -> RotationResult:
+def _refine(ls, freq, i):
+    """Peak frequency on a grid 20x finer than ``freq`` around index i."""
+    df = freq[1] - freq[0]
+    fine = np.linspace(freq[i] - 2 * df, freq[i] + 2 * df, 81)
+    fine = fine[fine > 0]
+    return float(fine[np.argmax(ls.power(fine))])
+
+
+def _choose(t, y, freq, window, bic_threshold, full=True):
+    """The period rule (docs/activity.md): the single-sinusoid GLS peak P1,
+    unless the two-harmonic GLS peak within +-``window`` (relative) of 2 P1
+    lowers the BIC by more than ``bic_threshold`` (two extra parameters)."""
+    from astropy.timeseries import LombScargle
+
+    ls1 = LombScargle(t, y)  # floating mean (fit_mean=True) is the default
+    p1 = ls1.power(freq)
+    i1 = int(np.argmax(p1))
+    f1 = freq[i1]
+    ls2 = LombScargle(t, y, nterms=2)
+    win = (freq > 0.5 * f1 / (1 + window)) & (freq < 0.5 * f1 / (1 - window))
+    if full:
+        p2 = ls2.power(freq)
+    else:
+        p2 = np.full(freq.shape, np.nan)
+        if win.any():
+            p2[win] = ls2.power(freq[win])
+    delta_bic = -np.inf
+    if win.any():
+        i2 = int(np.flatnonzero(win)[np.argmax(p2[win])])
+        # standard normalisation: power = 1 - chi2 / chi2_ref, so the
+        # chi2 ratio of the two models is (1 - p1) / (1 - p2)
+        n = t.size
+        delta_bic = n * np.log((1 - p1[i1]) / (1 - p2[i2])) - 2 * np.log(n)
+    if delta_bic > bic_threshold:
+        return ls2, i2, p1, p2, True, float(delta_bic), ls1, i1
+    return ls1, i1, p1, p2, False, float(delta_bic), ls1, i1
+
+
+def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.0, oversample: int = 10,
+                    harmonic_window: float = 0.1, bic_threshold: float = 10.0, quarters=None,
+                    bootstrap: int = 0, seed: int = 0, n_peaks: int = 6) -> RotationResult:
     """Rotation period from astropy's generalised (floating-mean) Lomb-Scargle.
+
+    The single-sinusoid peak P1 is the period unless the light curve has the
+    shape of two spot groups (most power at P_rot / 2): then a
+    two-harmonic model (astropy ``nterms=2``) at about 2 P1 fits better by
+    more than ``bic_threshold`` in BIC (10: "very strong", Kass & Raftery
+    1995) and its peak is taken. A two-harmonic periodogram alone would not
+    do: it has the same power at 2P as at P for a pure sinusoid.
 
     Args:
         time [d], flux (relative, e.g. ``PreparedLightCurve.flux``): 1D, finite.
         period_min, period_max: search range [d]. The default upper end, 45 d,
             is half a Kepler quarter: each quarter is normalised separately
             and PDC removes slower trends, so longer periods are not measurable.
-        nterms: sinusoid harmonics in the model (2: fundamental + first
-            harmonic, the shape of a light curve with two spot groups).
         oversample: frequency steps per 1/(time span).
+        harmonic_window: relative half width of the window around 2 P1.
+        bic_threshold: BIC gain needed to take the doubled period.
         quarters: labels for the bootstrap (resampling whole quarters).
         bootstrap: number of quarter-bootstrap draws (0: none).
     Returns:
-        RotationResult. period_err is the HWHM of the peak (the frequency
-        resolution of the data; a strictly periodic signal is located much
-        better, an evolving spot pattern not).
+        RotationResult. period_err is the HWHM of the peak: the frequency
+        resolution of the data. A strictly periodic signal is located much
+        better than that; an evolving spot pattern is not (see the bootstrap).
     """
-    from astropy.timeseries import LombScargle
-
     t = np.asarray(time, float)
     y = np.asarray(flux, float)
     if t.ndim != 1 or t.size < 10:
@@ -345,32 +394,25 @@ def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.
     span = t.max() - t.min()
     if period_max > span:
         raise ValueError(f"period_max = {period_max} d exceeds the time span {span:.3g} d")
-    if not isinstance(nterms, (int, np.integer)) or nterms < 1:
-        raise ValueError(f"nterms must be a positive integer, got {nterms!r}")
     if not isinstance(oversample, (int, np.integer)) or oversample < 3:
         raise ValueError(f"oversample must be an integer >= 3, got {oversample!r}")
+    if not (0 < harmonic_window < 0.5):
+        raise ValueError(f"harmonic_window must be in (0, 0.5), got {harmonic_window!r}")
+    bic_threshold = float(bic_threshold)
+    if not np.isfinite(bic_threshold):
+        raise ValueError(f"bic_threshold must be finite, got {bic_threshold!r}")
     if not isinstance(bootstrap, (int, np.integer)) or bootstrap < 0:
         raise ValueError(f"bootstrap must be a non-negative integer, got {bootstrap!r}")
+    if bootstrap and quarters is None:
+        raise ValueError("bootstrap needs quarters (labels of the resampled blocks)")
     freq = _grid(t, period_min, period_max, oversample)
-    ls = LombScargle(t, y, nterms=nterms)  # floating mean: fit_mean=True by default
-    power = ls.power(freq)
-    i = int(np.argmax(power))
-    # refine the peak on a grid 20x finer around it
-    df = freq[1] - freq[0]
-    fine = np.linspace(freq[i] - 2 * df, freq[i] + 2 * df, 81)
-    fine = fine[fine > 0]
-    pf = ls.power(fine)
-    f_best = float(fine[np.argmax(pf)])
-    period = 1.0 / f_best
+    ls, i, p1, p2, doubled, dbic, ls1, i1 = _choose(t, y, freq, harmonic_window, bic_threshold)
+    power = p2 if doubled else p1
+    period = 1.0 / _refine(ls, freq, i)
     period_err = period**2 * _hwhm(freq, power, i)
-    fap = None
-    if nterms == 1:
-        fap = float(ls.false_alarm_probability(power[i], minimum_frequency=freq[0], maximum_frequency=freq[-1]))
-    harmonic = period if nterms == 1 else 1.0 / freq[int(np.argmax(LombScargle(t, y).power(freq)))]
-    boot_std = None
+    fap = float(ls1.false_alarm_probability(p1[i1], minimum_frequency=freq[0], maximum_frequency=freq[-1]))
+    boot = None
     if bootstrap:
-        if quarters is None:
-            raise ValueError("bootstrap needs quarters (labels of the resampled blocks)")
         q = np.asarray(quarters, float)
         if q.shape != t.shape:
             raise ValueError(f"quarters must have the shape of time {t.shape}, got {q.shape}")
@@ -381,12 +423,12 @@ def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.
             pick = rng.choice(labels, labels.size, replace=True)
             # a quarter drawn twice keeps its own times: its spot pattern then
             # counts twice, which is what block resampling means here
-            idx = np.concatenate([np.where(q == lab)[0] for lab in pick])
-            pw = LombScargle(t[idx], y[idx], nterms=nterms).power(freq)
-            draws.append(1.0 / freq[int(np.argmax(pw))])
-        boot_std = [float(v) for v in np.percentile(draws, [15.87, 50.0, 84.13])]
-    return RotationResult(float(period), float(period_err), boot_std, freq, power,
-                          _distinct_peaks(freq, power, n_peaks), float(harmonic), int(nterms), fap)
+            idx = np.concatenate([np.flatnonzero(q == lab) for lab in pick])
+            _, j, *_ = _choose(t[idx], y[idx], freq, harmonic_window, bic_threshold, full=False)
+            draws.append(1.0 / freq[j])
+        boot = [float(v) for v in np.percentile(draws, [15.87, 50.0, 84.13])]
+    return RotationResult(float(period), float(period_err), float(1.0 / _refine(ls1, freq, i1)), bool(doubled),
+                          dbic, boot, freq, p1, p2, _distinct_peaks(freq, p1, n_peaks), fap)
 
 
 def quarter_variability(prepared: PreparedLightCurve, lower: float = 1.0, upper: float = 99.0) -> dict:
