@@ -145,10 +145,13 @@ def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: 
     ax.set_ylabel("relative flux [%]")
     ax.set_title("stitched light curve (transits masked, outliers dropped)")
     ax = axes[1]
-    ax.plot(1.0 / rotation.frequency, rotation.power, lw=0.7, color="k", label="GLS, one sinusoid")
+    ax.plot(1.0 / rotation.frequency, rotation.power, lw=0.7, color="k", label="GLS, one sinusoid", zorder=3)
     if rotation.doubled:
-        ax.plot(1.0 / rotation.frequency, rotation.power2, lw=0.6, color="C1", alpha=0.7,
-                label="GLS, two harmonics")
+        ax.plot(1.0 / rotation.frequency, rotation.power2, lw=0.6, color="C1", alpha=0.8,
+                label="GLS, two harmonics", zorder=2)
+    if rotation.bootstrap is not None:
+        ax.axvspan(rotation.bootstrap[0], rotation.bootstrap[2], color="C0", alpha=0.12, zorder=1,
+                   label=f"quarter bootstrap 16-84 %: {rotation.bootstrap[0]:.1f}-{rotation.bootstrap[2]:.1f} d")
         ax.axvline(rotation.single_peak, color="C2", ls=":", lw=1,
                    label=f"one-sinusoid peak {rotation.single_peak:.3f} d")
     ax.axvline(rotation.period, color="C0", ls="--", lw=1,
