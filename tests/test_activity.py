@@ -153,13 +153,14 @@ def test_map_chunking():
 def test_report_writes_json_and_figures(tmp_path):
     t, f, q = _synthetic(span=120.0)
     rep = activity_report(t, f, out=tmp_path, quarters=q, mask_transits=False, bootstrap=5,
-                          period_max=30.0, compare_paper=False)
+                          period_max=30.0, compare_paper=False, spot_chunk=2, n_spots=1)
     text = (tmp_path / "activity.json").read_text()
     assert json.loads(text)["rotation"]["period_d"] == pytest.approx(rep["rotation"]["period_d"])
     assert "NaN" not in text and "Infinity" not in text
     json.dumps(rep, allow_nan=False)
     assert abs(rep["rotation"]["period_d"] - 9.37) < rep["rotation"]["period_err_d"]
-    for name in ("activity_map.png", "activity_periodogram.png"):
+    assert rep["spots"]["chunk"] == 2 and len(rep["spots"]["longitude_deg"]) == 1
+    for name in ("activity_map.png", "activity_periodogram.png", "activity_spots.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(rep["rotation"]["bootstrap_percentiles_16_50_84_d"]) == 3
 
@@ -176,9 +177,78 @@ def test_report_writes_json_and_figures(tmp_path):
     (lambda t, y: prepare_light_curve(t, 1 + y, system="Kepler-20"), "system"),
     (lambda t, y: prepare_light_curve(t, 1 + y, clip=0.0, mask_transits=False), "clip"),
     (lambda t, y: activity_report(t, 1 + y, compare_paper="yes"), "compare_paper"),
+    (lambda t, y: activity_report(t, 1 + y, mask_transits=False, bootstrap=0, period_max=20.0, spot_chunk=99),
+     "spot_chunk"),
 ])
 def test_bad_input_names_parameter(call, name):
     t = np.linspace(0, 100, 500)
     y = 1e-3 * np.sin(t)
     with pytest.raises(ValueError, match=name):
         call(t, y)
+
+
+def _cap_deficit(t, lon, lat, rho, contrast, period, inc, u1, u2, n=150):
+    """Brute-force flux deficit of one spherical cap: sum of c I(mu) mu dOmega
+    over the visible part of the cap, on a polar grid around the spot
+    centre, divided by F0 = 2 pi int I mu dmu (numerical). Independent of
+    the small-spot formula."""
+    lon, lat, rho, inc = np.deg2rad([lon, lat, rho, inc])
+    obs = np.array([np.sin(inc), 0.0, np.cos(inc)])  # observer, star frame (z = spin axis)
+    th = (np.arange(n) + 0.5) / n * rho
+    ps = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi
+    TH, PS = np.meshgrid(th, ps, indexing="ij")
+    dA = np.sin(TH) * (rho / n) * (np.pi / n)
+    mu_grid = np.linspace(0, 1, 200001)
+    inten = lambda mu: 1 - u1 * (1 - mu) - u2 * (1 - mu) ** 2
+    f0 = 2 * np.pi * np.trapezoid(inten(mu_grid) * mu_grid, mu_grid)
+    out = []
+    for ti in np.atleast_1d(t):
+        rot = 2 * np.pi * ti / period - lon  # spot longitude relative to the sub-observer meridian
+        p0 = np.array([np.cos(lat) * np.cos(rot), np.cos(lat) * np.sin(rot), np.sin(lat)])
+        e1 = np.cross(p0, [0.3, 0.5, 0.81]); e1 /= np.linalg.norm(e1)
+        e2 = np.cross(p0, e1)
+        pts = (np.cos(TH)[..., None] * p0 + np.sin(TH)[..., None] * (np.cos(PS)[..., None] * e1 + np.sin(PS)[..., None] * e2))
+        mu = pts @ obs
+        vis = mu > 0
+        out.append(np.sum(np.where(vis, contrast * inten(np.clip(mu, 0, 1)) * mu * dA, 0.0)) / f0)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("inc, lat", [(90.0, 0.0), (60.0, 30.0), (75.0, -20.0)])
+def test_spot_flux_matches_brute_force_cap(inc, lat):
+    from jaxppo.activity import spot_flux
+
+    rho, c, period, lon, u1, u2 = 4.0, 0.59, 20.0, 100.0, 0.495, 0.154
+    t = np.linspace(0, 20, 13)
+    ref = _cap_deficit(t, lon, lat, rho, c, period, inc, u1, u2)
+    got = -np.asarray(spot_flux(t, [lon], [lat], [rho], c, period, inc, u1, u2))
+    mu0 = (np.cos(np.deg2rad(inc)) * np.sin(np.deg2rad(lat))
+           + np.sin(np.deg2rad(inc)) * np.cos(np.deg2rad(lat)) * np.cos(2 * np.pi * t / period - np.deg2rad(lon)))
+    full = mu0 > 0.1  # cap fully visible (rho = 0.07 rad)
+    assert full.sum() >= 5 and (~full).sum() >= 3
+    # leading neglected term: the mu^2 part of I(mu) mu averaged over the cap,
+    # c sin^2(rho) (u1 + 2 u2) var(mu) / norm with var(mu) <= rho^2 / 4; x2 margin
+    r = np.deg2rad(rho)
+    bound = 2 * c * np.sin(r) ** 2 * (u1 + 2 * u2) * r**2 / 4 / (1 - u1 / 3 - u2 / 6)
+    assert np.max(np.abs(got[full] - ref[full])) < bound
+    assert bound < 0.01 * ref.max()  # the bound is tight: 1 % of the signal
+    assert np.all(got[mu0 < -0.1] == 0) and np.all(ref[mu0 < -0.1] == 0)
+    assert ref.max() > 1e-3  # a real signal, not zeros vs zeros
+
+
+def test_fit_spots_recovers_injected_spots():
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    from jaxppo.activity import fit_spots, spot_flux
+
+    rng = np.random.default_rng(7)
+    period = 26.9
+    t = np.sort(rng.uniform(0, period, 1200))
+    truth_lon, truth_rad = np.array([70.0, 220.0]), np.array([4.0, 2.5])
+    y = 2e-4 + np.asarray(spot_flux(t, truth_lon, [0.0, 0.0], truth_rad, 0.59, period)) + rng.normal(0, 1e-4, t.size)
+    fit = fit_spots(t, y, period, n_spots=2, t_ref=0.0)
+    assert fit.success
+    assert np.allclose(fit.lon, truth_lon, atol=2.0)
+    assert np.allclose(fit.radius, truth_rad, rtol=0.05)
+    assert abs(fit.chi2 / t.size - 1) < 0.15

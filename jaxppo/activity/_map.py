@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["BrightnessMap", "brightness_map", "plot_brightness_map", "plot_periodogram"]
+__all__ = ["BrightnessMap", "brightness_map", "plot_brightness_map", "plot_periodogram", "plot_spot_fit"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,8 +112,14 @@ def plot_brightness_map(bmap: BrightnessMap, path, title: str | None = None, spo
     for x in (0.0, 1.0):
         ax.axvline(x, color="0.2", lw=0.8, zorder=3)
     if spots:
+        # dot area proportional to the spot area (radius [deg]); repeated
+        # copies in the shaded parts keep spots near phase 0 or 1 visible
         for ts, ph, rad in spots:
-            ax.scatter([ph], [ts], s=max(4.0, 3.0 * rad**2), c="k", zorder=4)
+            for shift in (-1.0, 0.0, 1.0):
+                x = ph + shift
+                if lo <= x <= hi:
+                    ax.scatter([x], [ts], s=12.0 * rad**2, facecolor="k", edgecolor="w", linewidth=0.5,
+                               zorder=4, alpha=1.0 if shift == 0 else 0.5)
     ax.set_xlim(lo, hi)
     ax.set_ylim(y_edges[0], y_edges[-1])
     ax.set_facecolor("0.6")  # gaps in the data (grey, unlike any colour of the map)
@@ -172,6 +178,28 @@ def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: 
     ax.set_xlabel("quarter")
     ax.set_ylabel("peak-to-peak [%]")
     ax.set_title("variability per quarter (1st-99th percentile of the smoothed curve)")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def plot_spot_fit(time, flux, fit, path):
+    """Write a PNG of one chunk's relative flux with the few-spot model."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(time, float)
+    tm = np.linspace(t.min(), t.max(), 1000)
+    fig, ax = plt.subplots(figsize=(7, 3.6), constrained_layout=True)
+    ax.plot(t, 100 * np.asarray(flux), ".", ms=2, color="0.6", label="data")
+    ax.plot(tm, 100 * fit.model(tm), color="C3", lw=1.5, label=f"{fit.lon.size} spots, contrast {fit.contrast:.2f}")
+    desc = ", ".join(f"{lo:.0f} deg / {r:.1f} deg" for lo, r in zip(fit.lon, fit.radius))
+    ax.set_title(f"spot inversion: longitude / radius = {desc}", fontsize=9)
+    ax.set_xlabel("time [BKJD]")
+    ax.set_ylabel("relative flux [%]")
+    ax.legend(fontsize=8)
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._map import brightness_map, plot_brightness_map, plot_periodogram
+from ._map import brightness_map, plot_brightness_map, plot_periodogram, plot_spot_fit
+from ._spots import KEPLER20_SPOT_CONTRAST, fit_spots
 from ._rotation import (PAPER_ROTATION_PERIOD, PAPER_ROTATION_PERIOD_ERR, prepare_light_curve,
                         quarter_variability, rotation_period)
 
@@ -37,7 +38,8 @@ def _clean(x):
 def activity_report(time, flux, out=None, system=None, quarters=None, period_min: float = 2.0,
                     period_max: float = 45.0, bootstrap: int = 50, seed: int = 0,
                     bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
-                    compare_paper: bool = True) -> dict:
+                    compare_paper: bool = True, spot_chunk: int | None = None, n_spots: int = 3,
+                    spot_contrast: float = KEPLER20_SPOT_CONTRAST) -> dict:
     """Rotation period, per-quarter variability and brightness map.
 
     Args:
@@ -50,6 +52,9 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         bootstrap: quarter-bootstrap draws for the period spread (0: none).
         bins: phase bins per rotation in the map.
         compare_paper: include Mueller et al. (2021)'s Kepler-20 numbers.
+        spot_chunk: index of the map chunk to invert with ``n_spots``
+            equatorial spots of contrast ``spot_contrast`` (fit_spots); the
+            spots are drawn on the map. None: no inversion.
     Returns a dict with only finite numbers, strings, lists and dicts.
     """
     if not isinstance(compare_paper, bool):
@@ -93,14 +98,38 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
             "period_difference_in_hwhm": (rot.period - PAPER_ROTATION_PERIOD) / rot.period_err,
             "source": "Mueller, Ioannidis & Schmitt (2021), Sect. 3.2",
         }
+    spots, spot_fit, chunk_sel = None, None, None
+    if spot_chunk is not None:
+        n_chunk = int(bmap.chunk_start.size)
+        if not isinstance(spot_chunk, (int, np.integer)) or not 0 <= spot_chunk < n_chunk:
+            raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1}, got {spot_chunk!r}")
+        start = float(bmap.chunk_start[spot_chunk])
+        chunk_sel = (prep.time >= start) & (prep.time < start + bmap.period)
+        if chunk_sel.sum() < 50:
+            raise ValueError(f"spot_chunk {spot_chunk} holds only {int(chunk_sel.sum())} points; pick another")
+        spot_fit = fit_spots(prep.time[chunk_sel], prep.flux[chunk_sel], bmap.period, n_spots=n_spots,
+                             contrast=spot_contrast, t_ref=bmap.t_ref)
+        spots = [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(spot_fit.lon, spot_fit.radius)]
+        report["spots"] = {
+            "chunk": int(spot_chunk), "chunk_start": start, "n_points": int(chunk_sel.sum()),
+            "longitude_deg": spot_fit.lon.tolist(), "latitude_deg": spot_fit.lat.tolist(),
+            "radius_deg": spot_fit.radius.tolist(), "contrast": spot_fit.contrast, "inclination_deg": spot_fit.inc,
+            "unspotted_level": spot_fit.offset, "chi2": spot_fit.chi2, "sigma": spot_fit.sigma,
+            "n_points_fitted": int(chunk_sel.sum()), "success": spot_fit.success,
+            "note": ("small-spot model, contrast and latitude fixed, star equator-on: radii are lower limits "
+                     "(contrast, latitude and size are degenerate)"),
+        }
     report = _clean(report)
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         fig_p = plot_periodogram(prep, rot, var, out / "activity_periodogram.png",
                                  PAPER_ROTATION_PERIOD if compare_paper else None)
-        fig_m = plot_brightness_map(bmap, out / "activity_map.png")
+        fig_m = plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
         report["figures"] = [Path(fig_p).name, Path(fig_m).name]
+        if spot_fit is not None:
+            fig_s = plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
+            report["figures"].append(Path(fig_s).name)
         with open(out / "activity.json", "w") as fh:
             json.dump(report, fh, indent=2, allow_nan=False)
     return report
