@@ -159,7 +159,8 @@ def test_report_writes_json_and_figures(tmp_path):
     assert "NaN" not in text and "Infinity" not in text
     json.dumps(rep, allow_nan=False)
     assert abs(rep["rotation"]["period_d"] - 9.37) < rep["rotation"]["period_err_d"]
-    assert rep["spots"]["chunk"] == 2 and len(rep["spots"]["longitude_deg"]) == 1
+    assert [c["chunk"] for c in rep["spots"]["chunks"]] == [2]
+    assert len(rep["spots"]["chunks"][0]["longitude_deg"]) == 1
     for name in ("activity_map.png", "activity_periodogram.png", "activity_spots.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(rep["rotation"]["bootstrap_percentiles_16_50_84_d"]) == 3

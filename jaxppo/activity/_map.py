@@ -118,7 +118,7 @@ def plot_brightness_map(bmap: BrightnessMap, path, title: str | None = None, spo
             for shift in (-1.0, 0.0, 1.0):
                 x = ph + shift
                 if lo <= x <= hi:
-                    ax.scatter([x], [ts], s=12.0 * rad**2, facecolor="k", edgecolor="w", linewidth=0.5,
+                    ax.scatter([x], [ts], s=3.0 * rad**2, facecolor="k", edgecolor="w", linewidth=0.3,
                                zorder=4, alpha=1.0 if shift == 0 else 0.5)
     ax.set_xlim(lo, hi)
     ax.set_ylim(y_edges[0], y_edges[-1])

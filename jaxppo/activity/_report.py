@@ -38,7 +38,7 @@ def _clean(x):
 def activity_report(time, flux, out=None, system=None, quarters=None, period_min: float = 2.0,
                     period_max: float = 45.0, bootstrap: int = 50, seed: int = 0,
                     bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
-                    compare_paper: bool = True, spot_chunk: int | None = None, n_spots: int = 3,
+                    compare_paper: bool = True, spot_chunk: int | str | None = None, n_spots: int = 3,
                     spot_contrast: float = KEPLER20_SPOT_CONTRAST) -> dict:
     """Rotation period, per-quarter variability and brightness map.
 
@@ -53,8 +53,10 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         bins: phase bins per rotation in the map.
         compare_paper: include Mueller et al. (2021)'s Kepler-20 numbers.
         spot_chunk: index of the map chunk to invert with ``n_spots``
-            equatorial spots of contrast ``spot_contrast`` (fit_spots); the
-            spots are drawn on the map. None: no inversion.
+            equatorial spots of contrast ``spot_contrast`` (fit_spots), or
+            "all" (every chunk with >= 60 % phase coverage); the spots are
+            drawn on the map, the first fitted chunk in activity_spots.png.
+            None: no inversion.
     Returns a dict with only finite numbers, strings, lists and dicts.
     """
     if not isinstance(compare_paper, bool):
@@ -101,23 +103,37 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     spots, spot_fit, chunk_sel = None, None, None
     if spot_chunk is not None:
         n_chunk = int(bmap.chunk_start.size)
-        if not isinstance(spot_chunk, (int, np.integer)) or not 0 <= spot_chunk < n_chunk:
-            raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1}, got {spot_chunk!r}")
-        start = float(bmap.chunk_start[spot_chunk])
-        chunk_sel = (prep.time >= start) & (prep.time < start + bmap.period)
-        if chunk_sel.sum() < 50:
-            raise ValueError(f"spot_chunk {spot_chunk} holds only {int(chunk_sel.sum())} points; pick another")
-        spot_fit = fit_spots(prep.time[chunk_sel], prep.flux[chunk_sel], bmap.period, n_spots=n_spots,
-                             contrast=spot_contrast, t_ref=bmap.t_ref)
-        spots = [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(spot_fit.lon, spot_fit.radius)]
+        if isinstance(spot_chunk, str) and spot_chunk == "all":
+            # chunks with at least 60 % of their phase bins filled
+            own = bmap.counts[:, ~bmap.repeated] >= 3
+            chunks = [k for k in range(n_chunk) if own[k].mean() >= 0.6]
+        elif isinstance(spot_chunk, (int, np.integer)) and not isinstance(spot_chunk, bool) and 0 <= spot_chunk < n_chunk:
+            chunks = [int(spot_chunk)]
+        else:
+            raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1} or 'all', got {spot_chunk!r}")
+        spots, fits = [], []
+        for k in chunks:
+            start = float(bmap.chunk_start[k])
+            sel = (prep.time >= start) & (prep.time < start + bmap.period)
+            if sel.sum() < 50:
+                raise ValueError(f"spot_chunk {k} holds only {int(sel.sum())} points; pick another")
+            fit = fit_spots(prep.time[sel], prep.flux[sel], bmap.period, n_spots=n_spots,
+                            contrast=spot_contrast, t_ref=bmap.t_ref)
+            if spot_fit is None:
+                spot_fit, chunk_sel = fit, sel
+            spots += [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(fit.lon, fit.radius)]
+            fits.append({
+                "chunk": int(k), "chunk_start": start, "n_points": int(sel.sum()),
+                "longitude_deg": fit.lon.tolist(), "latitude_deg": fit.lat.tolist(),
+                "radius_deg": fit.radius.tolist(), "unspotted_level": fit.offset,
+                "chi2": fit.chi2, "sigma": fit.sigma, "success": fit.success,
+            })
         report["spots"] = {
-            "chunk": int(spot_chunk), "chunk_start": start, "n_points": int(chunk_sel.sum()),
-            "longitude_deg": spot_fit.lon.tolist(), "latitude_deg": spot_fit.lat.tolist(),
-            "radius_deg": spot_fit.radius.tolist(), "contrast": spot_fit.contrast, "inclination_deg": spot_fit.inc,
-            "unspotted_level": spot_fit.offset, "chi2": spot_fit.chi2, "sigma": spot_fit.sigma,
-            "n_points_fitted": int(chunk_sel.sum()), "success": spot_fit.success,
+            "contrast": float(spot_contrast), "inclination_deg": 90.0, "latitude_deg": 0.0, "n_spots": int(n_spots),
+            "phase_of_longitude": "a spot crosses the central meridian at map phase longitude / 360",
             "note": ("small-spot model, contrast and latitude fixed, star equator-on: radii are lower limits "
                      "(contrast, latitude and size are degenerate)"),
+            "chunks": fits,
         }
     report = _clean(report)
     if out is not None:

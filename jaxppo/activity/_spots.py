@@ -94,6 +94,28 @@ class SpotFit:
 _MAX_RADIUS = 30.0  # [deg]: beyond this the small-spot formula is poor
 
 
+def _unpack(theta):
+    """theta = (longitudes [deg], radius logits, offset); radius = 30 deg x sigmoid."""
+    n = (theta.shape[0] - 1) // 2
+    return theta[:n], _MAX_RADIUS * jax.nn.sigmoid(theta[n:2 * n]), theta[-1]
+
+
+def _residuals(theta, args):
+    t, y, w, lat, contrast, period, inc, u1, u2, t_ref = args
+    lon, radius, offset = _unpack(theta)
+    lat_s = jnp.full(lon.shape, lat)
+    return w * (y - offset - spot_flux(t, lon, lat_s, radius, contrast, period, inc, u1, u2, t_ref))
+
+
+@eqx.filter_jit
+def _solve(theta0, args, max_steps):
+    import optimistix as optx
+
+    solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
+    sol = optx.least_squares(_residuals, solver, theta0, args=args, max_steps=max_steps, throw=False)
+    return sol.value, sol.result == optx.RESULTS.successful
+
+
 def fit_spots(time, flux, period: float, n_spots: int = 2, contrast: float = KEPLER20_SPOT_CONTRAST,
               inc: float = 90.0, lat: float = 0.0, t_ref: float | None = None, sigma: float | None = None,
               n_starts: int = 8, u1: float = 0.495, u2: float = 0.154, max_steps: int = 400) -> SpotFit:
@@ -102,8 +124,6 @@ def fit_spots(time, flux, period: float, n_spots: int = 2, contrast: float = KEP
     relative flux (latitude ``lat`` [deg], contrast and inclination fixed:
     see the module docstring for why). ``n_starts`` sets of starting
     longitudes (evenly spread, rotated) are tried and the lowest chi2 kept."""
-    import optimistix as optx
-
     t = np.asarray(time, float)
     y = np.asarray(flux, float)
     if t.ndim != 1 or t.size < 10 or y.shape != t.shape:
@@ -128,36 +148,24 @@ def fit_spots(time, flux, period: float, n_spots: int = 2, contrast: float = KEP
         sigma = 1.4826 * np.median(np.abs(np.diff(y))) / np.sqrt(2)
     if not sigma > 0:
         raise ValueError(f"sigma must be > 0, got {sigma!r}")
-    tj, yj = jnp.asarray(t), jnp.asarray(y)
-    lat_s = jnp.full(n_spots, float(lat))
-
-    def unpack(theta):
-        lon = theta[:n_spots]
-        radius = _MAX_RADIUS * jax.nn.sigmoid(theta[n_spots:2 * n_spots])
-        return lon, radius, theta[-1]
-
-    def residuals(theta, args):
-        lon, radius, offset = unpack(theta)
-        model = offset + spot_flux(tj, lon, lat_s, radius, contrast, period, inc, u1, u2, t_ref)
-        return (yj - model) / sigma
-
-    solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
-
-    @eqx.filter_jit
-    def solve(theta0):
-        sol = optx.least_squares(residuals, solver, theta0, max_steps=max_steps, throw=False)
-        return sol.value, sol.result == optx.RESULTS.successful
-
+    # pad to a multiple of 256 points with zero weight, so chunks of
+    # different lengths share one compiled solver
+    n_pad = -(-t.size // 256) * 256
+    w = np.zeros(n_pad)
+    w[: t.size] = 1.0 / sigma
+    args = (jnp.asarray(np.pad(t, (0, n_pad - t.size), mode="edge")), jnp.asarray(np.pad(y, (0, n_pad - t.size))),
+            jnp.asarray(w), jnp.asarray(float(lat)), jnp.asarray(float(contrast)), jnp.asarray(float(period)),
+            jnp.asarray(float(inc)), jnp.asarray(float(u1)), jnp.asarray(float(u2)), jnp.asarray(t_ref))
     best = None
     for k in range(n_starts):
         lon0 = (360.0 * (np.arange(n_spots) / n_spots + k / (n_starts * n_spots))) % 360.0
         theta0 = jnp.asarray(np.concatenate([lon0, np.full(n_spots, -1.0), [float(np.max(y))]]))
-        theta, ok = solve(theta0)
-        chi2 = float(jnp.sum(residuals(theta, None) ** 2))
+        theta, ok = _solve(theta0, args, max_steps)
+        chi2 = float(jnp.sum(_residuals(theta, args) ** 2))
         if np.isfinite(chi2) and (best is None or chi2 < best[1]):
             best = (theta, chi2, bool(ok))
     theta, chi2, ok = best
-    lon, radius, offset = (np.asarray(v) for v in unpack(theta))
+    lon, radius, offset = (np.asarray(v) for v in _unpack(theta))
     order = np.argsort(lon % 360.0)
     return SpotFit((lon % 360.0)[order], np.full(n_spots, float(lat)), radius[order], float(offset),
                    float(contrast), float(inc), float(period), t_ref, chi2, float(sigma), ok)
