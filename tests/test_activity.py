@@ -248,7 +248,7 @@ def test_fit_spots_recovers_injected_spots():
     t = np.sort(rng.uniform(0, period, 1200))
     truth_lon, truth_rad = np.array([70.0, 220.0]), np.array([4.0, 2.5])
     y = 2e-4 + np.asarray(spot_flux(t, truth_lon, [0.0, 0.0], truth_rad, 0.59, period)) + rng.normal(0, 1e-4, t.size)
-    fit = fit_spots(t, y, period, n_spots=2, t_ref=0.0)
+    fit = fit_spots(t, y, period, n_spots=2, t_ref=0.0, n_starts=4)
     assert fit.success
     assert np.allclose(fit.lon, truth_lon, atol=2.0)
     assert np.allclose(fit.radius, truth_rad, rtol=0.05)
