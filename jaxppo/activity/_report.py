@@ -1,0 +1,151 @@
+"""``activity_report``: the whole activity analysis of a light curve, as a
+JSON-serialisable dict, with figures (what ``jaxppo activity`` runs)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ._map import brightness_map, plot_brightness_map, plot_periodogram, plot_spot_fit
+from ._spots import KEPLER20_SPOT_CONTRAST, fit_spots
+from ._rotation import (PAPER_ROTATION_PERIOD, PAPER_ROTATION_PERIOD_ERR, prepare_light_curve,
+                        quarter_variability, rotation_period)
+
+__all__ = ["activity_report"]
+
+# Mueller et al. (2021), Sect. 3.2: peak-to-peak 0.1-0.2 %, largest 0.6 % in Q17.
+PAPER_VARIABILITY = {"typical_percent": [0.1, 0.2], "largest_percent": 0.6, "largest_quarter": "17"}
+
+
+def _clean(x):
+    """Strict JSON: floats must be finite (NaN/Infinity become None)."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist())
+    return x
+
+
+def activity_report(time, flux, out=None, system=None, quarters=None, period_min: float = 2.0,
+                    period_max: float = 45.0, bootstrap: int = 50, seed: int = 0,
+                    bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
+                    compare_paper: bool = True, spot_chunk: int | str | None = None, n_spots: int = 3,
+                    spot_contrast: float = KEPLER20_SPOT_CONTRAST) -> dict:
+    """Rotation period, per-quarter variability and brightness map.
+
+    Args:
+        time [d], flux (any positive unit): the light curve, 1D.
+        out: directory for activity.json, activity_periodogram.png and
+            activity_map.png (created); None writes nothing.
+        system: jaxppo.System whose transits are masked (default Kepler-20 b, c).
+        quarters: quarter label per point; None: segments split at gaps > 0.5 d.
+        period_min, period_max [d]: periodogram search range (see rotation_period).
+        bootstrap: quarter-bootstrap draws for the period spread (0: none).
+        bins: phase bins per rotation in the map.
+        compare_paper: include Mueller et al. (2021)'s Kepler-20 numbers.
+        spot_chunk: index of the map chunk to invert with ``n_spots``
+            equatorial spots of contrast ``spot_contrast`` (fit_spots), or
+            "all" (every chunk with >= 60 % phase coverage); the spots are
+            drawn on the map, the first fitted chunk in activity_spots.png.
+            None: no inversion.
+    Returns a dict with only finite numbers, strings, lists and dicts.
+    """
+    if not isinstance(compare_paper, bool):
+        raise ValueError(f"compare_paper must be True or False, got {compare_paper!r}")
+    prep = prepare_light_curve(time, flux, quarters=quarters, system=system,
+                               mask_transits=mask_transits, margin=margin)
+    n_quarters = np.unique(prep.quarter).size
+    rot = rotation_period(prep.time, prep.flux, period_min=period_min, period_max=period_max,
+                          quarters=prep.quarter,
+                          bootstrap=bootstrap if n_quarters > 1 else 0, seed=seed)
+    var = quarter_variability(prep)
+    bmap = brightness_map(prep.time, prep.flux, rot.period, bins=bins)
+    report = {
+        "n_points": prep.report["points"],
+        "preparation": prep.report,
+        "rotation": {
+            "period_d": rot.period,
+            "period_err_d": rot.period_err,
+            "period_err_method": "half width at half maximum of the GLS peak, P^2 * HWHM_f",
+            "bootstrap_percentiles_16_50_84_d": rot.bootstrap,
+            "bootstrap_draws": bootstrap if rot.bootstrap is not None else 0,
+            "single_sinusoid_peak_d": rot.single_peak,
+            "doubled": rot.doubled,
+            "delta_bic_doubled": rot.delta_bic,
+            "rule": "single-sinusoid GLS peak P1, or the two-harmonic (nterms=2) peak within 10 % of 2 P1 if it lowers the BIC by > 10",
+            "false_alarm_probability": rot.false_alarm,
+            "peaks": [{"period_d": p, "power": w} for p, w in rot.peaks],
+            "period_range_d": [period_min, period_max],
+            "periodogram": "astropy.timeseries.LombScargle (generalised, floating mean)",
+        },
+        "variability_percent": var,
+        "variability_method": "1st-99th percentile of a 25-cadence running median, per quarter",
+        "map": {"period_d": bmap.period, "t_ref": bmap.t_ref, "n_chunks": int(bmap.chunk_start.size),
+                "bins_per_rotation": bins, "repeated_fraction": 0.5},
+    }
+    if compare_paper:
+        report["paper"] = {
+            "rotation_period_d": PAPER_ROTATION_PERIOD, "rotation_period_err_d": PAPER_ROTATION_PERIOD_ERR,
+            **PAPER_VARIABILITY,
+            "period_difference_d": rot.period - PAPER_ROTATION_PERIOD,
+            "period_difference_in_hwhm": (rot.period - PAPER_ROTATION_PERIOD) / rot.period_err,
+            "source": "Mueller, Ioannidis & Schmitt (2021), Sect. 3.2",
+        }
+    spots, spot_fit, chunk_sel = None, None, None
+    if spot_chunk is not None:
+        n_chunk = int(bmap.chunk_start.size)
+        if isinstance(spot_chunk, str) and spot_chunk == "all":
+            # chunks with at least 60 % of their phase bins filled
+            own = bmap.counts[:, ~bmap.repeated] >= 3
+            chunks = [k for k in range(n_chunk) if own[k].mean() >= 0.6]
+        elif isinstance(spot_chunk, (int, np.integer)) and not isinstance(spot_chunk, bool) and 0 <= spot_chunk < n_chunk:
+            chunks = [int(spot_chunk)]
+        else:
+            raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1} or 'all', got {spot_chunk!r}")
+        spots, fits = [], []
+        for k in chunks:
+            start = float(bmap.chunk_start[k])
+            sel = (prep.time >= start) & (prep.time < start + bmap.period)
+            if sel.sum() < 50:
+                raise ValueError(f"spot_chunk {k} holds only {int(sel.sum())} points; pick another")
+            fit = fit_spots(prep.time[sel], prep.flux[sel], bmap.period, n_spots=n_spots,
+                            contrast=spot_contrast, t_ref=bmap.t_ref)
+            if spot_fit is None:
+                spot_fit, chunk_sel = fit, sel
+            spots += [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(fit.lon, fit.radius)]
+            fits.append({
+                "chunk": int(k), "chunk_start": start, "n_points": int(sel.sum()),
+                "longitude_deg": fit.lon.tolist(), "latitude_deg": fit.lat.tolist(),
+                "radius_deg": fit.radius.tolist(), "unspotted_level": fit.offset,
+                "chi2": fit.chi2, "sigma": fit.sigma, "success": fit.success,
+            })
+        report["spots"] = {
+            "contrast": float(spot_contrast), "inclination_deg": 90.0, "latitude_deg": 0.0, "n_spots": int(n_spots),
+            "phase_of_longitude": "a spot crosses the central meridian at map phase longitude / 360",
+            "note": ("small-spot model, contrast and latitude fixed, star equator-on: radii are lower limits "
+                     "(contrast, latitude and size are degenerate)"),
+            "chunks": fits,
+        }
+    report = _clean(report)
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        fig_p = plot_periodogram(prep, rot, var, out / "activity_periodogram.png",
+                                 PAPER_ROTATION_PERIOD if compare_paper else None)
+        fig_m = plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
+        report["figures"] = [Path(fig_p).name, Path(fig_m).name]
+        if spot_fit is not None:
+            fig_s = plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
+            report["figures"].append(Path(fig_s).name)
+        with open(out / "activity.json", "w") as fh:
+            json.dump(report, fh, indent=2, allow_nan=False)
+    return report

@@ -1,0 +1,445 @@
+"""Rotation period and variability of a spotted star from long photometry
+(Mueller et al. 2021, Sects. 2.4 and 3.2).
+
+Pipeline (each step documented in docs/activity.md):
+
+1. stitch: every quarter (or gap-separated segment) is divided by its own
+   median, because Kepler quarters sit on different detectors and levels;
+2. mask the transits of the known planets (first to last contact plus a
+   margin), so transits neither bias the smoothing nor the periodogram;
+3. drop outliers: points further than ``clip`` robust sigmas (1.4826 MAD)
+   from a running median of ``smooth`` cadences within their quarter;
+4. generalised (floating-mean) Lomb-Scargle periodogram, astropy's
+   ``LombScargle`` (Zechmeister & Kuerster 2009); its highest peak P1 is the
+   period unless a two-harmonic model near 2 P1 wins a BIC test (a spot
+   signal with two dips per rotation has most power at half the period);
+5. period uncertainty: the half width at half maximum of the chosen peak,
+   sigma_P = P^2 sigma_f; optionally also the spread of the peak over a
+   bootstrap that resamples whole quarters (spot evolution);
+6. peak-to-peak variability per quarter: 1st to 99th percentile of the
+   running-median curve, in percent.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "PAPER_ROTATION_PERIOD",
+    "PAPER_ROTATION_PERIOD_ERR",
+    "PreparedLightCurve",
+    "RotationResult",
+    "load_kepler20_quarters",
+    "read_quarters_csv",
+    "prepare_light_curve",
+    "transit_mask",
+    "rotation_period",
+    "quarter_variability",
+]
+
+# Mueller et al. (2021), Sect. 3.2.
+PAPER_ROTATION_PERIOD = 26.948
+PAPER_ROTATION_PERIOD_ERR = 0.001
+KEPLER20_DATA = "kepler20_kic6850504_llc_q1-q17_pdcsap.csv.gz"
+
+
+def _check_positive(name: str, value, strict: bool = True) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(v) or (v <= 0 if strict else v < 0):
+        raise ValueError(f"{name} must be {'>' if strict else '>='} 0 and finite, got {value!r}")
+    return v
+
+
+def read_quarters_csv(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Read a CSV of time [d], flux (any unit) and, if present, a quarter
+    label. Lines starting with ``#`` are comments; the header names the
+    columns (time | time_bkjd | bkjd | t; flux | pdcsap_flux | sap_flux |
+    f; quarter | q | segment). Rows with a non-finite time or flux are dropped.
+
+    Returns (time, flux, quarter or None)."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"data file not found: {path}")
+    import gzip
+
+    opener = gzip.open if path.suffix == ".gz" else open
+    try:
+        with opener(path, "rt") as fh:
+            lines = [ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
+    except (OSError, UnicodeDecodeError) as err:
+        raise ValueError(f"cannot read data file {path}: {err}") from err
+    if len(lines) < 2:
+        raise ValueError(f"data file {path} needs a header and at least one row")
+    header = [h.strip().lower() for h in lines[0].split(",")]
+
+    def col(names, required=True):
+        for n in names:
+            if n in header:
+                return header.index(n)
+        if required:
+            raise ValueError(f"data file {path}: no column named any of {names}; header is {header}")
+        return None
+
+    it, i_f = col(("time", "time_bkjd", "bkjd", "t")), col(("flux", "pdcsap_flux", "sap_flux", "f"))
+    iq = col(("quarter", "q", "segment"), required=False)
+    try:
+        data = np.array([[float(x) if x.strip() else np.nan for x in ln.split(",")] for ln in lines[1:]])
+    except ValueError as err:
+        raise ValueError(f"data file {path}: unreadable row ({err})") from err
+    if data.ndim != 2 or data.shape[1] != len(header):
+        raise ValueError(f"data file {path}: rows must have {len(header)} columns like the header")
+    ok = np.isfinite(data[:, it]) & np.isfinite(data[:, i_f])
+    q = None if iq is None else data[ok, iq]
+    return data[ok, it], data[ok, i_f], q
+
+
+def load_kepler20_quarters() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bundled real Kepler-20 long-cadence PDCSAP light curve, quarters
+    1-17: (time [BKJD], flux [e-/s], quarter). Provenance: jaxppo/data/README.md."""
+    path = resources.files("jaxppo") / "data" / KEPLER20_DATA
+    with resources.as_file(path) as p:
+        return read_quarters_csv(p)
+
+
+def transit_mask(time, system, margin: float = 0.1) -> np.ndarray:
+    """True where no planet of ``system`` (a jaxppo.System) transits: points
+    within half the first-to-last-contact duration plus ``margin`` [d] of a
+    mid-transit time are False. The margin covers a long-cadence exposure
+    (0.02 d) and the ephemeris drift over the Kepler mission."""
+    from .._system import System
+
+    if not isinstance(system, System):
+        raise ValueError(f"system must be a jaxppo.System, got {type(system).__name__}")
+    margin = _check_positive("margin", margin, strict=False)
+    t = np.asarray(time, float)
+    out = np.ones(t.shape, bool)
+    for pl in system.planets:
+        half = float(pl.half_duration())
+        if half <= 0:  # never transits: nothing to mask
+            continue
+        period, t0 = float(pl.period), float(pl.t0)
+        dt = (t - t0 + 0.5 * period) % period - 0.5 * period
+        out &= np.abs(dt) > half + margin
+    return out
+
+
+def _segments(time: np.ndarray, gap: float) -> np.ndarray:
+    """Segment labels 0, 1, ... starting a new one after every gap > ``gap`` [d]."""
+    return np.concatenate([[0], np.cumsum(np.diff(time) > gap)])
+
+
+def _running_median(y: np.ndarray, size: int) -> np.ndarray:
+    from scipy.ndimage import median_filter
+
+    return median_filter(y, size=min(size, y.size) | 1, mode="nearest")
+
+
+@dataclasses.dataclass(frozen=True)
+class PreparedLightCurve:
+    """A stitched, transit-masked, outlier-clipped light curve.
+
+    time [d]; flux: relative, each quarter divided by its median, minus 1;
+    smooth: running median of ``flux`` within each quarter; quarter: labels;
+    report: what was masked and clipped and why."""
+
+    time: np.ndarray
+    flux: np.ndarray
+    smooth: np.ndarray
+    quarter: np.ndarray
+    report: dict
+
+
+def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: bool = True,
+                        margin: float = 0.1, gap: float = 0.5, smooth: int = 25,
+                        clip: float = 5.0) -> PreparedLightCurve:
+    """Stitch quarters, mask transits and drop outliers (steps 1-3 above).
+
+    Args:
+        time: times [d], 1D, finite.
+        flux: fluxes (any positive unit), same shape; non-finite values are dropped.
+        quarters: a label per point (e.g. the Kepler quarter); None: segments
+            split at gaps longer than ``gap`` [d] (this also splits Kepler's
+            monthly downlinks, so periods longer than a segment are lost).
+        system: the jaxppo.System whose transits are masked; None: Kepler-20
+            b and c (``kepler20_system()``).
+        mask_transits: False keeps the transits in.
+        margin: added to each half transit duration [d].
+        gap: segment-splitting gap [d] when ``quarters`` is None.
+        smooth: running-median window [cadences] (25 long cadences = 12.3 h,
+            much shorter than a rotation, longer than a transit).
+        clip: outlier threshold in robust sigmas (1.4826 MAD of the residuals
+            from the running median).
+    """
+    t = np.asarray(time, float)
+    f = np.asarray(flux, float)
+    if t.ndim != 1 or t.size < 10:
+        raise ValueError(f"time must be 1D with at least 10 points, got shape {t.shape}")
+    if f.shape != t.shape:
+        raise ValueError(f"flux must have the shape of time {t.shape}, got {f.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("time must be finite")
+    margin = _check_positive("margin", margin, strict=False)
+    gap = _check_positive("gap", gap)
+    clip = _check_positive("clip", clip)
+    if not isinstance(smooth, (int, np.integer)) or smooth < 1:
+        raise ValueError(f"smooth must be a positive integer number of cadences, got {smooth!r}")
+    if quarters is None:
+        order = np.argsort(t, kind="stable")
+        q = np.empty(t.size)
+        q[order] = _segments(t[order], gap)
+        source = f"segments split at gaps > {gap} d"
+    else:
+        q = np.asarray(quarters, float)
+        if q.shape != t.shape:
+            raise ValueError(f"quarters must have the shape of time {t.shape}, got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError("quarters must be finite labels")
+        source = "quarter labels given"
+    good = np.isfinite(f)
+    n_nonfinite = int((~good).sum())
+    rel = np.full(t.shape, np.nan)
+    for qv in np.unique(q[good]):
+        m = good & (q == qv)
+        med = np.median(f[m])
+        if not med > 0:
+            raise ValueError(f"flux of quarter {qv:g} has median {med}; fluxes must be positive")
+        rel[m] = f[m] / med - 1.0
+    if system is None and mask_transits:
+        from .._kepler20 import kepler20_system
+
+        system = kepler20_system()
+    keep = good & (transit_mask(t, system, margin) if mask_transits else True)
+    n_transit = int((good & ~keep).sum())
+    order = np.argsort(t[keep], kind="stable")
+    tt, ff, qq = t[keep][order], rel[keep][order], q[keep][order]
+    sm = np.empty_like(ff)
+    for qv in np.unique(qq):
+        m = qq == qv
+        sm[m] = _running_median(ff[m], smooth)
+    res = ff - sm
+    sigma = 1.4826 * np.median(np.abs(res - np.median(res)))
+    ok = np.abs(res - np.median(res)) <= clip * sigma if sigma > 0 else np.ones(res.size, bool)
+    report = {
+        "points": int(t.size), "non_finite": n_nonfinite, "in_transit": n_transit,
+        "outliers": int((~ok).sum()), "kept": int(ok.sum()), "segments": source,
+        "n_quarters": int(np.unique(qq).size), "scatter_ppm": float(sigma * 1e6),
+        "rules": (f"transits masked over half duration + {margin} d; outliers > {clip} x 1.4826 MAD "
+                  f"from a {smooth}-cadence running median within each quarter"),
+    }
+    if ok.sum() < 10:
+        raise ValueError(f"only {int(ok.sum())} points left after masking and clipping")
+    # re-smooth without the outliers so the variability curve is clean
+    t_ok, f_ok, q_ok = tt[ok], ff[ok], qq[ok]
+    sm_ok = np.empty_like(f_ok)
+    for qv in np.unique(q_ok):
+        m = q_ok == qv
+        sm_ok[m] = _running_median(f_ok[m], smooth)
+    return PreparedLightCurve(t_ok, f_ok, sm_ok, q_ok, report)
+
+
+@dataclasses.dataclass(frozen=True)
+class RotationResult:
+    """Rotation period from the generalised Lomb-Scargle periodogram.
+
+    period [d] and period_err [d] (HWHM of the chosen peak, P^2 sigma_f);
+    single_peak [d]: highest peak of the single-sinusoid periodogram;
+    doubled: True when the two-harmonic model at about twice single_peak
+    won the BIC test (a two-spot light curve); delta_bic: its BIC gain (> 0
+    favours the doubled period); bootstrap [d]: 15.87th, 50th and 84.13th
+    percentiles of the period when whole quarters are resampled (None
+    without bootstrap); frequency [1/d], power (nterms=1) and power2
+    (nterms=2): the periodograms; peaks: strongest distinct nterms=1 peaks
+    (period [d], power); false_alarm: astropy's Baluev false-alarm
+    probability of the single-sinusoid peak (white noise assumed; spot
+    evolution makes it far too small to mean much)."""
+
+    period: float
+    period_err: float
+    single_peak: float
+    doubled: bool
+    delta_bic: float
+    bootstrap: list | None
+    frequency: np.ndarray
+    power: np.ndarray
+    power2: np.ndarray
+    peaks: list
+    false_alarm: float
+
+
+def _grid(t: np.ndarray, period_min: float, period_max: float, oversample: int) -> np.ndarray:
+    span = t.max() - t.min()
+    df = 1.0 / (oversample * span)
+    return np.arange(1.0 / period_max, 1.0 / period_min + df, df)
+
+
+def _hwhm(freq: np.ndarray, power: np.ndarray, i: int) -> float:
+    """Half width at half maximum [1/d] of the peak at index i (linear
+    interpolation of the half-power crossing on each side; the mean of
+    the two sides)."""
+    half = 0.5 * power[i]
+    widths = []
+    for step in (-1, 1):
+        j = i
+        while 0 <= j + step < power.size and power[j + step] > half:
+            j += step
+        k = j + step
+        if not 0 <= k < power.size:
+            continue
+        # crossing between j (above) and k (below)
+        frac = (power[j] - half) / (power[j] - power[k])
+        widths.append(abs(freq[j] + frac * (freq[k] - freq[j]) - freq[i]))
+    if not widths:
+        raise ValueError("the periodogram peak has no half-maximum crossing inside the period range; widen period_min/period_max")
+    return float(np.mean(widths))
+
+
+def _distinct_peaks(freq, power, n, min_sep=0.05):
+    """Local maxima, strongest first, at least min_sep (relative) apart in period."""
+    loc = np.where((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:]))[0] + 1
+    loc = loc[np.argsort(power[loc])[::-1]]
+    out = []
+    for j in loc:
+        p = 1.0 / freq[j]
+        if all(abs(p - q) / q > min_sep for q, _ in out):
+            out.append((float(p), float(power[j])))
+        if len(out) >= n:
+            break
+    return out
+
+
+def _refine(ls, freq, i):
+    """Peak frequency on a grid 20x finer than ``freq`` around index i."""
+    df = freq[1] - freq[0]
+    fine = np.linspace(freq[i] - 2 * df, freq[i] + 2 * df, 81)
+    fine = fine[fine > 0]
+    return float(fine[np.argmax(ls.power(fine))])
+
+
+def _choose(t, y, freq, window, bic_threshold, full=True):
+    """The period rule (docs/activity.md): the single-sinusoid GLS peak P1,
+    unless the two-harmonic GLS peak within +-``window`` (relative) of 2 P1
+    lowers the BIC by more than ``bic_threshold`` (two extra parameters)."""
+    from astropy.timeseries import LombScargle
+
+    ls1 = LombScargle(t, y)  # floating mean (fit_mean=True) is the default
+    p1 = ls1.power(freq)
+    i1 = int(np.argmax(p1))
+    f1 = freq[i1]
+    ls2 = LombScargle(t, y, nterms=2)
+    win = (freq > 0.5 * f1 / (1 + window)) & (freq < 0.5 * f1 / (1 - window))
+    if full:
+        p2 = ls2.power(freq)
+    else:
+        p2 = np.full(freq.shape, np.nan)
+        if win.any():
+            p2[win] = ls2.power(freq[win])
+    delta_bic = -np.inf
+    if win.any():
+        i2 = int(np.flatnonzero(win)[np.argmax(p2[win])])
+        # standard normalisation: power = 1 - chi2 / chi2_ref, so the
+        # chi2 ratio of the two models is (1 - p1) / (1 - p2)
+        n = t.size
+        delta_bic = n * np.log((1 - p1[i1]) / (1 - p2[i2])) - 2 * np.log(n)
+    if delta_bic > bic_threshold:
+        return ls2, i2, p1, p2, True, float(delta_bic), ls1, i1
+    return ls1, i1, p1, p2, False, float(delta_bic), ls1, i1
+
+
+def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.0, oversample: int = 10,
+                    harmonic_window: float = 0.1, bic_threshold: float = 10.0, quarters=None,
+                    bootstrap: int = 0, seed: int = 0, n_peaks: int = 6) -> RotationResult:
+    """Rotation period from astropy's generalised (floating-mean) Lomb-Scargle.
+
+    The single-sinusoid peak P1 is the period unless the light curve has the
+    shape of two spot groups (most power at P_rot / 2): then a
+    two-harmonic model (astropy ``nterms=2``) at about 2 P1 fits better by
+    more than ``bic_threshold`` in BIC (10: "very strong", Kass & Raftery
+    1995) and its peak is taken. A two-harmonic periodogram alone would not
+    do: it has the same power at 2P as at P for a pure sinusoid.
+
+    Args:
+        time [d], flux (relative, e.g. ``PreparedLightCurve.flux``): 1D, finite.
+        period_min, period_max: search range [d]. The default upper end, 45 d,
+            is half a Kepler quarter: each quarter is normalised separately
+            and PDC removes slower trends, so longer periods are not measurable.
+        oversample: frequency steps per 1/(time span).
+        harmonic_window: relative half width of the window around 2 P1.
+        bic_threshold: BIC gain needed to take the doubled period.
+        quarters: labels for the bootstrap (resampling whole quarters).
+        bootstrap: number of quarter-bootstrap draws (0: none).
+    Returns:
+        RotationResult. period_err is the HWHM of the peak: the frequency
+        resolution of the data. A strictly periodic signal is located much
+        better than that; an evolving spot pattern is not (see the bootstrap).
+    """
+    t = np.asarray(time, float)
+    y = np.asarray(flux, float)
+    if t.ndim != 1 or t.size < 10:
+        raise ValueError(f"time must be 1D with at least 10 points, got shape {t.shape}")
+    if y.shape != t.shape:
+        raise ValueError(f"flux must have the shape of time {t.shape}, got {y.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
+        raise ValueError("time and flux must be finite (use prepare_light_curve first)")
+    period_min = _check_positive("period_min", period_min)
+    period_max = _check_positive("period_max", period_max)
+    if period_max <= period_min:
+        raise ValueError(f"period_max must exceed period_min, got {period_max} <= {period_min}")
+    span = t.max() - t.min()
+    if period_max > span:
+        raise ValueError(f"period_max = {period_max} d exceeds the time span {span:.3g} d")
+    if not isinstance(oversample, (int, np.integer)) or oversample < 3:
+        raise ValueError(f"oversample must be an integer >= 3, got {oversample!r}")
+    if not (0 < harmonic_window < 0.5):
+        raise ValueError(f"harmonic_window must be in (0, 0.5), got {harmonic_window!r}")
+    bic_threshold = float(bic_threshold)
+    if not np.isfinite(bic_threshold):
+        raise ValueError(f"bic_threshold must be finite, got {bic_threshold!r}")
+    if not isinstance(bootstrap, (int, np.integer)) or bootstrap < 0:
+        raise ValueError(f"bootstrap must be a non-negative integer, got {bootstrap!r}")
+    if bootstrap and quarters is None:
+        raise ValueError("bootstrap needs quarters (labels of the resampled blocks)")
+    freq = _grid(t, period_min, period_max, oversample)
+    ls, i, p1, p2, doubled, dbic, ls1, i1 = _choose(t, y, freq, harmonic_window, bic_threshold)
+    power = p2 if doubled else p1
+    period = 1.0 / _refine(ls, freq, i)
+    period_err = period**2 * _hwhm(freq, power, i)
+    fap = float(ls1.false_alarm_probability(p1[i1], minimum_frequency=freq[0], maximum_frequency=freq[-1]))
+    boot = None
+    if bootstrap:
+        q = np.asarray(quarters, float)
+        if q.shape != t.shape:
+            raise ValueError(f"quarters must have the shape of time {t.shape}, got {q.shape}")
+        labels = np.unique(q)
+        rng = np.random.default_rng(seed)
+        draws = []
+        for _ in range(bootstrap):
+            pick = rng.choice(labels, labels.size, replace=True)
+            # a quarter drawn twice keeps its own times: its spot pattern then
+            # counts twice, which is what block resampling means here
+            idx = np.concatenate([np.flatnonzero(q == lab) for lab in pick])
+            _, j, *_ = _choose(t[idx], y[idx], freq, harmonic_window, bic_threshold, full=False)
+            draws.append(1.0 / freq[j])
+        boot = [float(v) for v in np.percentile(draws, [15.87, 50.0, 84.13])]
+    return RotationResult(float(period), float(period_err), float(1.0 / _refine(ls1, freq, i1)), bool(doubled),
+                          dbic, boot, freq, p1, p2, _distinct_peaks(freq, p1, n_peaks), fap)
+
+
+def quarter_variability(prepared: PreparedLightCurve, lower: float = 1.0, upper: float = 99.0) -> dict:
+    """Peak-to-peak variability per quarter [%]: the ``lower``-``upper``
+    percentile range of the running-median curve (robust to outliers and to
+    the white noise, which the running median averages down)."""
+    if not 0 <= lower < upper <= 100:
+        raise ValueError(f"lower, upper must satisfy 0 <= lower < upper <= 100, got {lower}, {upper}")
+    out = {}
+    for qv in np.unique(prepared.quarter):
+        s = prepared.smooth[prepared.quarter == qv]
+        key = str(int(qv)) if float(qv).is_integer() else f"{qv:g}"
+        out[key] = float(100.0 * (np.percentile(s, upper) - np.percentile(s, lower)))
+    return out
