@@ -49,3 +49,4 @@ from ._scan import ScanResult as ScanResult
 from ._scan import ScanWindow as ScanWindow
 from ._scan import scan as scan
 from ._scan import scan_windows as scan_windows
+from . import activity as activity
