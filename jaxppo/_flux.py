@@ -10,7 +10,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from ._star import Star
-from .core.geometry import float_dtype
+from .core.geometry import float_dtype, safe_hypot
 from .core.occult import (
     INNER_MARGIN,
     LENS_RULES,
@@ -57,7 +57,8 @@ def _validate_concrete(x, y, r) -> None:
 @functools.partial(jax.jit, static_argnames=("order",))
 def _exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     g, phi1 = star.radial_kernel()
-    deficit = jax.vmap(lambda a, b, c: union_deficit(a, b, c, g, phi1, order))(x, y, r)
+    inten = star.radial_intensity()
+    deficit = jax.vmap(lambda a, b, c: union_deficit(a, b, c, g, phi1, order, inten))(x, y, r)
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
 
@@ -65,8 +66,9 @@ def _exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array
 def _separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Frames whose disks do not overlap each other: a sum of one-disk terms."""
     g, phi1 = star.radial_kernel()
-    d = jnp.hypot(x, y)
-    one = jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order))
+    inten = star.radial_intensity()
+    d = safe_hypot(x, y)
+    one = jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))
     deficit = one(d.reshape(-1), r.reshape(-1)).reshape(d.shape).sum(-1)
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
@@ -75,7 +77,8 @@ def _separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Ar
 def _disk_terms(star: Star, d: Array, p: Array, order: int) -> Array:
     """Relative deficits of single disks (general rule, any position)."""
     g, phi1 = star.radial_kernel()
-    return jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order))(d, p) / (2.0 * jnp.pi * phi1)
+    inten = star.radial_intensity()
+    return jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))(d, p) / (2.0 * jnp.pi * phi1)
 
 
 @jax.jit

@@ -228,6 +228,17 @@ class Star(eqx.Module):
         mu_nodes, b, phin = self._table()
         return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
 
+    def radial_intensity(self):
+        """s -> I(mu) at s = r^2 = 1 - mu^2 (s clipped to [0, 1]): what the
+        exact engine's derivatives integrate along the disks' arcs."""
+
+        def intensity(s):
+            m2 = 1.0 - jnp.asarray(s)
+            inside = m2 > 0
+            return self.intensity(jnp.where(inside, jnp.sqrt(jnp.where(inside, m2, 1.0)), 0.0))
+
+        return intensity
+
     @property
     def total_flux(self) -> Array:
         """F0 = 2 pi int_0^1 I(mu) mu dmu, exact."""
