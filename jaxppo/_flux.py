@@ -13,6 +13,7 @@ from ._star import Star
 from .core.geometry import float_dtype, safe_hypot
 from .core.occult import (
     INNER_MARGIN,
+    MAX_RADIUS,
     LENS_RULES,
     disk_deficit,
     inner_disk_deficit,
@@ -52,6 +53,11 @@ def _validate_concrete(x, y, r) -> None:
     rr = np.asarray(r)
     if np.any(rr < 0):
         raise ValueError(f"r (disk radius) must be >= 0, found {rr[rr < 0].ravel()[0]}")
+    if np.any(rr > MAX_RADIUS):
+        raise ValueError(
+            f"r (disk radius) must be <= {MAX_RADIUS:g} stellar radii (beyond it the rounding of the disk's "
+            f"distance alone exceeds 1e-10 of the flux), found {rr[rr > MAX_RADIUS].ravel()[0]}"
+        )
 
 
 @functools.partial(jax.jit, static_argnames=("order",))
@@ -326,15 +332,31 @@ def occultation_flux(
             pixel scale = smallest radius / 24, 4 x 4 supersampling).
 
     Returns:
-        Relative flux, shape = the broadcast leading axes.
+        Relative flux, shape = the broadcast leading axes (1 per frame when
+        the disk axis is empty; an empty array when there are no frames).
+
+    Bad input: concrete arrays with a non-finite value, a negative radius or
+    a radius above ``MAX_RADIUS`` (1e6) raise ``ValueError`` naming x, y or r.
+    Under ``jit``/``grad``/``vmap`` (traced input) such a frame's flux is NaN
+    (and so is its gradient), never a finite plausible value, so that an
+    optimiser or sampler sees it; the exact and union methods do this per
+    frame, so one bad frame does not poison a batch.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if not isinstance(star, Star):
         raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
+    for name, value in (("order", order), ("chunk", chunk)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     x, y, r = _prepare(x, y, r)
     lead = x.shape[:-1]
     k = x.shape[-1]
+    if k == 0 or x.size == 0:
+        # no disks: the star unocculted; no frames: nothing to compute
+        if _is_concrete(x, y, r):
+            _validate_concrete(x, y, r)
+        return jnp.ones(lead, x.dtype)
     if not star.symmetric:
         if method == "exact":
             raise ValueError(

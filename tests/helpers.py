@@ -33,7 +33,8 @@ def union_angle(rad: float, x, y, p) -> float:
             if rad <= pc - d:
                 return 2 * np.pi
             continue
-        c = (rad * rad + d * d - pc * pc) / (2 * rad * d)
+        # (d - pc)(d + pc): no cancellation for huge disks (d ~ pc >> 1)
+        c = (rad * rad + (d - pc) * (d + pc)) / (2 * rad * d)
         half = np.arccos(np.clip(c, -1.0, 1.0))
         phi = np.arctan2(yc, xc)
         intervals.append((phi - half, 2 * half))

@@ -34,16 +34,23 @@ def safe_sqrt(x: ArrayLike) -> Array:
 
 
 def safe_hypot(x: ArrayLike, y: ArrayLike) -> Array:
-    """sqrt(x^2 + y^2), scaled so that neither underflows nor overflows (the
-    gradient stays (x, y) / hypot for |x| down to the smallest subnormal,
-    where x^2 would underflow and 0/0 give NaN), and 0 with a zero gradient at
-    the origin."""
+    """sqrt(x^2 + y^2) to within 1 ulp, with a finite gradient everywhere.
+
+    Where x^2 + y^2 would underflow into the subnormals or overflow it is
+    scaled by max(|x|, |y|) (then the gradient stays (x, y) / hypot, not
+    0 / 0), and the origin gives 0 with a zero gradient."""
     x, y = jnp.asarray(x), jnp.asarray(y)
+    info = jnp.finfo(jnp.result_type(x, y, float) if not jnp.issubdtype(jnp.result_type(x, y), jnp.inexact) else jnp.result_type(x, y))
+    sum2 = x * x + y * y
+    plain = (sum2 >= float(info.tiny) / float(info.eps)) & (sum2 < float(info.max))
     m = jnp.maximum(jnp.abs(x), jnp.abs(y))
     zero = m == 0
-    ms = jnp.where(zero, 1.0, m)
+    # hypot is homogeneous: the scale needs no derivative (its own would
+    # divide by m^2, which underflows)
+    ms = jax.lax.stop_gradient(jnp.where(zero | plain, 1.0, m))
     xs, ys = jnp.where(zero, 0.0, x) / ms, jnp.where(zero, 0.0, y) / ms
-    return jnp.where(zero, 0.0, ms * jnp.sqrt(xs * xs + ys * ys))
+    scaled = jnp.where(zero, 0.0, ms * jnp.sqrt(xs * xs + ys * ys))
+    return jnp.where(plain, jnp.sqrt(jnp.where(plain, sum2, 1.0)), scaled)
 
 
 def safe_atan2(y: ArrayLike, x: ArrayLike) -> Array:
@@ -89,7 +96,10 @@ def crossing_half_width(p: ArrayLike, delta: ArrayLike, q: ArrayLike) -> tuple[A
     p, delta, q = jnp.asarray(p), jnp.asarray(delta), jnp.asarray(q)
     prod, q_largest = _heron(p, delta, q)
     crosses = (prod > 0) & (delta > 0)
-    cos_term = (p - q) * (p + q) + delta * delta
+    # p^2 + delta^2 - q^2 with q^2 taken from the nearer of p^2 and delta^2
+    # exactly (Sterbenz): nearly identical circles (p ~ q) and the limb seen
+    # from the star under a huge disk (delta ~ q >> p) keep full precision.
+    cos_term = jnp.where(delta >= p, (delta - q) * (delta + q) + p * p, (p - q) * (p + q) + delta * delta)
     half = jnp.where(
         crosses,
         jnp.arctan2(safe_sqrt(jnp.where(crosses, prod, 0.0)), jnp.where(crosses, cos_term, 1.0)),

@@ -51,7 +51,7 @@ from .geometry import (
 )
 from .quadrature import clustered_rule, gauss_legendre_01
 
-__all__ = ["union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
+__all__ = ["MAX_RADIUS", "union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
            "INNER_MARGIN", "INNER_ORDER", "LENS_ORDER", "LENS_RULES"]
 
 _TWO_PI = 2.0 * np.pi
@@ -96,11 +96,20 @@ def _duplicates(x: Array, y: Array, r: Array, tol: float) -> Array:
     return jnp.any(same & earlier, axis=-1) | (r <= 0)
 
 
+# Largest disk radius [R*] the kernels accept. Arcs of huge circles are
+# integrated from their near point without cancellation, so what remains is
+# the rounding of the disk's distance from the star (one ulp of d ~ R moves
+# the disk by ~1e-16 R): below 1e-10 of the stellar flux up to R = 1e6
+# (measured in tests/test_occult.py). Larger radii are refused.
+MAX_RADIUS = 1e6
+
+
 def _bad_input(*arrays) -> Array:
-    """True when a value is not finite or a radius is negative (the last array
-    holds the radii): traced bad input gives NaN, never a plausible flux."""
+    """True when a value is not finite or a radius (the last array) is
+    negative or above MAX_RADIUS: traced bad input gives NaN, never a
+    plausible flux."""
     ok = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in arrays]))
-    return ~(ok & jnp.all(arrays[-1] >= 0))
+    return ~(ok & jnp.all(arrays[-1] >= 0) & jnp.all(arrays[-1] <= MAX_RADIUS))
 
 
 def _half_angle_nodes(start: Array, span: Array, u: Array) -> tuple[Array, Array]:
@@ -232,7 +241,8 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     in_disk = jnp.where(lcross, loff < lhalf, star_in_disk & active)
     limb_angle = jnp.sum(jnp.where(jnp.any(in_disk, axis=-1), lend - lstart, 0.0))
 
-    value = jnp.where(_bad_input(x, y, r), jnp.nan, planet_part + phi1 * limb_angle)
+    bad = _bad_input(x, y, r)
+    value = jnp.where(bad, jnp.nan, planet_part + phi1 * limb_angle)
     if not shape:
         return value, None
     # Shape derivative: moving disk k moves only its kept arcs, each point
@@ -241,6 +251,7 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     # the arcs end, so nothing depends on how slivers at triple points or at
     # crossings on the limb were classified.
     ic, is_, i0 = (jnp.sum(jnp.where(keep, m, 0.0), axis=-1) for m in moments)
+    r = jnp.where(bad, jnp.nan, r)  # bad input: NaN derivatives as well
     return value, (r * (ex * ic - ey * is_), r * (ey * ic + ex * is_), r * i0)
 
 
@@ -331,9 +342,8 @@ def union_deficit(
     the flux is differentiable, triple points and crossings on the limb
     included, and free of the cut points' own derivatives.
     """
-    dtype = float_dtype(x, y, r, phi1)
+    dtype = float_dtype(x, y, r)
     x, y, r = (jnp.asarray(v, dtype) for v in (x, y, r))
-    phi1 = jnp.asarray(phi1, dtype)
     k = x.shape[-1]
     if intensity is None:
         intensity = _intensity_from_g(g)
@@ -361,12 +371,14 @@ def _disk_parts(d, p, g, intensity, phi1, order: int, shape: bool):
     limb = jnp.where(crosses, 2.0 * h_s, 0.0)
     out = jnp.where(inside, 2.0 * vals + phi1 * limb, 0.0)
     out = jnp.where(covers, 2.0 * np.pi * phi1, out)
-    out = jnp.where(_bad_input(d, p), jnp.nan, out)
+    bad = _bad_input(d, p)
+    out = jnp.where(bad, jnp.nan, out)
     if not shape:
         return out, None
     ic, _, i0 = moments
     # e points at the stellar centre: moving away from it is -e
-    return out, (jnp.where(inside, -2.0 * p * ic, 0.0), jnp.where(inside, 2.0 * p * i0, 0.0))
+    p2 = jnp.where(bad, jnp.nan, 2.0 * p)
+    return out, (jnp.where(inside, -p2 * ic, 0.0 * p2), jnp.where(inside, p2 * i0, 0.0 * p2))
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
@@ -398,8 +410,8 @@ def disk_deficit(
     a disk wholly on the star), one mapped Gauss-Legendre piece clustered at
     both ends. Derivatives are the shape derivatives (see ``union_deficit``).
     """
-    dtype = float_dtype(d, p, phi1)
-    d, p, phi1 = jnp.asarray(d, dtype), jnp.asarray(p, dtype), jnp.asarray(phi1, dtype)
+    dtype = float_dtype(d, p)
+    d, p = jnp.asarray(d, dtype), jnp.asarray(p, dtype)
     if intensity is None:
         intensity = _intensity_from_g(g)
     shape = (order,)
