@@ -429,7 +429,7 @@ def test_huge_occultors(angle):
     ir = _intensity_r(S16)
     f0 = reference_total(ir)
     for R in (1e2, 1e4, 1e6):
-        x, y = [(R + 0.5) * np.cos(angle), 0.3], [(R + 0.5) * np.sin(angle), 0.1], [R, 0.1]
+        x, y = [(R + 0.5) * np.cos(angle), 0.3], [(R + 0.5) * np.sin(angle), 0.1]
         for k in (1, 2):
             ref = 1 - reference_deficit(ir, x[:k], y[:k], [R, 0.1][:k]) / f0
             for method in ("exact", "auto"):

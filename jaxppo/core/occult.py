@@ -289,7 +289,7 @@ def _shape_jvp(parts, n_geom: int, primals, tangents):
     for t, dv in zip(tgeom, derivs):
         if not _is_zero(t):
             dvalue = dvalue + jnp.sum(dv * t)
-    return value, dvalue
+    return value, dvalue.astype(value.dtype)
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
