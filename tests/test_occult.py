@@ -424,8 +424,6 @@ def test_huge_occultors(angle):
     arcs integrated from the near point keep ~1e-15 where the old
     parametrisation lost R^2 eps (1e-7 at R = 1e6); radii above MAX_RADIUS
     are refused."""
-    from jaxppo.core.occult import MAX_RADIUS
-
     ir = _intensity_r(S16)
     f0 = reference_total(ir)
     for R in (1e2, 1e4, 1e6):
@@ -436,6 +434,8 @@ def test_huge_occultors(angle):
                 got = float(jp.occultation_flux(S16, x[:k], y[:k], [R, 0.1][:k], method=method))
                 # measured <= 1e-14; the rounding of d ~ R alone is ~1e-16 R
                 assert abs(got - ref) < 1e-10, (R, k, method, got - ref)
+    from jaxppo.core.occult import MAX_RADIUS
+
     with pytest.raises(ValueError, match="r \\(disk radius\\) must be <= 1e\\+06"):
         jp.occultation_flux(S16, [2 * MAX_RADIUS], [0.0], [2 * MAX_RADIUS])
     traced = jax.jit(lambda r: jp.occultation_flux(S16, jnp.array([2e6]), jnp.zeros(1), r))(jnp.array([2e6]))
