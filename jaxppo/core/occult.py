@@ -133,7 +133,7 @@ def _arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: 
 
     (no cancellation for huge circles, d ~ p >> 1, nor for circles through the
     centre, d ~ p). ``dm2`` = (d - p)^2, ``pd`` = p d, ``ppd`` = p (p - d),
-    shaped like ``start``. Returns the Green's-theorem integral of each arc
+    broadcasting against ``start``. Returns the Green's-theorem integral of each arc
     and, with ``shape``, the integrals of I cos tau, I sin tau and I over it
     (for the shape derivative, see ``union_deficit``)."""
     u, w = rule
@@ -222,9 +222,9 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     # crossing (and at a planet-planet crossing that lies near the limb) the
     # intensity's mu^q branch point sits at the end of the piece.
     dm = d - r
-    col = lambda v: jnp.broadcast_to(v[:, None], starts.shape)  # noqa: E731
     vals, moments = _arc_integrals(
-        g, intensity, starts, ends - starts, col(dm * dm), col(r * d), col(-r * dm), clustered_rule(order), dtype, shape
+        g, intensity, starts, ends - starts, (dm * dm)[:, None], (r * d)[:, None], (-r * dm)[:, None],
+        clustered_rule(order), dtype, shape,
     )
     planet_part = jnp.sum(jnp.where(keep, vals, 0.0))
 
