@@ -434,6 +434,13 @@ def test_huge_occultors(angle):
                 got = float(jp.occultation_flux(S16, x[:k], y[:k], [R, 0.1][:k], method=method))
                 # measured <= 1e-14; the rounding of d ~ R alone is ~1e-16 R
                 assert abs(got - ref) < 1e-10, (R, k, method, got - ref)
+        # a planet crossing the huge disk's edge on the star: "auto" took the
+        # lens rule (cosines about the far point) and lost 5e-8 at R = 1e6
+        x, y = [(R + 0.5) * np.cos(angle), 0.5 * np.cos(angle)], [(R + 0.5) * np.sin(angle), 0.5 * np.sin(angle) + 0.05]
+        ref = 1 - reference_deficit(ir, x, y, [R, 0.1]) / f0
+        for method in ("exact", "auto"):
+            got = float(jp.occultation_flux(S16, x, y, [R, 0.1], method=method))
+            assert abs(got - ref) < 1e-10, (R, "lens", method, got - ref)
     from jaxppo.core.occult import MAX_RADIUS
 
     with pytest.raises(ValueError, match="r \\(disk radius\\) must be <= 1e\\+06"):

@@ -489,7 +489,7 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     length 2): the smaller, over the two lens arcs, Bernstein-ellipse parameter
     rho of the integrand's branch point s = 1 (the stellar limb) seen from the
     arc; n nodes err like rho^(-2n). 1 where the lens reaches the limb or
-    lies off the star, or the disks do not cross.
+    lies off the star, the disks do not cross, or one is larger than the star.
 
     On circle A (centre at distance d, radius p) s = 1 where
     cos(t - phi_A) = c = (1 - d^2 - p^2) / (2 p d), phi_A the direction of A's
@@ -535,4 +535,8 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     cos_term = (r[..., 0] - r[..., 1]) * (r[..., 0] + r[..., 1]) + delta2
     kx = x[..., 0] + scale * (dx * cos_term - dy * sq)
     ky = y[..., 0] + scale * (dy * cos_term + dx * sq)
-    return jnp.where(crosses & (kx * kx + ky * ky < 1.0), rho, 1.0)
+    # The lens rule parametrises arcs by their cosine about the far point,
+    # which loses ~R^2 eps for a disk of radius R >> 1: lenses of disks larger
+    # than the star take the union integral (arcs from the near point).
+    small = jnp.maximum(r[..., 0], r[..., 1]) <= 1.0
+    return jnp.where(crosses & small & (kx * kx + ky * ky < 1.0), rho, 1.0)
