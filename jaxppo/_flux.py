@@ -27,6 +27,27 @@ __all__ = ["occultation_flux", "METHODS"]
 METHODS = ("auto", "exact", "raster")
 
 
+_FLOAT32_WARNED = False
+FLOAT32_MESSAGE = (
+    "jaxppo: float32: JAX's float64 is off (jax_enable_x64 is False), so every flux is computed in float32. "
+    "The flux kernel alone then errs by ~1e-7, but float32 times and positions put a light curve off by up to "
+    "~20 ppm (Kepler-20 near a planet-planet occultation; docs/methods.md). For science, call "
+    "jax.config.update('jax_enable_x64', True) at startup; to keep float32 deliberately, silence this with "
+    "warnings.filterwarnings('ignore', message='jaxppo: float32')."
+)
+
+
+def _warn_float32_once() -> None:
+    """The float32 policy (docs/methods.md): the library never flips JAX's
+    global x64 switch, but a user cannot miss that it is off."""
+    global _FLOAT32_WARNED
+    if not _FLOAT32_WARNED and not jax.config.jax_enable_x64:
+        _FLOAT32_WARNED = True
+        import warnings
+
+        warnings.warn(FLOAT32_MESSAGE, UserWarning, stacklevel=3)
+
+
 def _is_concrete(*arrays) -> bool:
     return not any(isinstance(a, jax.core.Tracer) for a in arrays)
 
@@ -335,6 +356,10 @@ def occultation_flux(
         Relative flux, shape = the broadcast leading axes (1 per frame when
         the disk axis is empty; an empty array when there are no frames).
 
+    float32: when JAX's x64 is off every input is float32; the first call
+    in a process then warns once (docs/methods.md, float32 policy). With x64
+    on, float32 inputs (explicitly float32 arrays and star) run in float32.
+
     Bad input: concrete arrays with a non-finite value, a negative radius or
     a radius above ``MAX_RADIUS`` (1e6) raise ``ValueError`` naming x, y or r.
     Under ``jit``/``grad``/``vmap`` (traced input) such a frame's flux is NaN
@@ -344,6 +369,7 @@ def occultation_flux(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    _warn_float32_once()
     if not isinstance(star, Star):
         raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
     for name, value in (("order", order), ("chunk", chunk)):

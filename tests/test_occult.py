@@ -541,3 +541,29 @@ def test_order_and_chunk_are_validated():
             jp.occultation_flux(S16, [0.1], [0.1], [0.1], order=bad)
     with pytest.raises(ValueError, match="chunk must be a positive integer"):
         jp.occultation_flux(S16, [0.1], [0.1], [0.1], chunk=0)
+
+
+def test_float32_policy_warns_once_when_x64_is_off():
+    """Issue 15 item 2: with JAX's x64 off (the default) a light curve is
+    float32 end to end (~20 ppm near a PPO); the first flux call says so,
+    once, and never flips the global switch."""
+    import subprocess
+    import sys
+
+    code = (
+        "import warnings, numpy as np, jax\n"
+        "import jaxppo as jp\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    s = jp.Star.quadratic(0.4, 0.25)\n"
+        "    a = jp.occultation_flux(s, np.array([0.3]), np.array([0.1]), np.array([0.05]))\n"
+        "    b = jp.occultation_flux(s, np.array([0.3]), np.array([0.1]), np.array([0.05]), method='exact')\n"
+        "msgs = [str(x.message) for x in w if 'jaxppo: float32' in str(x.message)]\n"
+        "print(len(msgs), a.dtype, jax.config.jax_enable_x64, 'jax_enable_x64' in msgs[0])\n"
+    )
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "JAX_ENABLE_X64"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1", "float32", "False", "True"], out.stdout
