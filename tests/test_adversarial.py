@@ -9,8 +9,9 @@ power-2, tabulated) in float64 and float32:
 
 * values of "exact" and "auto" against the independent radial reference
   (tests/helpers.py ``reference_deficit``, with a numpy profile written from
-  the coefficients): <= 1e-10 in float64 (measured <= 6e-12), <= 3e-6 in
-  float32 (measured) except where float32 cannot represent the scene;
+  the coefficients): <= 1e-10 in float64, <= 3e-6 in
+  float32 except where float32 cannot represent the scene (measured
+  9e-12 and 5.5e-7, benchmarks/adversarial_table.py);
 * gradients finite (both dtypes) and, in float64, equal to the mean of the
   one-sided finite differences within their spread (so equal to them where
   the flux is smooth).
