@@ -11,8 +11,12 @@ field g(r^2) (-y, x), g = Phi(r) / r^2 and Phi(r) = int_0^r s I(s) ds, gives
 The boundary of R consists of
 
 * arcs of each planet's circle that lie inside the star and outside every other
-  disk: on a circle of radius p about (xc, yc) at angle t from the direction of
-  its centre, r^2 = d^2 + p^2 + 2 p d cos t and x dy - y dx = (p^2 + p d cos t) dt;
+  disk: on a circle of radius p whose centre is d from the stellar centre, at
+  angle tau from its near point, r^2 = (d - p)^2 + 4 p d sin^2(tau/2) and
+  x dy - y dx = (p (p - d) + 2 p d sin^2(tau/2)) dtau (``union_deficit``,
+  ``disk_deficit``; the lens and midpoint rules of "auto" use the cosine
+  about the far point, r^2 = d^2 + p^2 + 2 p d cos t, for disks no larger
+  than the star);
 * arcs of the stellar limb (r = 1) inside some disk: they contribute
   Phi(1) times their angle, exactly.
 
@@ -25,7 +29,8 @@ cluster (like u^4) at both ends, where a limb crossing puts the intensity's
 mu^q branch point. The result converges spectrally for
 polynomial, non-linear and power-2 laws. Overlaps between disks are handled
 exactly: nothing is added twice (unlike summing single-disk deficits), nested,
-tangent, concentric and identical disks included.
+tangent, concentric and identical disks included. Derivatives with respect to
+the disks are shape derivatives (a custom JVP; see ``union_deficit``).
 """
 
 from __future__ import annotations
