@@ -10,9 +10,10 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from ._star import Star
-from .core.geometry import float_dtype
+from .core.geometry import float_dtype, safe_hypot
 from .core.occult import (
     INNER_MARGIN,
+    MAX_RADIUS,
     LENS_RULES,
     disk_deficit,
     inner_disk_deficit,
@@ -24,6 +25,27 @@ from .core.occult import (
 __all__ = ["occultation_flux", "METHODS"]
 
 METHODS = ("auto", "exact", "raster")
+
+
+_FLOAT32_WARNED = False
+FLOAT32_MESSAGE = (
+    "jaxppo: float32: JAX's float64 is off (jax_enable_x64 is False), so every flux is computed in float32. "
+    "The flux kernel alone then errs by ~1e-7, but float32 times and positions put a light curve off by up to "
+    "~20 ppm (Kepler-20 near a planet-planet occultation; docs/methods.md). For science, call "
+    "jax.config.update('jax_enable_x64', True) at startup; to keep float32 deliberately, silence this with "
+    "warnings.filterwarnings('ignore', message='jaxppo: float32')."
+)
+
+
+def _warn_float32_once() -> None:
+    """The float32 policy (docs/methods.md): the library never flips JAX's
+    global x64 switch, but a user cannot miss that it is off."""
+    global _FLOAT32_WARNED
+    if not _FLOAT32_WARNED and not jax.config.jax_enable_x64:
+        _FLOAT32_WARNED = True
+        import warnings
+
+        warnings.warn(FLOAT32_MESSAGE, UserWarning, stacklevel=3)
 
 
 def _is_concrete(*arrays) -> bool:
@@ -52,12 +74,18 @@ def _validate_concrete(x, y, r) -> None:
     rr = np.asarray(r)
     if np.any(rr < 0):
         raise ValueError(f"r (disk radius) must be >= 0, found {rr[rr < 0].ravel()[0]}")
+    if np.any(rr > MAX_RADIUS):
+        raise ValueError(
+            f"r (disk radius) must be <= {MAX_RADIUS:g} stellar radii (beyond it the rounding of the disk's "
+            f"distance alone exceeds 1e-10 of the flux), found {rr[rr > MAX_RADIUS].ravel()[0]}"
+        )
 
 
 @functools.partial(jax.jit, static_argnames=("order",))
 def _exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     g, phi1 = star.radial_kernel()
-    deficit = jax.vmap(lambda a, b, c: union_deficit(a, b, c, g, phi1, order))(x, y, r)
+    inten = star.radial_intensity()
+    deficit = jax.vmap(lambda a, b, c: union_deficit(a, b, c, g, phi1, order, inten))(x, y, r)
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
 
@@ -65,8 +93,9 @@ def _exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array
 def _separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Frames whose disks do not overlap each other: a sum of one-disk terms."""
     g, phi1 = star.radial_kernel()
-    d = jnp.hypot(x, y)
-    one = jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order))
+    inten = star.radial_intensity()
+    d = safe_hypot(x, y)
+    one = jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))
     deficit = one(d.reshape(-1), r.reshape(-1)).reshape(d.shape).sum(-1)
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
@@ -75,7 +104,8 @@ def _separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Ar
 def _disk_terms(star: Star, d: Array, p: Array, order: int) -> Array:
     """Relative deficits of single disks (general rule, any position)."""
     g, phi1 = star.radial_kernel()
-    return jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order))(d, p) / (2.0 * jnp.pi * phi1)
+    inten = star.radial_intensity()
+    return jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))(d, p) / (2.0 * jnp.pi * phi1)
 
 
 @jax.jit
@@ -323,15 +353,36 @@ def occultation_flux(
             pixel scale = smallest radius / 24, 4 x 4 supersampling).
 
     Returns:
-        Relative flux, shape = the broadcast leading axes.
+        Relative flux, shape = the broadcast leading axes (1 per frame when
+        the disk axis is empty; an empty array when there are no frames).
+
+    float32: when JAX's x64 is off every input is float32; the first call
+    in a process then warns once (docs/methods.md, float32 policy). With x64
+    on, float32 inputs (explicitly float32 arrays and star) run in float32.
+
+    Bad input: concrete arrays with a non-finite value, a negative radius or
+    a radius above ``MAX_RADIUS`` (1e6) raise ``ValueError`` naming x, y or r.
+    Under ``jit``/``grad``/``vmap`` (traced input) such a frame's flux is NaN
+    (and so is its gradient), never a finite plausible value, so that an
+    optimiser or sampler sees it; the exact and union methods do this per
+    frame, so one bad frame does not poison a batch.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    _warn_float32_once()
     if not isinstance(star, Star):
         raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
+    for name, value in (("order", order), ("chunk", chunk)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     x, y, r = _prepare(x, y, r)
     lead = x.shape[:-1]
     k = x.shape[-1]
+    if k == 0 or x.size == 0:
+        # no disks: the star unocculted; no frames: nothing to compute
+        if _is_concrete(x, y, r):
+            _validate_concrete(x, y, r)
+        return jnp.ones(lead, x.dtype)
     if not star.symmetric:
         if method == "exact":
             raise ValueError(

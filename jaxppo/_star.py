@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import equinox as eqx
 import jax
@@ -24,6 +25,36 @@ def _check_finite(name: str, value) -> None:
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")
+
+
+def _is_traced(*values) -> bool:
+    return any(isinstance(v, jax.core.Tracer) for v in values)
+
+
+def _check_profile(star: "Star", coefficients: str) -> "Star":
+    """Refuse a law whose total flux F0 is not positive (the normalisation
+    would flip or blow up every light curve) and warn when its intensity is
+    negative somewhere on mu in [0, 1] (not a star's, though the engine
+    integrates it exactly). Traced coefficients are not checked."""
+    if _is_traced(star.params):
+        return star
+    f0 = float(star.total_flux)
+    if not f0 > 0:
+        raise ValueError(
+            f"Star.{star.law}({coefficients}) has total flux F0 = {f0:.6g} <= 0: no physical star; "
+            "check the coefficients"
+        )
+    mu = np.concatenate([np.linspace(0.0, 1.0, 2001), np.geomspace(1e-12, 1e-3, 61)])
+    inten = np.asarray(star.intensity(mu))
+    if np.min(inten) < 0:
+        j = int(np.argmin(inten))
+        warnings.warn(
+            f"Star.{star.law}({coefficients}) has negative intensity I(mu={mu[j]:.3g}) = {inten[j]:.3g} "
+            "(relative to the centre): not a physical profile",
+            UserWarning,
+            stacklevel=3,
+        )
+    return star
 
 
 def _sqrt_poly_design(mu: np.ndarray, degree: int) -> np.ndarray:
@@ -92,21 +123,25 @@ class Star(eqx.Module):
     def quadratic(cls, u1: ArrayLike, u2: ArrayLike) -> "Star":
         _check_finite("u1", u1)
         _check_finite("u2", u2)
-        return cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
+        star = cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
+        return _check_profile(star, f"u1={u1!r}, u2={u2!r}")
 
     @classmethod
     def nonlinear(cls, c1: ArrayLike, c2: ArrayLike, c3: ArrayLike, c4: ArrayLike) -> "Star":
         for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
             _check_finite(name, v)
-        return cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
+        star = cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
+        return _check_profile(star, f"c1={c1!r}, c2={c2!r}, c3={c3!r}, c4={c4!r}")
 
     @classmethod
     def power2(cls, c: ArrayLike, alpha: ArrayLike) -> "Star":
         _check_finite("c", c)
         _check_finite("alpha", alpha)
-        if isinstance(alpha, (int, float)) and alpha <= 0:
+        # any concrete value (Python or numpy scalar, 0-d array) is checked
+        if not _is_traced(alpha) and np.any(np.asarray(alpha, dtype=float) <= 0):
             raise ValueError(f"power-2 exponent alpha must be > 0, got {alpha!r}")
-        return cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
+        star = cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
+        return _check_profile(star, f"c={c!r}, alpha={alpha!r}")
 
     @classmethod
     def tabulated(
@@ -116,50 +151,74 @@ class Star(eqx.Module):
         interpolation: str = "sqrt-poly",
         max_degree: int = 12,
         rtol: float = 1e-6,
+        degree: int | None = None,
     ) -> "Star":
         """A star from a table of specific intensities I(mu).
 
         ``mu`` must be strictly increasing in [0, 1] (at least 3 points) and the
         intensities finite and >= 0. A table that stops short of mu = 0 or 1 is
         held flat to the ends (documented; PHOENIX tables cover both).
+
+        ``degree`` fixes the degree of the "sqrt-poly" fit (default: the
+        smallest that meets ``rtol``, chosen from the values). The
+        intensities may be traced (``jax.grad`` with respect to the table,
+        ``jit``): then ``mu`` must be concrete, the values are not checked,
+        "sqrt-poly" needs ``degree`` (the adaptive choice needs the values;
+        take it from the concrete table, ``Star.tabulated(mu, I0).degree``)
+        and ``table_residual`` is -1 (unknown).
         """
         if interpolation not in _INTERPOLATIONS:
             raise ValueError(
                 f"interpolation must be one of {_INTERPOLATIONS}, got {interpolation!r}"
             )
+        if _is_traced(mu):
+            raise ValueError("mu (the table's nodes) must be concrete; only the intensities may be traced")
+        traced = _is_traced(intensity)
         mu_np = np.asarray(mu, dtype=float)
-        i_np = np.asarray(intensity, dtype=float)
-        if mu_np.ndim != 1 or i_np.shape != mu_np.shape:
+        i_in = jnp.asarray(intensity) if traced else np.asarray(intensity, dtype=float)
+        if mu_np.ndim != 1 or i_in.shape != mu_np.shape:
             raise ValueError(
-                f"mu and intensity must be 1D of equal length, got shapes {mu_np.shape} and {i_np.shape}"
+                f"mu and intensity must be 1D of equal length, got shapes {mu_np.shape} and {i_in.shape}"
             )
         if mu_np.size < 3:
             raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
         _check_finite("mu", mu_np)
-        _check_finite("intensity", i_np)
         if np.any(mu_np < 0) or np.any(mu_np > 1):
             raise ValueError(f"mu must lie in [0, 1], got values from {mu_np.min()} to {mu_np.max()}")
         if np.any(np.diff(mu_np) <= 0):
             raise ValueError("mu must be strictly increasing (sort the table and drop repeats)")
-        if np.any(i_np < 0):
-            raise ValueError(f"intensity must be >= 0, got minimum {i_np.min()}")
-        if np.max(i_np) <= 0:
-            raise ValueError("intensity must not be zero everywhere")
+        if degree is not None and (
+            isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 1 <= degree < mu_np.size
+        ):
+            raise ValueError(f"degree must be an integer from 1 to {mu_np.size - 1} (points - 1), got {degree!r}")
+        if not traced:
+            _check_finite("intensity", i_in)
+            if np.any(i_in < 0):
+                raise ValueError(f"intensity must be >= 0, got minimum {i_in.min()}")
+            if np.max(i_in) <= 0:
+                raise ValueError("intensity must not be zero everywhere")
+        xp = jnp if traced else np
         if mu_np[0] > 0:
-            mu_np, i_np = np.concatenate([[0.0], mu_np]), np.concatenate([[i_np[0]], i_np])
+            mu_np, i_in = np.concatenate([[0.0], mu_np]), xp.concatenate([i_in[:1], i_in])
         if mu_np[-1] < 1:
-            mu_np, i_np = np.concatenate([mu_np, [1.0]]), np.concatenate([i_np, [i_np[-1]]])
+            mu_np, i_in = np.concatenate([mu_np, [1.0]]), xp.concatenate([i_in, i_in[-1:]])
         if interpolation == "sqrt-poly":
-            deg = _choose_degree(mu_np, i_np, max_degree, rtol)
-            fit, qmap = _I.sqrt_cheb_operators(mu_np, deg)
-            resid = float(np.max(np.abs(_sqrt_poly_design(mu_np, deg) @ (fit @ i_np) - i_np)))
+            if degree is None:
+                if traced:
+                    raise ValueError(
+                        "interpolation='sqrt-poly' with traced intensities needs degree= (the adaptive "
+                        "choice needs concrete values; use Star.tabulated(mu, I0).degree of your table)"
+                    )
+                degree = _choose_degree(mu_np, i_in, max_degree, rtol)
+            fit, qmap = _I.sqrt_cheb_operators(mu_np, degree)
+            resid = -1.0 if traced else float(np.max(np.abs(_sqrt_poly_design(mu_np, degree) @ (fit @ i_in) - i_in)))
             return cls(
-                law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
-                interpolation=interpolation, degree=deg, fit_matrix=jnp.asarray(fit),
+                law="tabulated", params=jnp.asarray(i_in), mu_nodes=jnp.asarray(mu_np),
+                interpolation=interpolation, degree=degree, fit_matrix=jnp.asarray(fit),
                 q_matrix=jnp.asarray(qmap), table_residual=resid,
             )
         return cls(
-            law="tabulated", params=jnp.asarray(i_np), mu_nodes=jnp.asarray(mu_np),
+            law="tabulated", params=jnp.asarray(i_in), mu_nodes=jnp.asarray(mu_np),
             interpolation=interpolation,
         )
 
@@ -227,6 +286,36 @@ class Star(eqx.Module):
             return (lambda s: _I.cheb_g(s, qc)), _I.cheb_g(jnp.ones((), qc.dtype), qc)
         mu_nodes, b, phin = self._table()
         return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
+
+    def radial_intensity(self):
+        """s -> I(mu) at s = r^2 = 1 - mu^2 (s clipped to [0, 1]): what the
+        exact engine's derivatives integrate along the disks' arcs."""
+
+        half = self._halfint()
+        if half is not None:
+            # a polynomial in v = mu^(1/2): no power per term and node
+            a, twice_e = half
+            coef = [0.0] * (max(twice_e) + 1)
+            for ak, te in zip(a, twice_e):
+                coef[te] = coef[te] + ak
+
+            def poly(s):
+                m2 = 1.0 - jnp.asarray(s)
+                inside = m2 > 0
+                v = jnp.where(inside, jnp.sqrt(jnp.sqrt(jnp.where(inside, m2, 1.0))), 0.0)
+                out = jnp.zeros_like(v) + coef[-1]
+                for c in coef[-2::-1]:
+                    out = out * v + c
+                return out
+
+            return poly
+
+        def intensity(s):
+            m2 = 1.0 - jnp.asarray(s)
+            inside = m2 > 0
+            return self.intensity(jnp.where(inside, jnp.sqrt(jnp.where(inside, m2, 1.0)), 0.0))
+
+        return intensity
 
     @property
     def total_flux(self) -> Array:

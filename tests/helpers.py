@@ -33,7 +33,8 @@ def union_angle(rad: float, x, y, p) -> float:
             if rad <= pc - d:
                 return 2 * np.pi
             continue
-        c = (rad * rad + d * d - pc * pc) / (2 * rad * d)
+        # (d - pc)(d + pc): no cancellation for huge disks (d ~ pc >> 1)
+        c = (rad * rad + (d - pc) * (d + pc)) / (2 * rad * d)
         half = np.arccos(np.clip(c, -1.0, 1.0))
         phi = np.arctan2(yc, xc)
         intervals.append((phi - half, 2 * half))
@@ -197,3 +198,126 @@ def random_configs(rng, n, k, pmin=1e-3, pmax=0.3):
         y = cy + rng.normal(0, 1, k) * p.max()
         out.append((list(x), list(y), list(p)))
     return out
+
+
+# ---------------------------------------------------------------------------
+# Adversarial classes for tests/test_adversarial.py and
+# benchmarks/adversarial_table.py (issue 16): seeded generators of scenes of
+# up to three disks, each list entry (x, y, r).
+# ---------------------------------------------------------------------------
+def _through(px, py, radii, angles):
+    """Circles of the given radii through the point (px, py), their centres
+    in the given directions from it."""
+    radii, angles = np.asarray(radii, float), np.asarray(angles, float)
+    return list(px + radii * np.cos(angles)), list(py + radii * np.sin(angles)), list(radii)
+
+
+def adversarial_classes(rng, n=8):
+    """Scenes by class, ``n`` (or about n) of each, seeded by ``rng``."""
+    out = {}
+    u = lambda a, b, size=None: rng.uniform(a, b, size)  # noqa: E731
+    out["random (1-3 disks)"] = [c for k in (1, 2, 3) for c in random_configs(rng, n, k)]
+    for name, eps in (("tangent (exact)", 0.0), ("tangent +-1e-15", 1e-15)):
+        cfgs = []
+        for _ in range(n):
+            p1, p2 = np.exp(u(np.log(1e-3), np.log(0.4), 2))
+            cx, cy, ang = u(-0.8, 0.8), u(-0.8, 0.8), u(0, 2 * np.pi)
+            sgn = rng.choice([-1.0, 1.0])
+            for dist in (p1 + p2, abs(p1 - p2)):
+                dd = dist * (1 + sgn * eps) if eps else dist
+                cfgs.append(([cx, cx + dd * np.cos(ang)], [cy, cy + dd * np.sin(ang)], [p1, p2]))
+            # tangent to the limb from inside and from outside
+            for b in (1 - p1, 1 + p1):
+                bb = b * (1 + sgn * eps) if eps else b
+                cfgs.append(([bb * np.cos(ang)], [bb * np.sin(ang)], [p1]))
+        out[name] = cfgs
+    cfgs = []
+    for _ in range(n):
+        px, py = u(-0.9, 0.9), u(-0.4, 0.4)
+        radii = np.exp(u(np.log(0.02), np.log(0.3), 3))
+        angles = np.sort(u(0, 2 * np.pi, 3))
+        cfgs.append(_through(px, py, radii, angles))
+    out["three circles through a point"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        phi = u(0, 2 * np.pi)
+        radii = np.exp(u(np.log(0.02), np.log(0.3), 2))
+        cfgs.append(_through(np.cos(phi), np.sin(phi), radii, phi + u(0, 2 * np.pi, 2)))
+        # and a third circle through the same limb point
+        x, y, r = _through(np.cos(phi), np.sin(phi), np.append(radii, 0.1), phi + u(0, 2 * np.pi, 3))
+        cfgs.append((x, y, r))
+    out["crossings on the limb"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        cx, cy = u(-0.9, 0.9), u(-0.5, 0.5)
+        radii = np.exp(u(np.log(0.01), np.log(0.5), 2))
+        cfgs.append(([cx, cx], [cy, cy], list(radii)))
+        cfgs.append(([0.0, 0.0], [0.0, 0.0], list(radii)))  # concentric with the star
+        cfgs.append(([0.0, cx], [0.0, cy], [radii[0], radii[1]]))  # one on the centre, one crossing
+    out["concentric"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        cx, cy, p = u(-1.1, 1.1), u(-0.5, 0.5), np.exp(u(np.log(0.01), np.log(0.5)))
+        cfgs.append(([cx, cx], [cy, cy], [p, p]))
+        cfgs.append(([cx, cx, cx + p], [cy, cy, cy], [p, p, 0.5 * p]))
+    out["identical disks"] = cfgs
+    cfgs = [([0.0], [0.0], [1.0]), ([0.0, 0.0], [0.0, 0.0], [1.0, 1.0]), ([0.0, 1.0], [0.0, 0.0], [1.0, 0.3])]
+    for _ in range(n):
+        phi, p = u(0, 2 * np.pi), np.exp(u(np.log(0.01), np.log(0.5)))
+        cfgs.append(([0.0, np.cos(phi)], [0.0, np.sin(phi)], [1.0, p]))
+        R = u(1.0, 3.0)
+        off = u(0.0, R - 1.0)
+        cfgs.append(([off * np.cos(phi), 0.3], [off * np.sin(phi), 0.1], [R, p]))  # covers the star
+    out["disks matching / covering the star"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        p = np.exp(u(np.log(1e-6), np.log(1e-3), 2))
+        cx, cy = u(-1.0, 1.0), u(-0.3, 0.3)
+        cfgs.append(([cx, cx + u(-1, 1) * p.sum()], [cy, cy + u(-1, 1) * p.sum()], list(p)))
+        b = 1 + u(-1, 1) * p[0]
+        cfgs.append(([b], [0.0], [p[0]]))  # tiny disk on the limb
+    out["tiny radii (1e-6 to 1e-3)"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        R, phi, c = 10 ** u(1, 6), u(0, 2 * np.pi), u(-0.9, 0.9)
+        x, y = (R + c) * np.cos(phi), (R + c) * np.sin(phi)
+        cfgs.append(([x], [y], [R]))
+        q = np.exp(u(np.log(0.01), np.log(0.2)))
+        cfgs.append(([x, (c + u(-1, 1) * q) * np.cos(phi)], [y, (c + u(-1, 1) * q) * np.sin(phi) + u(-0.5, 0.5)], [R, q]))
+    out["huge radii (10 to 1e6)"] = cfgs
+    cfgs = []
+    for _ in range(n):
+        dist, phi = 10 ** u(1, 8), u(0, 2 * np.pi)
+        p = np.exp(u(np.log(0.01), np.log(0.3)))
+        cfgs.append(([dist * np.cos(phi), u(-0.8, 0.8)], [dist * np.sin(phi), u(-0.5, 0.5)], [p, p]))
+    out["far disks (10 to 1e8)"] = cfgs
+    return out
+
+
+def numpy_intensity(star):
+    """I(mu) of a jaxppo Star written with numpy from its coefficients
+    (shares no code with the engine's profile kernels; tables use their
+    fitted sqrt(mu) polynomial, which is their definition)."""
+    p = np.asarray(star.params, float)
+    if star.law == "uniform":
+        return lambda mu: np.ones_like(np.asarray(mu, float))
+    if star.law == "quadratic":
+        return lambda mu: 1 - p[0] * (1 - mu) - p[1] * (1 - mu) ** 2
+    if star.law == "nonlinear":
+        return lambda mu: 1 - sum(c * (1 - np.asarray(mu, float) ** ((k + 1) / 2)) for k, c in enumerate(p))
+    if star.law == "power2":
+        return lambda mu: 1 - p[0] * (1 - np.asarray(mu, float) ** p[1])
+    if star.law == "tabulated" and star.interpolation == "sqrt-poly":
+        from numpy.polynomial import chebyshev as C
+
+        coef = np.asarray(star.fit_matrix, float) @ p
+        return lambda mu: C.chebval(2 * np.sqrt(np.asarray(mu, float)) - 1, coef)
+    raise ValueError(f"no numpy profile for {star!r}")
+
+
+def pad_scenes(cfgs, k=3):
+    """[scene, k] arrays; missing disks have radius 0 (absent)."""
+    x = np.array([list(c[0]) + [0.0] * (k - len(c[0])) for c in cfgs])
+    y = np.array([list(c[1]) + [0.0] * (k - len(c[1])) for c in cfgs])
+    r = np.array([list(c[2]) + [0.0] * (k - len(c[2])) for c in cfgs])
+    return x, y, r

@@ -362,3 +362,208 @@ def test_small_batches_take_the_union_integral(monkeypatch):
     lens = np.asarray(jp.occultation_flux(star, x, y, r))
     assert not np.array_equal(lens[:2], exact[:2])
     assert np.max(np.abs(lens - exact)) < 1e-14
+
+
+# ---------------------------------------------------------------------------
+# Issue 16: degenerate geometry, float32, traced bad input (each test fails on
+# the engine before the fix).
+# ---------------------------------------------------------------------------
+S16 = jp.Star.quadratic(0.4, 0.25)
+
+
+def _as32(star):
+    return jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, star)
+
+
+@pytest.mark.parametrize("method", ["exact", "auto"])
+def test_disk_matching_the_star_counts_once(method):
+    """A disk that is the stellar disk hides the whole star: flux 0, not -1
+    (the circle was counted as a planet arc on the star and as a disk covering
+    it), also with a second disk crossing the limb, under jit, with integer
+    input and in float32."""
+    assert abs(float(jp.occultation_flux(S16, [0.0], [0.0], [1.0], method=method))) < 1e-15
+    assert abs(float(jp.occultation_flux(S16, [0, 0], [0, 0], [1, 1], method=method))) < 1e-15
+    assert abs(float(jp.occultation_flux(S16, [0.0, 1.0], [0.0, 0.0], [1.0, 0.3], method=method))) < 1e-15
+    jitted = jax.jit(lambda x, y, r: jp.occultation_flux(S16, x, y, r, method=method))
+    assert abs(float(jitted(jnp.zeros(1), jnp.zeros(1), jnp.ones(1)))) < 1e-15
+    f32 = jp.occultation_flux(_as32(S16), np.float32([0.0, 1.0]), np.float32([0.0, 0.0]), np.float32([1.0, 0.3]), method=method)
+    assert abs(float(f32)) < 1e-6
+    # just inside and just outside: continuous
+    for r in (1 - 1e-12, 1 + 1e-12):
+        assert abs(float(jp.occultation_flux(S16, [0.0], [0.0], [r], method=method))) < 1e-11
+
+
+def test_float32_no_nan_where_an_edge_passes_the_centre():
+    """float32 power-2 law: a disk edge through (or within 4e-5 of) the
+    stellar centre gave NaN (a float64 guard constant, 1e-290, is 0 in float32)."""
+    star = jp.Star.power2(0.7, 0.6)
+    s32 = _as32(star)
+    x = np.linspace(-0.4, 0.4, 4001)
+    x = np.concatenate([x, [0.3, 0.3 + 1e-6, 0.3 - 3e-5, 0.5]])[:, None]
+    r = np.where(x == 0.5, 0.5, 0.3)
+    for method in ("exact", "auto"):
+        f32 = np.asarray(jp.occultation_flux(s32, x.astype(np.float32), np.zeros_like(x, np.float32), r.astype(np.float32), method=method))
+        f64 = np.asarray(jp.occultation_flux(star, x, 0 * x, r, method=method))
+        assert np.all(np.isfinite(f32)), method
+        assert np.max(np.abs(f32 - f64)) < 2e-6
+    grad = jax.grad(lambda v: jp.occultation_flux(s32, v, jnp.zeros(1, jnp.float32), jnp.full(1, 0.3, jnp.float32), method="exact"))
+    assert np.isfinite(float(grad(jnp.full(1, 0.3, jnp.float32))[0]))
+    # the guarded kernels themselves at s = 0, both dtypes
+    from jaxppo.core.intensity import power_basis_g
+
+    a, e = star._power()
+    for dt in (jnp.float32, jnp.float64):
+        val, dval = jax.value_and_grad(lambda s: power_basis_g(s, a.astype(dt), e.astype(dt)))(jnp.zeros((), dt))
+        assert np.isfinite(float(val)) and np.isfinite(float(dval))
+        assert abs(float(val) - float(a[0] + a[1]) / 2) < 1e-6  # g(0) = I(mu = 1) / 2
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.7])
+def test_huge_occultors(angle):
+    """A disk of radius R whose edge crosses the star 0.5 from its centre:
+    arcs integrated from the near point keep ~1e-15 where the old
+    parametrisation lost R^2 eps (1e-7 at R = 1e6); radii above MAX_RADIUS
+    are refused."""
+    ir = _intensity_r(S16)
+    f0 = reference_total(ir)
+    for R in (1e2, 1e4, 1e6):
+        x, y = [(R + 0.5) * np.cos(angle), 0.3], [(R + 0.5) * np.sin(angle), 0.1]
+        for k in (1, 2):
+            ref = 1 - reference_deficit(ir, x[:k], y[:k], [R, 0.1][:k]) / f0
+            for method in ("exact", "auto"):
+                got = float(jp.occultation_flux(S16, x[:k], y[:k], [R, 0.1][:k], method=method))
+                # measured <= 1e-14; the rounding of d ~ R alone is ~1e-16 R
+                assert abs(got - ref) < 1e-10, (R, k, method, got - ref)
+        # a planet crossing the huge disk's edge on the star: "auto" took the
+        # lens rule (cosines about the far point) and lost 5e-8 at R = 1e6
+        x, y = [(R + 0.5) * np.cos(angle), 0.5 * np.cos(angle)], [(R + 0.5) * np.sin(angle), 0.5 * np.sin(angle) + 0.05]
+        ref = 1 - reference_deficit(ir, x, y, [R, 0.1]) / f0
+        for method in ("exact", "auto"):
+            got = float(jp.occultation_flux(S16, x, y, [R, 0.1], method=method))
+            assert abs(got - ref) < 1e-10, (R, "lens", method, got - ref)
+    from jaxppo.core.occult import MAX_RADIUS
+
+    with pytest.raises(ValueError, match="r \\(disk radius\\) must be <= 1e\\+06"):
+        jp.occultation_flux(S16, [2 * MAX_RADIUS], [0.0], [2 * MAX_RADIUS])
+    traced = jax.jit(lambda r: jp.occultation_flux(S16, jnp.array([2e6]), jnp.zeros(1), r))(jnp.array([2e6]))
+    assert np.isnan(float(traced))
+
+
+def _one_sided(f, x, i, h=1e-7):
+    e = jnp.zeros_like(x).at[i].set(h)
+    return float((f(x + e) - f(x)) / h), float((f(x) - f(x - e)) / h)
+
+
+def _check_grad_fd(f, x, tol=2e-6):
+    g = np.asarray(jax.grad(f)(x))
+    for i in range(x.size):
+        plus, minus = _one_sided(f, x, i)
+        assert abs(plus - minus) < tol, ("not differentiable here", i, plus, minus)
+        assert abs(g[i] - 0.5 * (plus + minus)) < tol, (i, g[i], plus, minus)
+
+
+def test_gradient_at_a_triple_point():
+    """Three circles through one point: the cut points of the slivers there
+    were classified inconsistently and their end-point derivatives made
+    d flux/dx wrong by 0.08 (the union area is C^1 there)."""
+    px, py = 0.35, 0.2
+    r = jnp.array([0.1, 0.15, 0.12])
+    ang = np.array([0.3, 2.0, 4.1])
+    x = jnp.asarray(px + np.asarray(r) * np.cos(ang))
+    y = jnp.asarray(py + np.asarray(r) * np.sin(ang))
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, v, y, r, method="exact"), x)
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, x, v, r, method="exact"), y)
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, x, y, v, method="exact"), r)
+
+
+def test_gradient_at_a_crossing_on_the_limb():
+    """Two circles crossing exactly on the limb (issue 16 item 5): gradient
+    [0.093, 0.019] against finite differences [0.046, 0.066] before."""
+    x = jnp.array([1 + 0.1 * np.cos(2), 1 + 0.12 * np.cos(4)])
+    y = jnp.array([0.1 * np.sin(2), 0.12 * np.sin(4)])
+    r = jnp.array([0.1, 0.12])
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, v, y, r, method="exact"), x)
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, x, v, r, method="exact"), y)
+
+
+def test_gradient_of_a_disk_centred_on_the_star():
+    """A disk centred exactly on the star with a crossing disk: d/dx was
+    half the true value (the polar angle of the centre had no derivative);
+    a single disk at 0 < |x| < 1e-154 had a NaN gradient (x^2 underflowed)."""
+    y, r = jnp.zeros(2), jnp.array([0.2, 0.1])
+    _check_grad_fd(lambda v: jp.occultation_flux(S16, v, y, r, method="exact"), jnp.array([0.0, 0.25]))
+    for v in (0.0, 1e-300, 1e-170, 1e-100):
+        for fn in (
+            lambda a: jp.occultation_flux(S16, a, jnp.zeros(1), jnp.full(1, 0.2), method="exact"),
+            lambda a: jp.occultation_flux(S16, a, jnp.zeros(1), jnp.full(1, 0.2)),
+        ):
+            g = float(jax.grad(fn)(jnp.full(1, v))[0])
+            assert np.isfinite(g) and abs(g) < 1e-12
+    from jaxppo._flux import _separate_frames
+
+    for v in (0.0, 1e-170):
+        g = jax.grad(lambda a: _separate_frames(S16, a, jnp.zeros((1, 1)), jnp.full((1, 1), 0.2), 24)[0])(jnp.full((1, 1), v))
+        assert np.isfinite(float(g[0, 0])) and abs(float(g[0, 0])) < 1e-12
+    g32 = jax.grad(lambda a: jp.occultation_flux(_as32(S16), a, jnp.zeros(1, jnp.float32), jnp.full(1, 0.2, jnp.float32), method="exact"))
+    assert np.isfinite(float(g32(jnp.full(1, 1e-30, jnp.float32))[0]))
+
+
+def test_traced_bad_input_gives_nan():
+    """Under jit a NaN position gave 0.98789 and a negative radius 1.0: now
+    that frame (only) is NaN, and so is its gradient."""
+    for method in ("exact", "auto"):
+        f = jax.jit(lambda x, r: jp.occultation_flux(S16, x, jnp.zeros_like(x), r, method=method))
+        out = np.asarray(f(jnp.array([[np.nan], [0.2]]), jnp.array([[0.1], [0.1]])))
+        assert np.isnan(out[0]) and np.isfinite(out[1])
+        out = np.asarray(f(jnp.array([[0.0], [0.2]]), jnp.array([[-0.1], [0.1]])))
+        assert np.isnan(out[0]) and np.isfinite(out[1])
+        out = np.asarray(f(jnp.array([[np.inf, 0.1]]), jnp.array([[0.1, 0.1]])))
+        assert np.isnan(out[0])
+        g = jax.grad(lambda x: f(x, jnp.array([[0.1]]))[0])(jnp.array([[np.nan]]))
+        assert np.isnan(float(g[0, 0]))
+    from jaxppo._flux import _separate_frames
+
+    sep = _separate_frames(S16, jnp.array([[np.nan], [0.2]]), jnp.zeros((2, 1)), jnp.full((2, 1), 0.1), 24)
+    assert np.isnan(float(sep[0])) and np.isfinite(float(sep[1]))
+
+
+@pytest.mark.parametrize("method", ["exact", "auto"])
+def test_empty_axes(method):
+    out = jp.occultation_flux(S16, np.zeros((4, 0)), np.zeros((4, 0)), np.zeros((4, 0)), method=method)
+    assert out.shape == (4,) and np.all(np.asarray(out) == 1.0)
+    out = jp.occultation_flux(S16, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), method=method)
+    assert out.shape == (0,)
+
+
+def test_order_and_chunk_are_validated():
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match="order must be a positive integer"):
+            jp.occultation_flux(S16, [0.1], [0.1], [0.1], order=bad)
+    with pytest.raises(ValueError, match="chunk must be a positive integer"):
+        jp.occultation_flux(S16, [0.1], [0.1], [0.1], chunk=0)
+
+
+def test_float32_policy_warns_once_when_x64_is_off():
+    """Issue 15 item 2: with JAX's x64 off (the default) a light curve is
+    float32 end to end (~20 ppm near a PPO); the first flux call says so,
+    once, and never flips the global switch."""
+    import subprocess
+    import sys
+
+    code = (
+        "import warnings, numpy as np, jax\n"
+        "import jaxppo as jp\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    s = jp.Star.quadratic(0.4, 0.25)\n"
+        "    a = jp.occultation_flux(s, np.array([0.3]), np.array([0.1]), np.array([0.05]))\n"
+        "    b = jp.occultation_flux(s, np.array([0.3]), np.array([0.1]), np.array([0.05]), method='exact')\n"
+        "msgs = [str(x.message) for x in w if 'jaxppo: float32' in str(x.message)]\n"
+        "print(len(msgs), a.dtype, jax.config.jax_enable_x64, 'jax_enable_x64' in msgs[0])\n"
+    )
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "JAX_ENABLE_X64"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1", "float32", "False", "True"], out.stdout

@@ -136,3 +136,58 @@ def test_sqrt_poly_table_in_float32():
     tab32 = jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, tab)
     f32 = np.asarray(jp.occultation_flux(tab32, x.astype(np.float32), y.astype(np.float32), r.astype(np.float32), method="exact"), float)
     assert np.max(np.abs(f32 - f64)) < 1e-6
+
+
+# ---------------------------------------------------------------------------
+# Issue 16 items 7 and 9, issue 15 item 4 (star part)
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("interpolation", ["linear", "cubic", "sqrt-poly"])
+def test_gradient_through_tabulated_intensities(interpolation):
+    """Star.tabulated with traced intensities (a fit of the table's values)
+    raised TracerArrayConversionError; the gradient now matches central
+    differences, and jit gives the concrete table's value."""
+    mu = np.linspace(0.05, 1, 30)
+    i0 = 1 - 0.6 * (1 - mu) - 0.1 * (1 - mu) ** 2
+    kw = {"degree": jp.Star.tabulated(mu, i0).degree} if interpolation == "sqrt-poly" else {}
+
+    def f(v):
+        st = jp.Star.tabulated(mu, v, interpolation=interpolation, **kw)
+        return jp.occultation_flux(st, jnp.array([0.3, 0.33]), jnp.array([0.1, 0.1]), jnp.array([0.05, 0.03]), method="exact")
+
+    g = np.asarray(jax.grad(f)(jnp.asarray(i0)))
+    h = 1e-5
+    for j in (0, 10, 29):
+        e = np.zeros_like(i0)
+        e[j] = h
+        fd = (float(f(jnp.asarray(i0 + e))) - float(f(jnp.asarray(i0 - e)))) / (2 * h)
+        assert abs(g[j] - fd) < 1e-9 + 1e-5 * abs(fd), (j, g[j], fd)
+    assert abs(float(jax.jit(f)(jnp.asarray(i0))) - float(f(i0))) < 1e-15
+    if interpolation == "sqrt-poly":
+        with pytest.raises(ValueError, match="needs degree="):
+            jax.grad(lambda v: jp.occultation_flux(jp.Star.tabulated(mu, v), 0.3, 0.1, 0.05))(jnp.asarray(i0))
+
+
+def test_non_physical_laws():
+    """Star.quadratic(3, 0) has total flux 0 (its light curves were -6.8e13):
+    refused, naming the coefficients; a profile negative somewhere on [0, 1]
+    warns; a numpy alpha <= 0 is refused like the Python scalar."""
+    with pytest.raises(ValueError, match=r"Star.quadratic\(u1=3, u2=0\) has total flux F0 = 0"):
+        jp.Star.quadratic(3, 0)
+    with pytest.raises(ValueError, match="total flux"):
+        jp.Star.nonlinear(2.0, 2.0, 0.0, 0.0)
+    with pytest.warns(UserWarning, match=r"u1=1.5, u2=0.5\) has negative intensity I\(mu=0\) = -1"):
+        jp.Star.quadratic(1.5, 0.5)
+    with pytest.warns(UserWarning, match="negative intensity"):
+        jp.Star.power2(1.2, 0.6)
+    for alpha in (np.array(-1.0), np.float64(0.0), np.array([-0.5])):
+        with pytest.raises(ValueError, match="alpha must be > 0"):
+            jp.Star.power2(0.5, alpha)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.Star.quadratic(0.495, 0.154)
+        jp.Star.nonlinear(*KEPLER20_P100)
+        jp.Star.power2(0.72, 0.78)
+    # traced coefficients are not checked (fits may pass through such values)
+    assert np.isfinite(float(jax.grad(lambda u: jp.occultation_flux(jp.Star.quadratic(u, 0.0), 0.3, 0.1, 0.05))(0.4)))

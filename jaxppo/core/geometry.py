@@ -12,9 +12,11 @@ from math import factorial
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike
 
-__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "circle_intersection_angles", "cos_sin"]
+__all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "crossing_half_width",
+           "circle_intersection_angles", "wrap_angle", "cos_sin"]
 
 
 def float_dtype(*arrays):
@@ -32,8 +34,23 @@ def safe_sqrt(x: ArrayLike) -> Array:
 
 
 def safe_hypot(x: ArrayLike, y: ArrayLike) -> Array:
-    """sqrt(x^2 + y^2) with a finite gradient at the origin."""
-    return safe_sqrt(jnp.square(x) + jnp.square(y))
+    """sqrt(x^2 + y^2) to within 1 ulp, with a finite gradient everywhere.
+
+    Where x^2 + y^2 would underflow into the subnormals or overflow it is
+    scaled by max(|x|, |y|) (then the gradient stays (x, y) / hypot, not
+    0 / 0), and the origin gives 0 with a zero gradient."""
+    x, y = jnp.asarray(x), jnp.asarray(y)
+    info = jnp.finfo(jnp.result_type(x, y, float) if not jnp.issubdtype(jnp.result_type(x, y), jnp.inexact) else jnp.result_type(x, y))
+    sum2 = x * x + y * y
+    plain = (sum2 >= float(info.tiny) / float(info.eps)) & (sum2 < float(info.max))
+    m = jnp.maximum(jnp.abs(x), jnp.abs(y))
+    zero = m == 0
+    # hypot is homogeneous: the scale needs no derivative (its own would
+    # divide by m^2, which underflows)
+    ms = jax.lax.stop_gradient(jnp.where(zero | plain, 1.0, m))
+    xs, ys = jnp.where(zero, 0.0, x) / ms, jnp.where(zero, 0.0, y) / ms
+    scaled = jnp.where(zero, 0.0, ms * jnp.sqrt(xs * xs + ys * ys))
+    return jnp.where(plain, jnp.sqrt(jnp.where(plain, sum2, 1.0)), scaled)
 
 
 def safe_atan2(y: ArrayLike, x: ArrayLike) -> Array:
@@ -66,6 +83,37 @@ def _heron(p: Array, delta: Array, q: Array) -> tuple[Array, Array]:
     return prod, q >= a
 
 
+def crossing_half_width(p: ArrayLike, delta: ArrayLike, q: ArrayLike) -> tuple[Array, Array, Array]:
+    """Half-width, seen from the centre of circle p, of its arc inside circle q
+    (centres delta apart): ``(half, crosses, inside)``. ``crosses`` is False
+    for disjoint, nested, tangent or concentric circles; then ``half`` is 0 and
+    ``inside`` says whether circle p lies in the closed disk q.
+
+    half = atan2(sqrt(Heron), p^2 + delta^2 - q^2): full precision near
+    tangency, where arccos of the law of cosines loses half the digits, and
+    for radii far from 1 (no term is formed as a difference of squares of
+    large numbers: (p - q)(p + q) + delta^2)."""
+    p, delta, q = jnp.asarray(p), jnp.asarray(delta), jnp.asarray(q)
+    prod, q_largest = _heron(p, delta, q)
+    crosses = (prod > 0) & (delta > 0)
+    # p^2 + delta^2 - q^2 with q^2 taken from the nearer of p^2 and delta^2
+    # exactly (Sterbenz): nearly identical circles (p ~ q) and the limb seen
+    # from the star under a huge disk (delta ~ q >> p) keep full precision.
+    cos_term = jnp.where(delta >= p, (delta - q) * (delta + q) + p * p, (p - q) * (p + q) + delta * delta)
+    half = jnp.where(
+        crosses,
+        jnp.arctan2(safe_sqrt(jnp.where(crosses, prod, 0.0)), jnp.where(crosses, cos_term, 1.0)),
+        0.0,
+    )
+    return half, crosses, ~crosses & q_largest
+
+
+def wrap_angle(a: ArrayLike) -> Array:
+    """a in (-3 pi, 3 pi) wrapped to (-pi, pi]."""
+    a = jnp.asarray(a)
+    return jnp.where(a > np.pi, a - 2.0 * np.pi, jnp.where(a <= -np.pi, a + 2.0 * np.pi, a))
+
+
 def circle_intersection_angles(
     cx: ArrayLike, cy: ArrayLike, p: ArrayLike, ox: ArrayLike, oy: ArrayLike, q: ArrayLike
 ) -> tuple[Array, Array, Array, Array]:
@@ -84,16 +132,7 @@ def circle_intersection_angles(
     dy = jnp.asarray(oy) - cy
     delta = safe_hypot(dx, dy)
     base = safe_atan2(dy, dx)
-    prod, q_largest = _heron(jnp.asarray(p), delta, jnp.asarray(q))
-    crosses = (prod > 0) & (delta > 0)
-    # (p - q)(p + q) + delta^2: no cancellation for nearly identical circles.
-    cos_term = (p - q) * (p + q) + delta * delta
-    half = jnp.where(
-        crosses,
-        jnp.arctan2(safe_sqrt(jnp.where(crosses, prod, 0.0)), jnp.where(crosses, cos_term, 1.0)),
-        0.0,
-    )
-    inside = ~crosses & q_largest
+    half, crosses, inside = crossing_half_width(p, delta, q)
     return base, half, crosses, inside
 
 

@@ -54,10 +54,15 @@ def _one_minus_pow(s: Array, q: Array) -> Array:
 
 
 def _ratio_one_minus_pow(s: Array, q: Array) -> Array:
-    """h(s, q) = (1 - (1 - s)**q) / s, with the limit h(0, q) = q."""
-    small = s < 1e-290
+    """h(s, q) = (1 - (1 - s)**q) / s, with the limit h(0, q) = q.
+
+    Below s = eps of the dtype the two-term series q - q (q - 1) s / 2 is
+    exact to rounding (and has the right slope), while the quotient would
+    divide rounded subnormals (or 0 by 0): the threshold follows the dtype,
+    never a float64 constant that underflows to 0 in float32."""
+    small = s < jnp.finfo(jnp.result_type(s)).eps
     s_safe = jnp.where(small, 1.0, s)
-    return jnp.where(small, q, _one_minus_pow(s_safe, q) / s_safe)
+    return jnp.where(small, q - 0.5 * q * (q - 1.0) * s, _one_minus_pow(s_safe, q) / s_safe)
 
 
 def power_basis_intensity(
@@ -266,9 +271,10 @@ def table_g(
         geo = sum(m1**l * m ** (n - 1 - l) for l in range(n))
         bracket = bracket + bj[..., i] * geo / n
     bracket = bracket / (m1 + m)
-    small = s < 1e-290
-    s_safe = jnp.where(small, 1.0, s)
     top = s1 == 0.0
+    # On the top segment (s1 = 0) both quotients are replaced; elsewhere
+    # s >= s1 > 0. The double where keeps 0/0 out of the gradient.
+    s_safe = jnp.where(top | (s <= 0), 1.0, s)
     g = jnp.where(top, 0.0, phi_nodes[j + 1] / s_safe) + jnp.where(top, 1.0, (s - s1) / s_safe) * bracket
     return g
 

@@ -11,8 +11,12 @@ field g(r^2) (-y, x), g = Phi(r) / r^2 and Phi(r) = int_0^r s I(s) ds, gives
 The boundary of R consists of
 
 * arcs of each planet's circle that lie inside the star and outside every other
-  disk: on a circle of radius p about (xc, yc) at angle t from the direction of
-  its centre, r^2 = d^2 + p^2 + 2 p d cos t and x dy - y dx = (p^2 + p d cos t) dt;
+  disk: on a circle of radius p whose centre is d from the stellar centre, at
+  angle tau from its near point, r^2 = (d - p)^2 + 4 p d sin^2(tau/2) and
+  x dy - y dx = (p (p - d) + 2 p d sin^2(tau/2)) dtau (``union_deficit``,
+  ``disk_deficit``; the lens and midpoint rules of "auto" use the cosine
+  about the far point, r^2 = d^2 + p^2 + 2 p d cos t, for disks no larger
+  than the star);
 * arcs of the stellar limb (r = 1) inside some disk: they contribute
   Phi(1) times their angle, exactly.
 
@@ -25,21 +29,34 @@ cluster (like u^4) at both ends, where a limb crossing puts the intensity's
 mu^q branch point. The result converges spectrally for
 polynomial, non-linear and power-2 laws. Overlaps between disks are handled
 exactly: nothing is added twice (unlike summing single-disk deficits), nested,
-tangent, concentric and identical disks included.
+tangent, concentric and identical disks included. Derivatives with respect to
+the disks are shape derivatives (a custom JVP; see ``union_deficit``).
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Callable
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .geometry import circle_intersection_angles, cos_sin, float_dtype, heron_product, safe_atan2, safe_hypot, safe_sqrt
+from .geometry import (
+    circle_intersection_angles,
+    cos_sin,
+    crossing_half_width,
+    float_dtype,
+    heron_product,
+    safe_atan2,
+    safe_hypot,
+    safe_sqrt,
+    wrap_angle,
+)
 from .quadrature import clustered_rule, gauss_legendre_01
 
-__all__ = ["union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
+__all__ = ["MAX_RADIUS", "union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
            "INNER_MARGIN", "INNER_ORDER", "LENS_ORDER", "LENS_RULES"]
 
 _TWO_PI = 2.0 * np.pi
@@ -84,57 +101,115 @@ def _duplicates(x: Array, y: Array, r: Array, tol: float) -> Array:
     return jnp.any(same & earlier, axis=-1) | (r <= 0)
 
 
-def union_deficit(
-    x: Float[Array, " disk"],
-    y: Float[Array, " disk"],
-    r: Float[Array, " disk"],
-    g: Callable[[Array], Array],
-    phi1: Array,
-    order: int = 24,
-) -> Array:
-    """Integral of I over (union of disks) intersected with the unit disk.
+# Largest disk radius [R*] the kernels accept. Arcs of huge circles are
+# integrated from their near point without cancellation, so what remains is
+# the rounding of the disk's distance from the star (one ulp of d ~ R moves
+# the disk by ~1e-16 R): below 1e-10 of the stellar flux up to R = 1e6
+# (measured in tests/test_occult.py). Larger radii are refused.
+MAX_RADIUS = 1e6
 
-    Args:
-        x, y, r: centres and radii of the K disks [R*], one frame.
-        g: s -> Phi(sqrt(s)) / s for s = r^2 in [0, 1] (``jaxppo.core.intensity``).
-        phi1: Phi(1) = F0 / (2 pi).
-        order: Gauss-Legendre nodes per arc piece.
 
-    Returns:
-        The occulted flux in the units of F0 (divide by F0 for a relative deficit).
-    """
-    dtype = float_dtype(x, y, r)
-    x, y, r = (jnp.asarray(v, dtype) for v in (x, y, r))
+def _bad_input(*arrays) -> Array:
+    """True when a value is not finite or a radius (the last array) is
+    negative or above MAX_RADIUS: traced bad input gives NaN, never a
+    plausible flux."""
+    ok = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in arrays]))
+    return ~(ok & jnp.all(arrays[-1] >= 0) & jnp.all(arrays[-1] <= MAX_RADIUS))
+
+
+def _half_angle_nodes(start: Array, span: Array, u: Array) -> tuple[Array, Array]:
+    """sin and cos of tau / 2 at tau = start + span u (nodes u on a trailing
+    axis, |span| <= pi): one sin and cos per piece, polynomials per node.
+    Half angles keep full relative precision for tau -> 0, where the arc of a
+    huge circle crosses the star."""
+    a = 0.5 * start
+    cu, su = cos_sin(0.5 * span[..., None] * u)
+    sa, ca = jnp.sin(a)[..., None], jnp.cos(a)[..., None]
+    return sa * cu + ca * su, ca * cu - sa * su
+
+
+def _arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: bool):
+    """Integrals over arcs [start, start + span] of circles parametrised by the
+    angle tau from their *near* point (the point closest to the stellar
+    centre), where
+
+        r^2 = (d - p)^2 + 4 p d sin^2(tau / 2),
+        x dy - y dx = (p (p - d) + 2 p d sin^2(tau / 2)) dtau
+
+    (no cancellation for huge circles, d ~ p >> 1, nor for circles through the
+    centre, d ~ p). ``dm2`` = (d - p)^2, ``pd`` = p d, ``ppd`` = p (p - d),
+    broadcasting against ``start``. Returns the Green's-theorem integral of each arc
+    and, with ``shape``, the integrals of I cos tau, I sin tau and I over it
+    (for the shape derivative, see ``union_deficit``)."""
+    u, w = rule
+    u, w = jnp.asarray(u, dtype), jnp.asarray(w, dtype)
+    sh, ch = _half_angle_nodes(start, span, u)
+    sh2 = sh * sh
+    s = dm2[..., None] + 4.0 * pd[..., None] * sh2
+    val = ((g(s) * (ppd[..., None] + 2.0 * pd[..., None] * sh2)) @ w) * span
+    if not shape:
+        return val, None
+    inten = intensity(s)
+    return val, tuple((inten * f) @ w * span for f in (1.0 - 2.0 * sh2, 2.0 * sh * ch, 1.0))
+
+
+def _intensity_from_g(g: Callable[[Array], Array]) -> Callable[[Array], Array]:
+    """I(s) = 2 d(s g)/ds for callers that give g only (less accurate at the
+    limb than the profile itself, where dg/ds has a removable singularity)."""
+
+    def intensity(s):
+        val, dg = jax.jvp(g, (s,), (jnp.ones_like(s),))
+        return 2.0 * (val + s * dg)
+
+    return intensity
+
+
+def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
+    """The union integral of one frame (see ``union_deficit``), and with
+    ``shape`` the shape derivatives (dF/dx, dF/dy, dF/dr) of every disk."""
+    dtype = x.dtype
     k = x.shape[-1]
     active = ~_duplicates(x, y, r, 64 * float(jnp.finfo(dtype).eps))
 
     # ---- planet circles: cut at crossings with the other disks and the limb --
+    # Each circle's angle tau is measured from its near point, direction e
+    # (towards the stellar centre; +x for a circle centred on it).
     d = safe_hypot(x, y)
-    t_far = safe_atan2(y, x)  # direction of the point farthest from the centre
+    has_dir = d > 0
+    d_safe = jnp.where(has_dir, d, 1.0)
+    ex = jnp.where(has_dir, -x / d_safe, 1.0)
+    ey = jnp.where(has_dir, -y / d_safe, 0.0)
     others = np.array([[j for j in range(k) if j != i] for i in range(k)], dtype=int).reshape(k, k - 1)
-    zeros, ones = jnp.zeros((k, 1), dtype), jnp.ones((k, 1), dtype)
-    ox = jnp.concatenate([x[others], zeros], axis=1)
-    oy = jnp.concatenate([y[others], zeros], axis=1)
-    oq = jnp.concatenate([r[others], ones], axis=1)
-    o_active = jnp.concatenate([active[others], jnp.ones((k, 1), bool)], axis=1)
-    base, half, crosses, nested = circle_intersection_angles(
-        x[:, None], y[:, None], r[:, None], ox, oy, oq
+    ddx, ddy = x[others] - x[:, None], y[others] - y[:, None]
+    # direction of every other centre seen from this one, in the circle's frame;
+    # the star's centre is at tau = 0 by definition
+    base = jnp.concatenate(
+        [safe_atan2(ex[:, None] * ddy - ey[:, None] * ddx, ex[:, None] * ddx + ey[:, None] * ddy), jnp.zeros((k, 1), dtype)],
+        axis=1,
     )
+    delta = jnp.concatenate([safe_hypot(ddx, ddy), d[:, None]], axis=1)
+    oq = jnp.concatenate([r[others], jnp.ones((k, 1), dtype)], axis=1)
+    o_active = jnp.concatenate([active[others], jnp.ones((k, 1), bool)], axis=1)
+    half, crosses, nested = crossing_half_width(r[:, None], delta, oq)
     # A circle that does not cross disk j lies wholly inside it or wholly
     # outside: decide by nesting, never by a test point that could sit on a
     # tangency. (For the star, "inside" means the circle is on the star.)
     crosses = crosses & o_active
     nested = nested & o_active
     nested_planet, on_star = nested[:, :-1], nested[:, -1]
+    # A circle that *is* the limb bounds the union once, as the limb (it
+    # would otherwise count both as a planet circle on the star and as a disk
+    # covering the star).
+    is_limb = (d == 0) & (r == 1)
 
-    rel = base - t_far[:, None]
-    a_lo = jnp.where(crosses, jnp.mod(rel - half, _TWO_PI), 0.0)
-    a_hi = jnp.where(crosses, jnp.mod(rel + half, _TWO_PI), 0.0)
-    # Cuts measured from the far point (0 = 2 pi); the near point is pi; cuts
-    # of circles that do not cross sit on the far point.
-    cuts = jnp.sort(jnp.concatenate([a_lo, a_hi, jnp.full((k, 1), np.pi, dtype)], axis=1), axis=1)
-    starts = jnp.concatenate([zeros, cuts], axis=1)
-    ends = jnp.concatenate([cuts, jnp.full((k, 1), _TWO_PI, dtype)], axis=1)
+    lo = jnp.where(crosses, wrap_angle(base - half), 0.0)
+    hi = jnp.where(crosses, wrap_angle(base + half), 0.0)
+    # Cuts in (-pi, pi]; the near point (0) is one, the far point (-/+ pi)
+    # bounds the range: pieces span at most pi. Cuts of circles that do not
+    # cross sit on the near point.
+    cuts = jnp.sort(jnp.concatenate([lo, hi, jnp.zeros((k, 1), dtype)], axis=1), axis=1)
+    starts = jnp.concatenate([jnp.full((k, 1), -np.pi, dtype), cuts], axis=1)
+    ends = jnp.concatenate([cuts, jnp.full((k, 1), np.pi, dtype)], axis=1)
 
     # Which pieces bound the union. Circle k lies inside a crossing disk j on
     # exactly the arc base_j -/+ half_j, whose ends are cut points, so testing
@@ -142,22 +217,21 @@ def union_deficit(
     # even for slivers at near-tangency (a distance test there could drop one
     # side of a sliver, an O(length) error in a contour integral).
     mid = 0.5 * (starts + ends)
-    off = jnp.abs(jnp.mod(mid[:, :, None] - rel[:, None, :] + np.pi, _TWO_PI) - np.pi)
+    off = jnp.abs(wrap_angle(mid[:, :, None] - base[:, None, :]))
     inside_arc = off < half[:, None, :]
     in_star = jnp.where(crosses[:, None, -1], inside_arc[:, :, -1], on_star[:, None])
     covered = jnp.where(crosses[:, None, :-1], inside_arc[:, :, :-1], nested_planet[:, None, :])
-    keep = in_star & ~jnp.any(covered, axis=-1) & active[:, None] & (ends > starts)
+    keep = in_star & ~jnp.any(covered, axis=-1) & (active & ~is_limb)[:, None] & (ends > starts)
 
     # Every piece gets nodes clustered like u^4 at both ends: at a limb
     # crossing (and at a planet-planet crossing that lies near the limb) the
     # intensity's mu^q branch point sits at the end of the piece.
-    span = ends - starts
-    pd = (r * d)[:, None, None]
-    p2 = (r * r)[:, None, None]
-    c0 = p2 + (d * d)[:, None, None]
-    # pieces end at the far (0, 2 pi) and near (pi) points: spans <= pi
-    pieces = node_sum(clustered_rule(order), lambda u: _circle_term(g, _arc_cos(starts, span, u), pd, c0, p2), dtype) * span
-    planet_part = jnp.sum(jnp.where(keep, pieces, 0.0))
+    dm = d - r
+    vals, moments = _arc_integrals(
+        g, intensity, starts, ends - starts, (dm * dm)[:, None], (r * d)[:, None], (-r * dm)[:, None],
+        clustered_rule(order), dtype, shape,
+    )
+    planet_part = jnp.sum(jnp.where(keep, vals, 0.0))
 
     # ---- stellar limb: arcs inside some disk contribute Phi(1) d(angle) ------
     lbase, lhalf, lcross, star_in_disk = circle_intersection_angles(0.0, 0.0, 1.0, x, y, r)
@@ -172,34 +246,183 @@ def union_deficit(
     in_disk = jnp.where(lcross, loff < lhalf, star_in_disk & active)
     limb_angle = jnp.sum(jnp.where(jnp.any(in_disk, axis=-1), lend - lstart, 0.0))
 
-    return planet_part + phi1 * limb_angle
+    bad = _bad_input(x, y, r)
+    value = jnp.where(bad, jnp.nan, planet_part + phi1 * limb_angle)
+    if not shape:
+        return value, None
+    # Shape derivative: moving disk k moves only its kept arcs, each point
+    # with the disk's velocity, so dF = sum over its arcs of I (v . n) ds with
+    # n = e cos tau + e_perp sin tau, ds = p dtau. No term comes from where
+    # the arcs end, so nothing depends on how slivers at triple points or at
+    # crossings on the limb were classified.
+    ic, is_, i0 = (jnp.sum(jnp.where(keep, m, 0.0), axis=-1) for m in moments)
+    r = jnp.where(bad, jnp.nan, r)  # bad input: NaN derivatives as well
+    return value, (r * (ex * ic - ey * is_), r * (ey * ic + ex * is_), r * i0)
+
+
+def _is_zero(t) -> bool:
+    return isinstance(t, jax.custom_derivatives.SymbolicZero)
+
+
+def _instantiate(t, like):
+    return jnp.zeros(jnp.shape(like), jnp.result_type(like)) if _is_zero(t) else t
+
+
+def _shape_jvp(parts, n_geom: int, primals, tangents):
+    """JVP from ``parts(*geometry, phi1, consts) -> (value, shape derivatives)``:
+    the geometric tangents by the shape derivatives, the profile's (phi1 and
+    the radial kernel's constants) by forward differentiation with the
+    geometry held fixed (the domain does not move)."""
+    geom, (phi1, consts) = primals[:n_geom], primals[n_geom:]
+    tgeom, (tphi, tconsts) = tangents[:n_geom], tangents[n_geom:]
+    diff = [i for i, c in enumerate(consts) if jnp.issubdtype(jnp.result_type(c), jnp.inexact)]
+
+    def f(phi1, dconsts):
+        full = list(consts)
+        for i, c in zip(diff, dconsts):
+            full[i] = c
+        return parts(*geom, phi1, full)
+
+    dconsts = [consts[i] for i in diff]
+    if _is_zero(tphi) and all(_is_zero(tconsts[i]) for i in diff):
+        value, derivs = f(phi1, dconsts)
+        dvalue = jnp.zeros_like(value)
+    else:
+        value, dvalue, derivs = jax.jvp(
+            f, (phi1, dconsts), (_instantiate(tphi, phi1), [_instantiate(tconsts[i], consts[i]) for i in diff]), has_aux=True
+        )
+    for t, dv in zip(tgeom, derivs):
+        if not _is_zero(t):
+            dvalue = dvalue + jnp.sum(dv * t)
+    return value, dvalue.astype(value.dtype)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
+def _union_core(order, g_fn, i_fn, x, y, r, phi1, consts):
+    g_consts, i_consts = consts
+    return _union_parts(x, y, r, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), phi1, order, False)[0]
+
+
+@_union_core.defjvp
+def _union_core_jvp(order, g_fn, i_fn, primals, tangents):
+    x, y, r, phi1, (g_consts, i_consts) = primals
+    _, _, _, tphi, (tg, _) = tangents
+
+    def parts(x, y, r, phi1, g_consts):
+        return _union_parts(x, y, r, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), phi1, order, True)
+
+    return _shape_jvp(parts, 3, (x, y, r, phi1, list(g_consts)), tuple(tangents[:3]) + (tphi, list(tg)))
+
+
+def _convert(fn: Callable[[Array], Array], shape, dtype):
+    """fn with the arrays it closes over made explicit (``jax.closure_convert``,
+    for a custom JVP), for arguments of the given shape."""
+    return jax.closure_convert(fn, jnp.zeros(shape, dtype))
+
+
+def union_deficit(
+    x: Float[Array, " disk"],
+    y: Float[Array, " disk"],
+    r: Float[Array, " disk"],
+    g: Callable[[Array], Array],
+    phi1: Array,
+    order: int = 24,
+    intensity: Callable[[Array], Array] | None = None,
+) -> Array:
+    """Integral of I over (union of disks) intersected with the unit disk.
+
+    Args:
+        x, y, r: centres and radii of the K disks [R*], one frame.
+        g: s -> Phi(sqrt(s)) / s for s = r^2 in [0, 1] (``jaxppo.core.intensity``).
+        phi1: Phi(1) = F0 / (2 pi).
+        order: Gauss-Legendre nodes per arc piece.
+        intensity: s -> I at r^2 = s, for the derivatives (default: from g).
+
+    Returns:
+        The occulted flux in the units of F0 (divide by F0 for a relative
+        deficit); NaN when an input is not finite or a radius is negative.
+
+    Derivatives with respect to the disks are the shape derivatives (each
+    disk's arcs on the boundary of the region, moving with it): exact where
+    the flux is differentiable, triple points and crossings on the limb
+    included, and free of the cut points' own derivatives.
+    """
+    dtype = float_dtype(x, y, r)
+    x, y, r = (jnp.asarray(v, dtype) for v in (x, y, r))
+    k = x.shape[-1]
+    if intensity is None:
+        intensity = _intensity_from_g(g)
+    shape = (k, 2 * k + 2, order)
+    g_fn, g_consts = _convert(g, shape, dtype)
+    i_fn, i_consts = _convert(intensity, shape, dtype)
+    return _union_core(order, g_fn, i_fn, x, y, r, phi1, (tuple(g_consts), tuple(i_consts)))
+
+
+def _disk_parts(d, p, g, intensity, phi1, order: int, shape: bool):
+    """One disk's deficit (see ``disk_deficit``), with ``shape`` its shape
+    derivatives (dF/dd, dF/dp)."""
+    dtype = d.dtype
+    # Half-widths of the planet's arc on the star, about its near point, and of
+    # the limb's arc inside the planet.
+    h_p, crosses, on_star = crossing_half_width(p, d, 1.0)
+    h_s, _, covers = crossing_half_width(1.0, d, p)
+    inside = (on_star | crosses) & ~covers
+    span = jnp.where(crosses, h_p, np.pi)
+    dm = d - p
+    # the arc [-h, h] is symmetric about the near point: twice [0, h]
+    vals, moments = _arc_integrals(
+        g, intensity, jnp.zeros_like(span), span, dm * dm, p * d, -p * dm, clustered_rule(order), dtype, shape
+    )
+    limb = jnp.where(crosses, 2.0 * h_s, 0.0)
+    out = jnp.where(inside, 2.0 * vals + phi1 * limb, 0.0)
+    out = jnp.where(covers, 2.0 * np.pi * phi1, out)
+    bad = _bad_input(d, p)
+    out = jnp.where(bad, jnp.nan, out)
+    if not shape:
+        return out, None
+    ic, _, i0 = moments
+    # e points at the stellar centre: moving away from it is -e
+    p2 = jnp.where(bad, jnp.nan, 2.0 * p)
+    return out, (jnp.where(inside, -p2 * ic, 0.0 * p2), jnp.where(inside, p2 * i0, 0.0 * p2))
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
+def _disk_core(order, g_fn, i_fn, d, p, phi1, consts):
+    g_consts, i_consts = consts
+    return _disk_parts(d, p, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), phi1, order, False)[0]
+
+
+@_disk_core.defjvp
+def _disk_core_jvp(order, g_fn, i_fn, primals, tangents):
+    d, p, phi1, (g_consts, i_consts) = primals
+    _, _, tphi, (tg, _) = tangents
+
+    def parts(d, p, phi1, g_consts):
+        return _disk_parts(d, p, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), phi1, order, True)
+
+    return _shape_jvp(parts, 2, (d, p, phi1, list(g_consts)), tuple(tangents[:2]) + (tphi, list(tg)))
 
 
 def disk_deficit(
-    d: Array, p: Array, g: Callable[[Array], Array], phi1: Array, order: int = 24
+    d: Array, p: Array, g: Callable[[Array], Array], phi1: Array, order: int = 24,
+    intensity: Callable[[Array], Array] | None = None,
 ) -> Array:
     """Occulted flux of one disk of radius ``p`` whose centre is ``d`` from the
-    stellar centre (a single-disk scene depends on nothing else).
+    stellar centre (a single-disk scene depends on nothing else), one disk.
 
-    The circle's integrand depends on the angle t from its far point only
-    through cos t, so the arc inside the star, [t_c, 2 pi - t_c], is twice
-    [t_c, pi]: one mapped Gauss-Legendre piece, clustered at the limb crossing
-    t_c and at the near point pi.
+    The circle's arc on the star is symmetric about its near point: it is
+    twice the arc [0, h] from the near point to the limb crossing (h = pi for
+    a disk wholly on the star), one mapped Gauss-Legendre piece clustered at
+    both ends. Derivatives are the shape derivatives (see ``union_deficit``).
     """
     dtype = float_dtype(d, p)
     d, p = jnp.asarray(d, dtype), jnp.asarray(p, dtype)
-    # Limb crossing seen from the planet's centre (angle from the far point,
-    # i.e. from the direction away from the star) and from the star's centre.
-    _, half_p, crosses, on_star = circle_intersection_angles(d, 0.0, p, 0.0, 0.0, 1.0)
-    _, half_s, _, covers = circle_intersection_angles(0.0, 0.0, 1.0, d, 0.0, p)
-    t_c = jnp.where(crosses, np.pi - half_p, 0.0)
-    inside = on_star | crosses
-    span = np.pi - t_c
-    pd, c0, p2 = (p * d)[..., None], (d * d + p * p)[..., None], (p * p)[..., None]
-    arc = 2.0 * span * node_sum(clustered_rule(order), lambda u: _circle_term(g, _arc_cos(t_c, span, u), pd, c0, p2), dtype)
-    limb = jnp.where(crosses, 2.0 * half_s, 0.0)
-    out = jnp.where(inside & ~covers, arc + phi1 * limb, 0.0)
-    return jnp.where(covers, 2.0 * np.pi * phi1, out)
+    if intensity is None:
+        intensity = _intensity_from_g(g)
+    shape = (order,)
+    g_fn, g_consts = _convert(g, shape, dtype)
+    i_fn, i_consts = _convert(intensity, shape, dtype)
+    return _disk_core(order, g_fn, i_fn, d, p, phi1, (tuple(g_consts), tuple(i_consts)))
 
 
 # A disk with 1 - d - p >= INNER_MARGIN * p is far enough from the limb that
@@ -271,7 +494,7 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     length 2): the smaller, over the two lens arcs, Bernstein-ellipse parameter
     rho of the integrand's branch point s = 1 (the stellar limb) seen from the
     arc; n nodes err like rho^(-2n). 1 where the lens reaches the limb or
-    lies off the star, or the disks do not cross.
+    lies off the star, the disks do not cross, or one is larger than the star.
 
     On circle A (centre at distance d, radius p) s = 1 where
     cos(t - phi_A) = c = (1 - d^2 - p^2) / (2 p d), phi_A the direction of A's
@@ -317,4 +540,8 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     cos_term = (r[..., 0] - r[..., 1]) * (r[..., 0] + r[..., 1]) + delta2
     kx = x[..., 0] + scale * (dx * cos_term - dy * sq)
     ky = y[..., 0] + scale * (dy * cos_term + dx * sq)
-    return jnp.where(crosses & (kx * kx + ky * ky < 1.0), rho, 1.0)
+    # The lens rule parametrises arcs by their cosine about the far point,
+    # which loses ~R^2 eps for a disk of radius R >> 1: lenses of disks larger
+    # than the star take the union integral (arcs from the near point).
+    small = jnp.maximum(r[..., 0], r[..., 1]) <= 1.0
+    return jnp.where(crosses & small & (kx * kx + ky * ky < 1.0), rho, 1.0)
