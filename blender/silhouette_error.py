@@ -35,7 +35,7 @@ def dr(theta, r, n):
     return apothem / np.cos(local) - r
 
 
-def planet_outline_error(p, n, d, psi, m=200_000):
+def planet_outline_error(p, n, d, psi, m=40_000):
     th = np.linspace(0.0, 2 * np.pi, m, endpoint=False)
     x, y = d + p * np.cos(th), p * np.sin(th)
     on = x * x + y * y < 1.0
@@ -43,7 +43,7 @@ def planet_outline_error(p, n, d, psi, m=200_000):
     return float(np.sum(w) * p * (2 * np.pi / m) / F0)
 
 
-def star_outline_error(p, n, d, psi, m=400_000):
+def star_outline_error(p, n, d, psi, m=40_000):
     """Limb arc covered by a planet of radius p at distance d: the star's polygon
     adds or removes area there that the unocculted frame counted."""
     if d + p <= 1.0 or d - p >= 1.0:
