@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._lightcurve import _ROLES, LightCurve
+from ._lightcurve import _ROLES, LightCurve, quality_bitmask
 from ._phoenix import data_path, phoenix_star
 from ._star import Star
 from ._system import CASES, Planet, System
@@ -69,7 +69,7 @@ STAR_KEYS = {
     "phoenix": ("law", "path", "limb"),
 }
 PLANET_KEYS = ("name",) + _PLANET_FIELDS + ("tilted",)
-DATA_KEYS = ("path", "columns", "exposure")
+DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits")
 
@@ -156,6 +156,12 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             exposure = float(exposure)
         except (TypeError, ValueError):
             raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}") from None
+    bitmask = data.get("quality_bitmask", "default")
+    mission = data.get("mission")
+    try:
+        quality_bitmask(bitmask, mission)
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from None
     parts = []
     for p in paths:
         dpath = Path(p)
@@ -163,14 +169,19 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             dpath = base / dpath
         if not dpath.exists():
             raise _err(source, f"[data] file not found: {dpath}")
+        if dpath.is_dir():
+            raise _err(source, f"[data] path is a folder, not a file: {dpath}")
         try:
             if _is_fits(dpath):
                 bad = sorted(set(columns) - {"flux"})
                 if bad:
-                    raise ValueError(f"columns.{bad[0]} is not used for Kepler FITS files (only columns.flux, e.g. 'SAP_FLUX')")
-                lc = LightCurve.from_kepler_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper())
+                    raise ValueError(f"columns.{bad[0]} is not used for Kepler / TESS FITS files (only columns.flux, "
+                                     "e.g. 'SAP_FLUX')")
+                lc = LightCurve.from_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper(),
+                                          quality_bitmask=bitmask, mission=mission)
             else:
-                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns)
+                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns, quality_bitmask=bitmask,
+                                         mission=mission)
         except ValueError as e:
             raise _err(source, f"[data] {e}") from e
         parts.append(lc)
@@ -326,6 +337,12 @@ exposure = 0.0204335982
 # CSV column names, when they are not the usual ones (quarter: each quarter
 # divided by its own median; no flux_err column: errors from the scatter)
 # columns = {{time = "time_bkjd", flux = "pdcsap_flux", flux_err = "pdcsap_flux_err", quality = "sap_quality", quarter = "quarter"}}
+# quality flags: a point is dropped when quality & bitmask != 0; "default"
+# (the mission's recommended set: only cadences it calls unusable), "hard",
+# "hardest" (every flag), "none" or an integer bitmask (docs/config.md lists the bits)
+quality_bitmask = "default"
+# mission = "kepler"   # "kepler" or "tess": the meaning of a CSV file's quality bits
+#                      # (FITS files: from TELESCOP; a CSV without it: every flag drops the point)
 
 [scan]
 alpha = [0.0, 360.0, 1.0]      # [deg] start, stop, step; must span 360 deg, step dividing 360
