@@ -344,6 +344,38 @@ class ScanResult(dict):
 _TABLE_DTYPE = [("case", "U8"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
 
 
+def _write_ecsv(path: Path, table: np.ndarray, cfg, digest: str, chi2_0: dict, points: int, step: float) -> None:
+    """scan.ecsv: the rows of scan.csv as an astropy Table with units and
+    the provenance in its metadata (config digest and source, jaxppo
+    version, cases, alpha grid, chi2_0, number of points), written
+    atomically. ``astropy.table.Table.read(path)`` gives it back with units."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    from . import __version__
+
+    t = Table()
+    t["case"] = table["case"]
+    t["alpha"] = table["alpha"] * u.deg
+    t["chi2"] = table["chi2"]
+    t["delta_chi2"] = table["delta_chi2"]
+    t["posterior"] = table["posterior"] / u.deg
+    t["alpha"].description = "tilt of the tilted planet's orbit about the line of sight (Mueller et al. 2021, Sect. 2.1)"
+    t["chi2"].description = "chi^2 of the multi-transit windows at this alpha"
+    t["delta_chi2"].description = "chi^2 - chi2_0 (chi2_0: median over the alphas without any PPO)"
+    t["posterior"].description = "p(alpha | D) ~ exp(-delta_chi2 / 2), uniform prior, normalised over [0, 360) deg"
+    t.meta.update({
+        "jaxppo_version": __version__, "config_digest": digest, "config": cfg.source, "cases": list(cfg.cases),
+        "alpha_grid_deg": {"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
+        "chi2_0": {c: float(v) for c, v in chi2_0.items()}, "points": points,
+        "tilted_planet": cfg.system.planets[cfg.system.tilted].name,
+        "exposure_days": cfg.lightcurve.exposure,
+    })
+    tmp = path.with_name(path.name + ".tmp")
+    t.write(tmp, format="ascii.ecsv", overwrite=True)
+    os.replace(tmp, path)
+
+
 def _record_line(rec: dict) -> str:
     """One progress record as a JSON line with its checksum: sha256 of the
     canonical JSON of the other fields (floats written exactly by repr)."""
@@ -431,7 +463,7 @@ def _clear_outputs(out: Path) -> None:
             figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
-    names = ["summary.json", "scan.csv"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    names = ["summary.json", "scan.csv", "scan.ecsv"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
     for name in dict.fromkeys(names):
         p = out / name
         if p.is_file():
@@ -520,6 +552,9 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
             table.append((case, float(a), float(c2), float(dc), float(p)))
     _atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
+    table_arr = np.array(table, dtype=_TABLE_DTYPE)
+    _write_ecsv(out / "scan.ecsv", table_arr, cfg, digest, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
+                int(data.time.size), step)
     result = ScanResult(
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases},
@@ -529,8 +564,9 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
         tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
+        data={"loaded": lc.report_line(), "report": lc.report},
     )
-    result.table = np.array(table, dtype=_TABLE_DTYPE)
+    result.table = table_arr
     result.windows = windows
     if figures:
         from ._figures import scan_figures
