@@ -17,7 +17,7 @@ from ._phoenix import data_path, phoenix_star
 from ._star import Star
 from ._system import CASES, Planet, System
 
-__all__ = ["ScanConfig", "check_alpha_grid", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
+__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "config_from_dict", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 
@@ -46,6 +46,7 @@ class ScanConfig:
     baseline: float = 0.3
     clip: float | None = 5.0
     events: tuple | None = None
+    base: str | None = None  # the absolute folder of the config file (relative paths start there)
 
     @property
     def digest(self) -> str:
@@ -131,6 +132,32 @@ def check_alpha_grid(alpha) -> float:
     return step
 
 
+def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
+    """The tilt grid [deg] of ``[start, stop, step]`` (stop exclusive),
+    checked by :func:`check_alpha_grid`; errors name ``name`` (the config key
+    or the command-line option)."""
+    if isinstance(grid, (str, bytes)) or not hasattr(grid, "__len__") or len(grid) != 3:
+        raise ValueError(f"{name} must be [start, stop, step] in degrees, got {grid!r}")
+    try:
+        if any(isinstance(v, bool) for v in grid):
+            raise TypeError
+        start, stop, step = (float(v) for v in grid)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers [start, stop, step] in degrees, got {list(grid)!r}") from None
+    if not all(np.isfinite(v) for v in (start, stop, step)):
+        raise ValueError(f"{name} must be finite, got {list(grid)!r}")
+    if not step > 0:
+        raise ValueError(f"{name} step must be > 0, got {step:g}")
+    alpha = np.arange(start, stop, step)
+    if alpha.size == 0:
+        raise ValueError(f"{name} grid [{start:g}, {stop:g}) with step {step:g} is empty")
+    try:
+        check_alpha_grid(alpha)
+    except ValueError as e:
+        raise ValueError(f"{name} = [{start:g}, {stop:g}, {step:g}]: {e}") from None
+    return alpha
+
+
 def _is_fits(p: Path) -> bool:
     name = p.name.lower()
     return p.suffix.lower() in (".fits", ".fit", ".fz") or name.endswith((".fits.gz", ".fit.gz"))
@@ -194,17 +221,39 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
     return lc
 
 
-def load_config(path: str | Path | None = None) -> ScanConfig:
-    """Read and check a scan config; ``None`` gives the bundled default."""
+def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
+    """Read and check a scan config; ``None`` gives the bundled default.
+
+    ``alpha``: ``[start, stop, step]`` [deg] replacing ``[scan] alpha`` (the
+    command line's ``--alpha``); checked the same way, and part of the digest."""
     path = Path(path) if path is not None else default_config_path()
     source = str(path)
     if not path.exists():
         raise ValueError(f"config file not found: {path}")
+    if path.is_dir():
+        raise ValueError(f"config {path} is a folder, not a TOML file")
     try:
         raw = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{source}: not valid TOML: {e}") from e
-    base = path.parent
+    if alpha is not None:
+        new = [float(v) for v in alpha]
+        try:
+            same = [float(v) for v in raw["scan"]["alpha"]] == new
+        except (KeyError, TypeError, ValueError):
+            same = False
+        # the same grid written differently (ints) keeps the digest, so a
+        # finished scan is still recognised
+        if isinstance(raw.get("scan"), dict) and not same:
+            raw["scan"] = dict(raw["scan"], alpha=new)
+    # absolute: the saved config.json (jaxppo plot) works from any folder
+    return config_from_dict(raw, path.resolve().parent, source)
+
+
+def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
+    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
+    paths are relative to the folder ``base``."""
+    base = Path(base)
     _check_keys(raw, SECTIONS, "top level (sections)", source)
     for sec in ("star", "data", "scan"):
         if sec in raw and not isinstance(raw[sec], dict):
@@ -241,19 +290,10 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
 
     scan = raw["scan"]
     _check_keys(scan, SCAN_KEYS, "[scan]", source)
-    grid = scan.get("alpha", [0.0, 360.0, 1.0])
-    if not (isinstance(grid, list) and len(grid) == 3):
-        raise _err(source, f"[scan] alpha must be [start, stop, step] in degrees, got {grid!r}")
-    start, stop, step = (float(v) for v in grid)
-    if not step > 0:
-        raise _err(source, f"[scan] alpha step must be > 0, got {step}")
-    alpha = np.arange(start, stop, step)
-    if alpha.size == 0:
-        raise _err(source, f"[scan] alpha grid [{start}, {stop}) with step {step} is empty")
     try:
-        check_alpha_grid(alpha)
+        alpha = alpha_grid(scan.get("alpha", [0.0, 360.0, 1.0]), "[scan] alpha")
     except ValueError as e:
-        raise _err(source, f"[scan] alpha = {grid!r}: {e}") from None
+        raise _err(source, str(e)) from None
     cases = tuple(scan.get("cases", list(CASES)))
     if not cases:
         raise _err(source, "[scan] cases must not be empty")
@@ -285,7 +325,7 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
             raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
         events = tuple(float(v) for v in events)
     return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
-                      None if clip is None else float(clip), events)
+                      None if clip is None else float(clip), events, str(base))
 
 
 def config_template() -> str:

@@ -329,6 +329,7 @@ class LightCurve:
         if q is None:
             flagged = np.zeros(t.size, bool)
             flags_kept = 0
+            mask_name = "none: no quality column"
         else:
             qf = np.asarray(q, float)
             qnan = ~np.isfinite(qf)

@@ -475,8 +475,43 @@ def _clear_outputs(out: Path) -> None:
 _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
+def _finished_result(out: Path, cfg: ScanConfig, digest: str, figures: bool):
+    """The stored result of a scan that already finished in ``out`` with this
+    config (same digest, every output present, figures when asked for), or
+    None. A rerun then recomputes and redraws nothing."""
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+        if summary.get("config_digest") != digest or set(summary.get("chi2_0", {})) != set(cfg.cases):
+            return None
+        if not (out / "scan.ecsv").is_file():
+            return None
+        if figures and not (summary.get("figures") and all((out / Path(f).name).is_file() for f in summary["figures"])):
+            return None
+        with open(out / "scan.csv") as fh:
+            lines = fh.read().splitlines()
+        if lines[0] != "case,alpha,chi2,delta_chi2,posterior":
+            return None
+        rows = [ln.split(",") for ln in lines[1:] if ln]
+        table = np.array([(r[0], float(r[1]), float(r[2]), float(r[3]), float(r[4])) for r in rows], dtype=_TABLE_DTYPE)
+    except (OSError, ValueError, IndexError, AttributeError, TypeError):
+        return None
+    expect = [(c, float(a)) for c in cfg.cases for a in cfg.alpha]
+    if [(str(c), float(a)) for c, a in zip(table["case"], table["alpha"])] != [(c, float(f"{a:.10g}")) for c, a in expect]:
+        return None
+    result = ScanResult(summary)
+    result.table = table
+    result.windows = _scan_windows(cfg)[0]
+    n = len(expect)
+    result["resumed"] = {"alphas_done_before": n, "alphas_total": n, "finished_before": True}
+    result["progress_notes"] = []
+    return result
+
+
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True, figures: bool = True) -> ScanResult:
-    """Run (or resume) the scan and write scan.csv, summary.json and figures."""
+    """Run (or resume) the scan and write scan.csv, scan.ecsv, summary.json
+    and figures. A scan that already finished in ``out`` with the same config
+    is returned as stored (``result["resumed"]["finished_before"]``): nothing
+    is recomputed or redrawn."""
     from tqdm import tqdm
 
     out = Path(out)
@@ -492,8 +527,16 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         warnings.warn(note, stacklevel=2)
     if not prog_path.exists():
         _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
-    # keep the config next to the results (jaxppo plot re-reads it)
-    _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "config": cfg.raw}, indent=2, default=str))
+    # keep the config next to the results: jaxppo plot rebuilds it from here
+    # (relative paths resolved against the absolute ``base``), from any folder
+    _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "base": cfg.base,
+                                                   "config": cfg.raw}, indent=2, default=str))
+    n_total = len(cfg.cases) * cfg.alpha.size
+    n_before = sum((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
+    if n_before == n_total and not notes:
+        stored = _finished_result(out, cfg, digest, figures)
+        if stored is not None:
+            return stored
 
     windows, skipped = _scan_windows(cfg)
     data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
@@ -565,6 +608,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
         tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
         data={"loaded": lc.report_line(), "report": lc.report},
+        resumed={"alphas_done_before": n_before, "alphas_total": n_total, "finished_before": False},
     )
     result.table = table_arr
     result.windows = windows
