@@ -28,7 +28,7 @@ import numpy as np
 
 from ._config import ScanConfig
 from ._sweep import sweep
-from ._lightcurve import LightCurve
+from ._lightcurve import LightCurve, _is_lightkurve
 from ._system import MultiTransit, multi_transits
 
 __all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
@@ -634,7 +634,8 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
     Args:
         system: :class:`System` (``system.tilted`` is rotated by alpha), or a
             :class:`ScanConfig` from :func:`load_config`.
-        lightcurve: :class:`LightCurve` (not with a config).
+        lightcurve: :class:`LightCurve`, or a lightkurve ``LightCurve``
+            (converted by :meth:`LightCurve.from_lightkurve`); not with a config.
         alpha: tilt grid [deg]; evenly spaced over 360 deg with a step that
             divides 360 (default 0, 1, ..., 359).
         cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
@@ -671,8 +672,12 @@ def _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, cl
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    if _is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
+        # a lightkurve LightCurve: its default quality bitmask, flux divided
+        # by its median, exposure from TIMEDEL; the drops are in the report
+        lightcurve = LightCurve.from_lightkurve(lightcurve)
     if not isinstance(lightcurve, LightCurve):
-        raise ValueError(f"lightcurve must be a jaxppo.LightCurve, got {type(lightcurve).__name__}")
+        raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got {type(lightcurve).__name__}")
     alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
     cases = (cases,) if isinstance(cases, str) else tuple(cases)
     if not cases or any(c not in CASES for c in cases):

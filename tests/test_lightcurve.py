@@ -168,6 +168,12 @@ def test_from_lightkurve(tmp_path):
     np.testing.assert_allclose(sap.flux, ref.flux * 1.1 / np.median(ref.flux * 1.1) * np.median(ref.flux), rtol=1e-12)
     with pytest.raises(ValueError, match="flux_column 'kspsap_flux' is not a column"):
         jp.LightCurve.from_lightkurve(raw, flux_column="kspsap_flux")
+    # jp.scan takes the lightkurve object directly
+    from jaxppo._scan import _config_from
+
+    cfg = _config_from(jp.kepler20_system(), raw, None, ("same",), 0.05, 2, 0.3, 5.0, None, 60)
+    np.testing.assert_array_equal(cfg.lightcurve.time, ref.time)
+    assert cfg.lightcurve.report["flagged"] == 2
 
 
 def test_astropy_time_and_quantity_columns():
