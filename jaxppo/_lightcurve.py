@@ -206,6 +206,14 @@ def _flux_values(f, e, normalize):
     return fv, ev, normalize
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _diff_sigma(f: np.ndarray) -> float:
     """Robust white-noise sigma from successive differences: 1.4826 x the
     median absolute deviation of diff(f), / sqrt(2). Slow trends and a few
@@ -482,15 +490,28 @@ class LightCurve:
         unknown = sorted(set(columns) - set(_ROLES))
         if unknown:
             raise ValueError(f"columns: unknown role {unknown[0]!r}; roles are {list(_ROLES)}")
+        from astropy.io.ascii import InconsistentTableError
+        from astropy.table import Table
+
         try:
             opener = gzip.open if path.name.lower().endswith(".gz") else open
             with opener(path, "rt", newline="") as fh:
-                rows = list(csv.reader(row for row in fh if not row.lstrip().startswith("#")))
+                text = fh.read()
         except (OSError, UnicodeDecodeError, EOFError) as err:
             raise ValueError(f"cannot read {path}: {err}") from err
-        if len(rows) < 2:
+        if not text.strip():
             raise ValueError(f"{path}: needs a header and at least one row")
-        header = [h.strip().lower() for h in rows[0]]
+        try:
+            # astropy's CSV reader ('#' comment lines; empty cells masked,
+            # read as NaN below so that they are counted as dropped); given
+            # the text, because its fast reader does not decompress gzip
+            tab = Table.read(text, format="ascii.csv", comment="#", guess=False)
+        except (InconsistentTableError, ValueError) as err:
+            raise ValueError(f"cannot read {path}: {' '.join(str(err).split())[:300]}") from err
+        if len(tab) < 1:
+            raise ValueError(f"{path}: needs a header and at least one row")
+        names = list(tab.colnames)
+        header = [h.strip().lower() for h in names]
 
         def col(role, required=True):
             if role in columns:
@@ -507,14 +528,16 @@ class LightCurve:
             return None
 
         idx = {r: col(r, r in ("time", "flux")) for r in _ROLES}
-        body = [r for r in rows[1:] if r]
 
         def read(role):
-            i = idx[role]
+            c = tab[names[idx[role]]]
             try:
-                return np.array([float(r[i]) if r[i].strip() else np.nan for r in body])
-            except (ValueError, IndexError) as err:
-                raise ValueError(f"{path}: unreadable row in column {header[i]!r} ({err})") from err
+                return np.ma.filled(np.ma.asarray(c, dtype=float), np.nan)
+            except (ValueError, TypeError):
+                vals = np.asarray(np.ma.filled(np.ma.asarray(c).astype(str), ""))
+                bad = next(v for v in vals if v.strip() and not _is_number(v))
+                row = int(np.nonzero(vals == bad)[0][0]) + 1
+                raise ValueError(f"{path}: unreadable row {row} in column {header[idx[role]]!r}: {str(bad)!r} is not a number") from None
 
         t, f = read("time"), read("flux")
         e = None if idx["flux_err"] is None else read("flux_err")

@@ -316,3 +316,20 @@ def test_quarters_normalised_separately(tmp_path):
     np.testing.assert_allclose(both.flux, lc.flux, rtol=1e-12)
     with pytest.raises(ValueError, match="share 500 time stamps"):
         jp.LightCurve.concatenate([jp.LightCurve.from_csv(tmp_path / "q1.csv")] * 2)
+
+
+def test_csv_empty_cells_are_counted(tmp_path):
+    """Read with astropy's CSV reader: an empty flux cell is dropped as
+    non-finite, an empty quality cell as flagged, and a word where a number
+    belongs names its row and column."""
+    (tmp_path / "e.csv").write_text("# a comment line\ntime,flux,flux_err,quality\n1,1.0,0.1,0\n2,,0.1,0\n3,1.0,0.1,\n"
+                                    "4,1.02,0.1,0\n")
+    lc = jp.LightCurve.from_csv(tmp_path / "e.csv")
+    assert (lc.report["non_finite"], lc.report["flagged"], len(lc)) == (1, 1, 2)
+    np.testing.assert_array_equal(lc.time, [1.0, 4.0])
+    (tmp_path / "w.csv").write_text("time,flux\n1,1.0\n2,abc\n")
+    with pytest.raises(ValueError, match=r"unreadable row 2 in column 'flux': 'abc' is not a number"):
+        jp.LightCurve.from_csv(tmp_path / "w.csv")
+    (tmp_path / "h.csv").write_text("time,flux\n")
+    with pytest.raises(ValueError, match="needs a header and at least one row"):
+        jp.LightCurve.from_csv(tmp_path / "h.csv")
