@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ._lightcurve import _ROLES, LightCurve
+from ._lightcurve import _ROLES, LightCurve, quality_bitmask
 from ._phoenix import data_path, phoenix_star
 from ._star import Star
 from ._system import CASES, Planet, System, scan_cases
 
-__all__ = ["ScanConfig", "check_alpha_grid", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
+__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "config_from_dict", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 
@@ -46,6 +46,7 @@ class ScanConfig:
     baseline: float = 0.3
     clip: float | None = 5.0
     events: tuple | None = None
+    base: str | None = None  # the absolute folder of the config file (relative paths start there)
 
     @property
     def digest(self) -> str:
@@ -69,7 +70,7 @@ STAR_KEYS = {
     "phoenix": ("law", "path", "limb"),
 }
 PLANET_KEYS = ("name",) + _PLANET_FIELDS + ("tilted",)
-DATA_KEYS = ("path", "columns", "exposure")
+DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits")
 
@@ -131,6 +132,32 @@ def check_alpha_grid(alpha) -> float:
     return step
 
 
+def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
+    """The tilt grid [deg] of ``[start, stop, step]`` (stop exclusive),
+    checked by :func:`check_alpha_grid`; errors name ``name`` (the config key
+    or the command-line option)."""
+    if isinstance(grid, (str, bytes)) or not hasattr(grid, "__len__") or len(grid) != 3:
+        raise ValueError(f"{name} must be [start, stop, step] in degrees, got {grid!r}")
+    try:
+        if any(isinstance(v, bool) for v in grid):
+            raise TypeError
+        start, stop, step = (float(v) for v in grid)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers [start, stop, step] in degrees, got {list(grid)!r}") from None
+    if not all(np.isfinite(v) for v in (start, stop, step)):
+        raise ValueError(f"{name} must be finite, got {list(grid)!r}")
+    if not step > 0:
+        raise ValueError(f"{name} step must be > 0, got {step:g}")
+    alpha = np.arange(start, stop, step)
+    if alpha.size == 0:
+        raise ValueError(f"{name} grid [{start:g}, {stop:g}) with step {step:g} is empty")
+    try:
+        check_alpha_grid(alpha)
+    except ValueError as e:
+        raise ValueError(f"{name} = [{start:g}, {stop:g}, {step:g}]: {e}") from None
+    return alpha
+
+
 def _is_fits(p: Path) -> bool:
     name = p.name.lower()
     return p.suffix.lower() in (".fits", ".fit", ".fz") or name.endswith((".fits.gz", ".fit.gz"))
@@ -156,6 +183,12 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             exposure = float(exposure)
         except (TypeError, ValueError):
             raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}") from None
+    bitmask = data.get("quality_bitmask", "default")
+    mission = data.get("mission")
+    try:
+        quality_bitmask(bitmask, mission)
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from None
     parts = []
     for p in paths:
         dpath = Path(p)
@@ -163,14 +196,19 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             dpath = base / dpath
         if not dpath.exists():
             raise _err(source, f"[data] file not found: {dpath}")
+        if dpath.is_dir():
+            raise _err(source, f"[data] path is a folder, not a file: {dpath}")
         try:
             if _is_fits(dpath):
                 bad = sorted(set(columns) - {"flux"})
                 if bad:
-                    raise ValueError(f"columns.{bad[0]} is not used for Kepler FITS files (only columns.flux, e.g. 'SAP_FLUX')")
-                lc = LightCurve.from_kepler_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper())
+                    raise ValueError(f"columns.{bad[0]} is not used for Kepler / TESS FITS files (only columns.flux, "
+                                     "e.g. 'SAP_FLUX')")
+                lc = LightCurve.from_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper(),
+                                          quality_bitmask=bitmask, mission=mission)
             else:
-                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns)
+                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns, quality_bitmask=bitmask,
+                                         mission=mission)
         except ValueError as e:
             raise _err(source, f"[data] {e}") from e
         parts.append(lc)
@@ -183,17 +221,39 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
     return lc
 
 
-def load_config(path: str | Path | None = None) -> ScanConfig:
-    """Read and check a scan config; ``None`` gives the bundled default."""
+def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
+    """Read and check a scan config; ``None`` gives the bundled default.
+
+    ``alpha``: ``[start, stop, step]`` [deg] replacing ``[scan] alpha`` (the
+    command line's ``--alpha``); checked the same way, and part of the digest."""
     path = Path(path) if path is not None else default_config_path()
     source = str(path)
     if not path.exists():
         raise ValueError(f"config file not found: {path}")
+    if path.is_dir():
+        raise ValueError(f"config {path} is a folder, not a TOML file")
     try:
         raw = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{source}: not valid TOML: {e}") from e
-    base = path.parent
+    if alpha is not None:
+        new = [float(v) for v in alpha]
+        try:
+            same = [float(v) for v in raw["scan"]["alpha"]] == new
+        except (KeyError, TypeError, ValueError):
+            same = False
+        # the same grid written differently (ints) keeps the digest, so a
+        # finished scan is still recognised
+        if isinstance(raw.get("scan"), dict) and not same:
+            raw["scan"] = dict(raw["scan"], alpha=new)
+    # absolute: the saved config.json (jaxppo plot) works from any folder
+    return config_from_dict(raw, path.resolve().parent, source)
+
+
+def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
+    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
+    paths are relative to the folder ``base``."""
+    base = Path(base)
     _check_keys(raw, SECTIONS, "top level (sections)", source)
     for sec in ("star", "data", "scan"):
         if sec in raw and not isinstance(raw[sec], dict):
@@ -230,19 +290,10 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
 
     scan = raw["scan"]
     _check_keys(scan, SCAN_KEYS, "[scan]", source)
-    grid = scan.get("alpha", [0.0, 360.0, 1.0])
-    if not (isinstance(grid, list) and len(grid) == 3):
-        raise _err(source, f"[scan] alpha must be [start, stop, step] in degrees, got {grid!r}")
-    start, stop, step = (float(v) for v in grid)
-    if not step > 0:
-        raise _err(source, f"[scan] alpha step must be > 0, got {step}")
-    alpha = np.arange(start, stop, step)
-    if alpha.size == 0:
-        raise _err(source, f"[scan] alpha grid [{start}, {stop}) with step {step} is empty")
     try:
-        check_alpha_grid(alpha)
+        alpha = alpha_grid(scan.get("alpha", [0.0, 360.0, 1.0]), "[scan] alpha")
     except ValueError as e:
-        raise _err(source, f"[scan] alpha = {grid!r}: {e}") from None
+        raise _err(source, str(e)) from None
     cases = scan.get("cases", list(CASES))
     try:
         cases = scan_cases(system, cases)
@@ -273,7 +324,7 @@ def load_config(path: str | Path | None = None) -> ScanConfig:
             raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
         events = tuple(float(v) for v in events)
     return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
-                      None if clip is None else float(clip), events)
+                      None if clip is None else float(clip), events, str(base))
 
 
 def config_template() -> str:
@@ -325,6 +376,12 @@ exposure = 0.0204335982
 # CSV column names, when they are not the usual ones (quarter: each quarter
 # divided by its own median; no flux_err column: errors from the scatter)
 # columns = {{time = "time_bkjd", flux = "pdcsap_flux", flux_err = "pdcsap_flux_err", quality = "sap_quality", quarter = "quarter"}}
+# quality flags: a point is dropped when quality & bitmask != 0; "default"
+# (the mission's recommended set: only cadences it calls unusable), "hard",
+# "hardest" (every flag), "none" or an integer bitmask (docs/config.md lists the bits)
+quality_bitmask = "default"
+# mission = "kepler"   # "kepler" or "tess": the meaning of a CSV file's quality bits
+#                      # (FITS files: from TELESCOP; a CSV without it: every flag drops the point)
 
 [scan]
 alpha = [0.0, 360.0, 1.0]      # [deg] start, stop, step; must span 360 deg, step dividing 360

@@ -28,7 +28,7 @@ import numpy as np
 
 from ._config import ScanConfig
 from ._sweep import sweep
-from ._lightcurve import LightCurve
+from ._lightcurve import LightCurve, _is_lightkurve
 from ._system import MultiTransit, multi_transits
 from ._tables import table5_rows, write_table5
 
@@ -352,6 +352,38 @@ class ScanResult(dict):
 _TABLE_DTYPE = [("case", "U16"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
 
 
+def _write_ecsv(path: Path, table: np.ndarray, cfg, digest: str, chi2_0: dict, points: int, step: float) -> None:
+    """scan.ecsv: the rows of scan.csv as an astropy Table with units and
+    the provenance in its metadata (config digest and source, jaxppo
+    version, cases, alpha grid, chi2_0, number of points), written
+    atomically. ``astropy.table.Table.read(path)`` gives it back with units."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    from . import __version__
+
+    t = Table()
+    t["case"] = table["case"]
+    t["alpha"] = table["alpha"] * u.deg
+    t["chi2"] = table["chi2"]
+    t["delta_chi2"] = table["delta_chi2"]
+    t["posterior"] = table["posterior"] / u.deg
+    t["alpha"].description = "tilt of the tilted planet's orbit about the line of sight (Mueller et al. 2021, Sect. 2.1)"
+    t["chi2"].description = "chi^2 of the multi-transit windows at this alpha"
+    t["delta_chi2"].description = "chi^2 - chi2_0 (chi2_0: median over the alphas without any PPO)"
+    t["posterior"].description = "p(alpha | D) ~ exp(-delta_chi2 / 2), uniform prior, normalised over [0, 360) deg"
+    t.meta.update({
+        "jaxppo_version": __version__, "config_digest": digest, "config": cfg.source, "cases": list(cfg.cases),
+        "alpha_grid_deg": {"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
+        "chi2_0": {c: float(v) for c, v in chi2_0.items()}, "points": points,
+        "tilted_planet": cfg.system.planets[cfg.system.tilted].name,
+        "exposure_days": cfg.lightcurve.exposure,
+    })
+    tmp = path.with_name(path.name + ".tmp")
+    t.write(tmp, format="ascii.ecsv", overwrite=True)
+    os.replace(tmp, path)
+
+
 def _record_line(rec: dict) -> str:
     """One progress record as a JSON line with its checksum: sha256 of the
     canonical JSON of the other fields (floats written exactly by repr)."""
@@ -439,7 +471,7 @@ def _clear_outputs(out: Path) -> None:
             figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
-    names = ["summary.json", "scan.csv"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    names = ["summary.json", "scan.csv", "scan.ecsv", "table5.csv", "table5.md"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
     for name in dict.fromkeys(names):
         p = out / name
         if p.is_file():
@@ -451,8 +483,43 @@ def _clear_outputs(out: Path) -> None:
 _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
+def _finished_result(out: Path, cfg: ScanConfig, digest: str, figures: bool):
+    """The stored result of a scan that already finished in ``out`` with this
+    config (same digest, every output present, figures when asked for), or
+    None. A rerun then recomputes and redraws nothing."""
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+        if summary.get("config_digest") != digest or set(summary.get("chi2_0", {})) != set(cfg.cases):
+            return None
+        if not all((out / n).is_file() for n in ("scan.ecsv", "table5.csv", "table5.md")) or "table5" not in summary:
+            return None
+        if figures and not (summary.get("figures") and all((out / Path(f).name).is_file() for f in summary["figures"])):
+            return None
+        with open(out / "scan.csv") as fh:
+            lines = fh.read().splitlines()
+        if lines[0] != "case,alpha,chi2,delta_chi2,posterior":
+            return None
+        rows = [ln.split(",") for ln in lines[1:] if ln]
+        table = np.array([(r[0], float(r[1]), float(r[2]), float(r[3]), float(r[4])) for r in rows], dtype=_TABLE_DTYPE)
+    except (OSError, ValueError, IndexError, AttributeError, TypeError):
+        return None
+    expect = [(c, float(a)) for c in cfg.cases for a in cfg.alpha]
+    if [(str(c), float(a)) for c, a in zip(table["case"], table["alpha"])] != [(c, float(f"{a:.10g}")) for c, a in expect]:
+        return None
+    result = ScanResult(summary)
+    result.table = table
+    result.windows = _scan_windows(cfg)[0]
+    n = len(expect)
+    result["resumed"] = {"alphas_done_before": n, "alphas_total": n, "finished_before": True}
+    result["progress_notes"] = []
+    return result
+
+
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True, figures: bool = True) -> ScanResult:
-    """Run (or resume) the scan and write scan.csv, summary.json and figures."""
+    """Run (or resume) the scan and write scan.csv, scan.ecsv, summary.json
+    and figures. A scan that already finished in ``out`` with the same config
+    is returned as stored (``result["resumed"]["finished_before"]``): nothing
+    is recomputed or redrawn."""
     from tqdm import tqdm
 
     out = Path(out)
@@ -468,8 +535,16 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         warnings.warn(note, stacklevel=2)
     if not prog_path.exists():
         _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
-    # keep the config next to the results (jaxppo plot re-reads it)
-    _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "config": cfg.raw}, indent=2, default=str))
+    # keep the config next to the results: jaxppo plot rebuilds it from here
+    # (relative paths resolved against the absolute ``base``), from any folder
+    _atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "base": cfg.base,
+                                                   "config": cfg.raw}, indent=2, default=str))
+    n_total = len(cfg.cases) * cfg.alpha.size
+    n_before = sum((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
+    if n_before == n_total and not notes:
+        stored = _finished_result(out, cfg, digest, figures)
+        if stored is not None:
+            return stored
 
     windows, skipped = _scan_windows(cfg)
     data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
@@ -528,6 +603,9 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
             table.append((case, float(a), float(c2), float(dc), float(p)))
     _atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
+    table_arr = np.array(table, dtype=_TABLE_DTYPE)
+    _write_ecsv(out / "scan.ecsv", table_arr, cfg, digest, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
+                int(data.time.size), step)
     result = ScanResult(
         config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases},
@@ -537,8 +615,10 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
         tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
+        data={"loaded": lc.report_line(), "report": lc.report},
+        resumed={"alphas_done_before": n_before, "alphas_total": n_total, "finished_before": False},
     )
-    result.table = np.array(table, dtype=_TABLE_DTYPE)
+    result.table = table_arr
     result.windows = windows
     # Table 5 of the paper: the peaks and dips of Delta chi^2 (and cases 3/2 by Eq. 2)
     by_case = {c: {k: result.table[k][result.table["case"] == c] for k in ("alpha", "chi2", "delta_chi2", "posterior")}
@@ -567,7 +647,8 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
     Args:
         system: :class:`System` (``system.tilted`` is rotated by alpha), or a
             :class:`ScanConfig` from :func:`load_config`.
-        lightcurve: :class:`LightCurve` (not with a config).
+        lightcurve: :class:`LightCurve`, or a lightkurve ``LightCurve``
+            (converted by :meth:`LightCurve.from_lightkurve`); not with a config.
         alpha: tilt grid [deg]; evenly spaced over 360 deg with a step that
             divides 360 (default 0, 1, ..., 359).
         cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
@@ -604,8 +685,12 @@ def _config_from(system, lightcurve, alpha, cases, margin, detrend, baseline, cl
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    if _is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
+        # a lightkurve LightCurve: its default quality bitmask, flux divided
+        # by its median, exposure from TIMEDEL; the drops are in the report
+        lightcurve = LightCurve.from_lightkurve(lightcurve)
     if not isinstance(lightcurve, LightCurve):
-        raise ValueError(f"lightcurve must be a jaxppo.LightCurve, got {type(lightcurve).__name__}")
+        raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got {type(lightcurve).__name__}")
     alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
     try:
         cases = scan_cases(system, cases)

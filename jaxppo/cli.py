@@ -14,10 +14,67 @@ import numpy as np
 _SYNTHETIC = Path(__file__).resolve().parent / "data" / "kepler20_synthetic.toml"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``jaxppo scan: error: argument
+    --alpha: ...`` and the exit status 2, without the usage block."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _finite(text: str) -> float:
+    """argparse type: a finite number (NaN and infinities would run and
+    write NaN results)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not np.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return v
+
+
+def _out_folder(path, option="--out") -> Path:
+    """An output folder that may be created (its parents too), or a clear
+    error when a file stands in the way."""
+    out = Path(path)
+    for p in (out, *out.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise ValueError(f"{option} {out}: {p} is a file, not a folder")
+            break
+    return out
+
+
+def _out_file(path, option="--out") -> Path:
+    """An output file whose folder exists."""
+    out = Path(path)
+    if out.is_dir():
+        raise ValueError(f"{option} {out} is a folder; give a file name")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"{option} {out}: the folder {parent} does not exist")
+    return out
+
+
 def _enable_x64() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
+
+
+def _demo_events(system):
+    """The paper's seven double transits and their numbers as `jaxppo scan`
+    of the bundled real data gives them (1, 2, ... over the multi-transits
+    with data, summary.json ``multi_transits``), so that "transit 4" is the
+    same event in the demo and in the scan's figures."""
+    from jaxppo._config import load_config
+    from jaxppo._kepler20 import paper_multi_transits
+    from jaxppo._scan import scan_windows
+
+    events = paper_multi_transits(system)
+    by_mid = {round(w.event.mid, 2): w.number for w in scan_windows(load_config())}
+    return events, [by_mid[round(ev.mid, 2)] for ev in events]
 
 
 def cmd_demo(args) -> int:
@@ -32,12 +89,12 @@ def cmd_demo(args) -> int:
 
     import jaxppo as jp
 
-    out = Path(args.out)
+    out = _out_folder(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+    from jaxppo._kepler20 import kepler20_system
 
     system = kepler20_system()
-    events = paper_multi_transits(system)
+    events, number = _demo_events(system)
     alphas = np.array([0.0, 90.0, 151.0, 212.0, 249.0, 313.0, 322.0])
     t0 = time.perf_counter()
     rows = []
@@ -49,8 +106,8 @@ def cmd_demo(args) -> int:
             ax = axes[ci, ei]
             for ai, a in enumerate(alphas):
                 ax.plot((t - ev.mid) * 24, (flux[ai] - 1) * 1e6, lw=0.8, label=f"{a:.0f}" if ei == 0 else None)
-                rows += [(case, ev.number, a, ti, fi) for ti, fi in zip(t, flux[ai])]
-            ax.set_title(f"{case}: BKJD {ev.mid:.2f}", fontsize=8)
+                rows += [(case, number[ei], a, ti, fi) for ti, fi in zip(t, flux[ai])]
+            ax.set_title(f"{case}: transit {number[ei]}, BKJD {ev.mid:.2f}", fontsize=8)
             ax.set_xlabel("hours from mid")
     axes[0, 0].set_ylabel("flux - 1 [ppm]")
     axes[1, 0].set_ylabel("flux - 1 [ppm]")
@@ -62,7 +119,9 @@ def cmd_demo(args) -> int:
         fh.write("case,event,alpha,time,flux\n")
         for r in rows:
             fh.write(f"{r[0]},{r[1]},{r[2]:.1f},{r[3]:.6f},{r[4]:.12f}\n")
-    summary = {"events": [e.as_dict() for e in events], "alphas": alphas.tolist(), "seconds": elapsed,
+    summary = {"events": [dict(e.as_dict(), number=n) for e, n in zip(events, number)],
+               "event_numbers": "as in jaxppo scan of the bundled real data (summary.json multi_transits)",
+               "alphas": alphas.tolist(), "seconds": elapsed,
                "alpha_limits": list(jp.alpha_limits(system))}
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"wrote {out}/kepler20_double_transits.png, .csv and summary.json ({len(rows)} model points, {elapsed:.2f} s)")
@@ -84,18 +143,30 @@ def _print_summary(result) -> None:
 def cmd_scan(args) -> int:
     """Run the obliquity scan; no config runs the bundled default."""
     _enable_x64()
-    from jaxppo._config import load_config
+    from jaxppo._config import alpha_grid, load_config
     from jaxppo._scan import run_scan
 
-    cfg = load_config(args.config)
+    if args.alpha is not None:
+        alpha_grid(args.alpha, "--alpha")  # named after the option, before any loading
+    out = _out_folder(args.out)
+    cfg = load_config(args.config, alpha=args.alpha)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = run_scan(cfg, args.out, restart=args.restart, progress=not args.quiet)
+        result = run_scan(cfg, out, restart=args.restart, progress=not args.quiet)
     for w in caught:
         print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
-    print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
-          f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
+    print(f"data: {result['data']['loaded']}" if "data" in result else f"data: {cfg.lightcurve.report_line()}")
+    res = result.get("resumed", {})
+    if res.get("finished_before"):
+        print(f"resumed: the scan in {out} had already finished with this config ({res['alphas_total']} alphas, "
+              f"digest {result['config_digest']}); nothing recomputed or redrawn")
+    elif res.get("alphas_done_before"):
+        print(f"resumed from {out / 'scan_progress.jsonl'}: {res['alphas_done_before']} of {res['alphas_total']} "
+              "alphas were already done")
+    if not res.get("finished_before"):
+        print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
+              f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
     det = result.get("detrending", {})
     if det.get("order") not in (None, "none"):
         print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
@@ -104,7 +175,8 @@ def cmd_scan(args) -> int:
     from jaxppo._tables import table5_text
 
     print(table5_text(result["table5"], cfg.cases), end="")
-    print(f"wrote {Path(args.out) / 'scan.csv'}, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
+    verb = "results in" if res.get("finished_before") else "wrote"
+    print(f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
     return 0
 
 
@@ -112,7 +184,7 @@ def cmd_init(args) -> int:
     """Write a commented config template (every key, units, defaults)."""
     from jaxppo._config import config_template
 
-    path = Path(args.path)
+    path = _out_file(args.path, "PATH")
     if path.exists() and not args.force:
         raise ValueError(f"{path} exists; choose another PATH or add --force to overwrite it")
     path.write_text(config_template())
@@ -121,22 +193,36 @@ def cmd_init(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    """Redraw the figures of a finished scan from DIR/scan.csv and its config."""
+    """Redraw the figures of a finished scan from DIR/scan.csv and the
+    config saved beside it (DIR/config.json, data paths resolved against the
+    config's absolute folder): works from any working directory."""
     _enable_x64()
-    from jaxppo._config import load_config
+    from jaxppo._config import config_from_dict, load_config
     from jaxppo._figures import scan_figures
 
     out = Path(args.dir)
+    if not out.exists():
+        raise ValueError(f"DIR {out}: no such folder")
+    if not out.is_dir():
+        raise ValueError(f"DIR {out} is a file; give the scan's output folder")
     for name in ("summary.json", "scan.csv"):
         if not (out / name).exists():
             raise ValueError(f"{out} holds no finished scan ({name} missing)")
-    summary = json.loads((out / "summary.json").read_text())
-    if summary["config"] == "<jaxppo.scan>":
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+        saved = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else {}
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{out}: summary.json or config.json is not valid JSON ({err}); rerun the scan") from None
+    if summary.get("config") == "<jaxppo.scan>":
         raise ValueError(f"{out} was written by jaxppo.scan() from Python, without a config file; "
                          "redraw it there with ScanResult.plot()")
-    cfg = load_config(summary["config"])
-    if cfg.digest != summary["config_digest"]:
-        raise ValueError(f"the config {summary['config']} changed since the scan in {out}; rerun the scan")
+    if saved.get("base") and isinstance(saved.get("config"), dict):
+        cfg = config_from_dict(saved["config"], saved["base"], saved.get("source", str(out / "config.json")))
+    else:  # written before config.json carried the config's folder
+        cfg = load_config(summary["config"])
+    if cfg.digest != summary.get("config_digest"):
+        raise ValueError(f"the data or config of the scan in {out} changed since it ran ({summary['config']}); "
+                         "rerun the scan")
     from jaxppo._figures import read_scan_csv
     from jaxppo._scan import scan_windows
 
@@ -150,10 +236,15 @@ def cmd_simulate(args) -> int:
     _enable_x64()
     import jaxppo as jp
 
+    out = _out_file(args.out)
+    if not args.noise > 0:
+        raise ValueError(f"--noise must be > 0 (relative flux per point), got {args.noise:g}")
+    if not args.radius_scale > 0:
+        raise ValueError(f"--radius-scale must be > 0, got {args.radius_scale:g}")
     lc = jp.simulate_kepler20(seed=args.seed, noise=args.noise, alpha=args.alpha, case=args.case,
                               radius_scale=args.radius_scale)
-    lc.to_csv(args.out)
-    print(f"wrote {args.out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
+    lc.to_csv(out)
+    print(f"wrote {out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
     return 0
 
 
@@ -208,15 +299,32 @@ def cmd_sample(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="jaxppo", description="Planet-planet occultations in JAX")
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures")
-    p.add_argument("config", nargs="?", default=None,
-                   help="CONFIG.toml (default: the bundled scan of the real Kepler-20 long-cadence data)")
-    p.add_argument("--out", default="scan_out", help="output folder (default: scan_out)")
-    p.add_argument("--restart", action="store_true", help="discard earlier results in --out instead of resuming")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``jaxppo`` (every option documented with its
+    unit and default; docs/cli.md)."""
+    from jaxppo import __version__
+
+    parser = _Parser(prog="jaxppo", description="Planet-planet occultations in JAX: the orbital obliquity scan of "
+                     "Mueller, Ioannidis & Schmitt (2021), fits and sampling. Times [d] are on the data's scale "
+                     "(BKJD for the bundled Kepler data), angles in degrees.")
+    parser.add_argument("--version", action="version", version=f"jaxppo {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures",
+                       description="Run (or resume) the obliquity scan of a config; writes scan.csv, scan.ecsv, "
+                       "summary.json and five figures into --out. A rerun with the same config and --out resumes "
+                       "and recomputes nothing already done.")
+    p.add_argument("config", nargs="?", default=None, metavar="CONFIG",
+                   help="scan config (TOML; keys in docs/config.md, template from `jaxppo init`); "
+                   "default: the bundled scan of the real Kepler-20 long-cadence data")
+    p.add_argument("--out", default="scan_out", metavar="DIR",
+                   help="output folder, created if missing (default: scan_out)")
+    p.add_argument("--alpha", nargs=3, type=_finite, default=None, metavar=("START", "STOP", "STEP"),
+                   help="tilt grid [deg]: START, STOP (exclusive), STEP, replacing the config's [scan] alpha; "
+                   "must span 360 deg with a STEP that divides 360, e.g. --alpha 0 360 2 "
+                   "(default: the config's, usually 0 360 1)")
+    p.add_argument("--restart", action="store_true",
+                   help="discard earlier results in --out instead of resuming (default: resume)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar (default: show it)")
     p.set_defaults(func=cmd_scan)
     for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
                                  ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
@@ -237,35 +345,71 @@ def main(argv=None) -> int:
             p.add_argument("--quiet", action="store_true")
         p.set_defaults(func=func)
     p = sub.add_parser("init", help="write a commented scan config template (every key, units, defaults)")
-    p.add_argument("path", nargs="?", default="jaxppo_scan.toml", help="where to write it (default: jaxppo_scan.toml)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.add_argument("path", nargs="?", default="jaxppo_scan.toml", metavar="PATH",
+                   help="file to write; its folder must exist (default: jaxppo_scan.toml)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file (default: refuse)")
     p.set_defaults(func=cmd_init)
-    p = sub.add_parser("plot", help="redraw the figures of a finished scan")
-    p.add_argument("dir", help="the scan's output folder")
+    p = sub.add_parser("plot", help="redraw the figures of a finished scan",
+                       description="Redraw the five figures of a finished scan from DIR/scan.csv, DIR/summary.json "
+                       "and the config saved in DIR/config.json; works from any folder.")
+    p.add_argument("dir", metavar="DIR", help="the scan's output folder (the --out of jaxppo scan)")
     p.set_defaults(func=cmd_plot)
-    p = sub.add_parser("simulate", help="write synthetic Kepler-20 b + c data (CSV)")
-    p.add_argument("--out", required=True)
-    p.add_argument("--seed", type=int, default=2021)
-    p.add_argument("--noise", type=float, default=4e-4)
-    p.add_argument("--alpha", type=float, default=None, help="inject this tilt [deg] (default: untilted)")
-    p.add_argument("--case", default="same", choices=("same", "opposite"))
-    p.add_argument("--radius-scale", type=float, default=1.0)
+    p = sub.add_parser("simulate", help="write synthetic Kepler-20 b + c data (CSV)",
+                       description="Synthetic 1-minute photometry of the seven Kepler-20 b + c double transits "
+                       "(paper parameters), white Gaussian noise; columns time [BKJD], flux, flux_err.")
+    p.add_argument("--out", required=True, metavar="FILE", help="CSV file to write; its folder must exist (required)")
+    p.add_argument("--seed", type=int, default=2021, help="random seed of the noise (default: 2021)")
+    p.add_argument("--noise", type=_finite, default=4e-4,
+                   help="white-noise standard deviation per point [relative flux], > 0 (default: 4e-4)")
+    p.add_argument("--alpha", type=_finite, default=None,
+                   help="inject this tilt of planet b [deg] (default: untilted, alpha = 0)")
+    p.add_argument("--case", default="same", choices=("same", "opposite"),
+                   help="hemisphere case of the injected tilt: same (paper case 1) or opposite (case 4) "
+                   "(default: same)")
+    p.add_argument("--radius-scale", type=_finite, default=1.0,
+                   help="multiply both planet radii by this factor, > 0 (paper Sect. 4.3; default: 1)")
     p.set_defaults(func=cmd_simulate)
-    p = sub.add_parser("demo", help="Kepler-20 b + c double-transit light curves for a few tilt angles")
-    p.add_argument("--out", default="jaxppo_demo", help="output folder")
+    p = sub.add_parser("demo", help="Kepler-20 b + c double-transit light curves for a few tilt angles",
+                       description="Model light curves of the seven Kepler-20 b + c double transits for alpha = 0, "
+                       "90, 151, 212, 249, 313, 322 deg in both hemisphere cases; transits numbered as by "
+                       "`jaxppo scan` of the bundled data.")
+    p.add_argument("--out", default="jaxppo_demo", metavar="DIR",
+                   help="output folder, created if missing (default: jaxppo_demo)")
     p.set_defaults(func=cmd_demo)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None) -> int:
+    from jaxppo import __version__
+
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named by the subcommand, whose options the user meant
+        sub = next(a for a in parser._actions if a.dest == "command").choices[args.command]
+        sub.error(f"unrecognized arguments: {' '.join(extra)}")
+    name = f"jaxppo {args.command}"
     try:
         return args.func(args)
     except ValueError as err:
-        print(f"jaxppo {args.command}: error: {err}", file=sys.stderr)
+        print(f"{name}: error: {_one_line(err)}", file=sys.stderr)
         return 2
     except OSError as err:
         # a folder that cannot be written, a full disk, a file where a folder
         # should be: one line, no traceback
         where = f" ({err.filename})" if getattr(err, "filename", None) else ""
-        print(f"jaxppo {args.command}: error: cannot read or write{where}: {err.strerror or err}", file=sys.stderr)
+        print(f"{name}: error: cannot read or write{where}: {err.strerror or err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted (a scan resumes where it stopped when rerun with the same --out)", file=sys.stderr)
+        return 130
+    except Exception as err:  # a bug: still one line, with what to report
+        print(f"{name}: internal error: {type(err).__name__}: {_one_line(err)} (a bug in jaxppo "
+              f"{__version__}; please report it with the command line)", file=sys.stderr)
+        return 1
+
+
+def _one_line(err) -> str:
+    return " ".join(str(err).split())
 
 
 if __name__ == "__main__":

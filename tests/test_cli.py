@@ -40,6 +40,15 @@ def test_default_scan_and_plot(tmp_path):
     (out / "fig5_delta_chi2.png").unlink()
     assert main(["plot", str(out)]) == 0
     assert (out / "fig5_delta_chi2.png").exists()
+    # the demo numbers its seven events as this scan does
+    import jaxppo as jp
+    from jaxppo.cli import _demo_events
+
+    events, numbers = _demo_events(jp.kepler20_system())
+    by_mid = {round(m["mid"], 2): m["number"] for m in summary["multi_transits"]}
+    assert numbers == [by_mid[round(e.mid, 2)] for e in events] == [2, 4, 5, 6, 7, 8, 9]
+    assert summary["data"]["report"]["kept"] == 64792 and "64792 of 64792 points kept" in summary["data"]["loaded"]
+    assert (out / "scan.ecsv").exists()
 
 
 def test_simulate_writes_csv(tmp_path):
@@ -76,4 +85,129 @@ def test_write_failure_is_one_line(tmp_path, capsys):
     assert main(["scan", str(cfg), "--out", str(blocker / "sub"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
-    assert err.startswith("jaxppo scan: error: cannot read or write") and "taken" in err
+    assert err.startswith("jaxppo scan: error: --out ") and "taken is a file, not a folder" in err
+
+
+# ---- item 10: version, help, --alpha, one-line errors, plot anywhere, resume ----------
+
+def test_version(capsys):
+    import jaxppo
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out.strip() == f"jaxppo {jaxppo.__version__}"
+
+
+def test_every_option_has_help_with_its_default():
+    from jaxppo.cli import build_parser
+
+    parser = build_parser()
+    subs = next(a for a in parser._actions if a.dest == "command").choices
+    for name in ("scan", "plot", "init", "simulate", "demo"):
+        for action in subs[name]._actions:
+            if action.dest == "help":
+                continue
+            assert action.help, (name, action.dest)
+            if not action.required and action.nargs != "?" or action.default is not None:
+                assert "default" in action.help, (name, action.dest, action.help)
+    helps = {(n, a.dest): a.help for n in ("scan", "simulate") for a in subs[n]._actions}
+    assert "[deg]" in helps[("scan", "alpha")] and "[deg]" in helps[("simulate", "alpha")]
+    assert "[relative flux]" in helps[("simulate", "noise")]
+
+
+def _synthetic_copy(folder):
+    """The bundled synthetic config and data, copied (relative data path)."""
+    from jaxppo._phoenix import data_path
+
+    folder.mkdir()
+    for name in ("kepler20_synthetic.toml", "kepler20_synthetic_bc.csv"):
+        (folder / name).write_bytes(data_path(name).read_bytes())
+    return folder / "kepler20_synthetic.toml"
+
+
+def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, capsys):
+    """--alpha replaces the config's grid (and is part of the digest); plot
+    works from another folder with a config given by a relative path (the
+    old plot re-read the relative path from the current folder and failed);
+    a rerun of a finished scan says so and recomputes and redraws nothing."""
+    import jaxppo._figures
+    import jaxppo._scan
+
+    cfg = _synthetic_copy(tmp_path / "cfg")
+    monkeypatch.chdir(tmp_path / "cfg")
+    assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "45", "--quiet"]) == 0
+    run = tmp_path / "run"
+    rows = (run / "scan.csv").read_text().splitlines()[1:]
+    assert len(rows) == 16 and [float(r.split(",")[1]) for r in rows[:8]] == [0, 45, 90, 135, 180, 225, 270, 315]
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["alpha"] == {"start": 0.0, "stop": 360.0, "step": 45.0}
+    first = capsys.readouterr().out
+    assert "data: 2926 of 2926 points kept" in first and "scanned 2 case(s) x 8 alphas" in first
+    stamps = {p.name: p.stat().st_mtime_ns for p in run.iterdir() if p.suffix in (".png", ".csv", ".ecsv")}
+
+    def boom(*a, **k):
+        raise AssertionError("recomputed or redrawn")
+
+    with monkeypatch.context() as m:
+        m.setattr(jaxppo._scan, "sweep", boom)
+        m.setattr(jaxppo._figures, "scan_figures", boom)
+        assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "45", "--quiet"]) == 0
+    again = capsys.readouterr().out
+    assert "resumed: the scan in ../run had already finished with this config (16 alphas" in again
+    assert "nothing recomputed or redrawn" in again and "scanned" not in again
+    assert {p.name: p.stat().st_mtime_ns for p in run.iterdir() if p.suffix in (".png", ".csv", ".ecsv")} == stamps
+    # a different grid in the same folder is refused, naming the way out
+    assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "90", "--quiet"]) == 2
+    assert "different configuration" in capsys.readouterr().err
+    # plot from an unrelated folder
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    (run / "fig5_delta_chi2.png").unlink()
+    assert main(["plot", str(run)]) == 0
+    assert (run / "fig5_delta_chi2.png").exists()
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["scan", "--alpha", "0", "360", "7"], "error: --alpha = [0, 360, 7]: alpha covers 0 .. 357 deg"),
+    (["scan", "--alpha", "0", "180", "1"], "error: --alpha = [0, 180, 1]: alpha covers 0 .. 179 deg"),
+    (["scan", "--alpha", "0", "360", "0"], "error: --alpha step must be > 0"),
+    (["scan", "--alpha", "0", "x", "1"], "error: argument --alpha: not a number: 'x'"),
+    (["scan", "--alpha", "0", "360"], "error: argument --alpha: expected 3 arguments"),
+    (["simulate", "--out", "d.csv", "--noise", "nan"], "error: argument --noise: must be a finite number, got 'nan'"),
+    (["simulate", "--out", "d.csv", "--noise", "-1"], "error: --noise must be > 0"),
+    (["simulate", "--out", "d.csv", "--radius-scale", "0"], "error: --radius-scale must be > 0"),
+    (["simulate", "--out", "missing/d.csv"], "the folder missing does not exist"),
+    (["simulate", "--out", "."], "is a folder; give a file name"),
+    (["simulate", "--out", "d.csv", "--seed", "1.5"], "argument --seed: invalid int value: '1.5'"),
+    (["plot", "nowhere"], "error: DIR nowhere: no such folder"),
+    (["plot", "a_file"], "error: DIR a_file is a file"),
+    (["plot", "."], "holds no finished scan (summary.json missing)"),
+    (["scan", "."], "error: config . is a folder, not a TOML file"),
+    (["scan", "--out", "a_file/sub"], "error: --out a_file/sub: a_file is a file, not a folder"),
+    (["demo", "--out", "a_file"], "error: --out a_file: a_file is a file, not a folder"),
+    (["init", "sub/x.toml"], "error: PATH sub/x.toml: the folder sub does not exist"),
+    (["scan", "--qiet"], "error: unrecognized arguments: --qiet"),
+])
+def test_errors_are_one_line(argv, needle, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("x")
+    try:
+        rc = main(argv)
+    except SystemExit as e:  # argparse errors
+        rc = e.code
+    assert rc == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.count("\n") == 1 and "Traceback" not in cap.err, cap.err
+    assert cap.err.startswith(f"jaxppo {argv[0]}: error: ") and needle in cap.err, cap.err
+
+
+def test_unexpected_errors_are_one_line(tmp_path, monkeypatch, capsys):
+    import jaxppo._config
+
+    def broken(*a, **k):
+        raise KeyError("x")
+
+    monkeypatch.setattr(jaxppo._config, "load_config", broken)
+    assert main(["scan", "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("jaxppo scan: internal error: KeyError") and "report" in err

@@ -161,3 +161,17 @@ def test_bundled_configs_load():
 
     for name in ("kepler20_real_llc.toml", "kepler20_buchhave2016_llc.toml", "kepler20_synthetic.toml"):
         load_config(data_path(name))
+
+
+def test_every_bundled_file_has_provenance_and_licence():
+    """jaxppo/data/README.md lists each bundled file with its source and licence."""
+    from jaxppo._phoenix import data_path
+
+    folder = data_path("")
+    text = (folder / "README.md").read_text()
+    rows = [ln for ln in text.splitlines() if ln.startswith("| `")]
+    for f in sorted(p.name for p in folder.iterdir() if p.is_file()):
+        row = next((r for r in rows if f"`{f}`" in r.split("|")[1]), None)
+        assert row is not None, f
+        cells = [c.strip() for c in row.split("|")[1:-1]]
+        assert len(cells) == 5 and all(cells[:4]), (f, cells)  # file, what, source, licence (cite may be '-')

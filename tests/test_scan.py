@@ -487,3 +487,39 @@ def test_public_scan_matches_the_config_route(tmp_path):
         jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(100.0, 200.0, 1.0))
     with pytest.raises(ValueError, match="cases = .*unknown case 'sideways'"):
         jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0), cases=("sideways",))
+
+
+# ---- results out and the load report ------------------------------------------------
+
+def test_ecsv_table_with_units_and_provenance(tmp_path):
+    """scan.ecsv beside scan.csv: the same numbers (read back exactly), with
+    units and the config digest, jaxppo version and cases in its metadata;
+    the summary carries the load report (what loading dropped)."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    path = _config(tmp_path, lc, step=30.0)
+    # two flagged rows and a repeated cadence: reported, not silent
+    text = (tmp_path / "data.csv").read_text().splitlines()
+    rows = ["time,flux,flux_err,quality"] + [r + ",0" for r in text[1:]]
+    rows[5] = rows[5][:-1] + "1"
+    rows[9] = rows[9][:-1] + "32"
+    rows.insert(12, rows[11])
+    (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
+    cfg = load_config(path)
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    tab = Table.read(tmp_path / "out" / "scan.ecsv")
+    csv = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert tab.colnames == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
+    assert tab["alpha"].unit == u.deg and tab["posterior"].unit == 1 / u.deg
+    np.testing.assert_array_equal(tab["chi2"], res.table["chi2"])
+    np.testing.assert_array_equal(np.asarray(tab["alpha"]), csv["alpha"])
+    np.testing.assert_array_equal(np.asarray(tab["case"]), csv["case"])
+    assert tab.meta["config_digest"] == cfg.digest == res["config_digest"]
+    assert tab.meta["jaxppo_version"] == jp.__version__ and tab.meta["cases"] == ["same", "opposite"]
+    assert tab.meta["alpha_grid_deg"] == {"start": 0.0, "stop": 360.0, "step": 30.0}
+    assert tab.meta["chi2_0"]["same"] == res["chi2_0"]["same"]
+    rep = json.loads((tmp_path / "out" / "summary.json").read_text())["data"]
+    assert rep["report"]["flagged"] == 2 and rep["report"]["duplicated"] == 1
+    assert "dropped: 2 flagged" in rep["loaded"] and "1 repeated time stamps" in rep["loaded"]
