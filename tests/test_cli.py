@@ -211,3 +211,21 @@ def test_unexpected_errors_are_one_line(tmp_path, monkeypatch, capsys):
     assert main(["scan", "--out", str(tmp_path / "o")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("jaxppo scan: internal error: KeyError") and "report" in err
+
+
+def test_activity_command(tmp_path, capsys):
+    """`jaxppo activity` on the bundled real data: the rotation period lies
+    in the documented range (docs/activity.md), strict JSON and figures are
+    written, and a bad --spot-chunk is one error line naming the option."""
+    import json
+
+    from jaxppo.cli import main
+
+    assert main(["activity", "--out", str(tmp_path / "a"), "--bootstrap", "0"]) == 0
+    printed = capsys.readouterr().out
+    assert "rotation period" in printed
+    rep = json.loads((tmp_path / "a" / "activity.json").read_text(), parse_constant=lambda c: 1 / 0)
+    assert 26.0 < rep["rotation"]["period_d"] < 29.0
+    assert (tmp_path / "a" / "activity_map.png").is_file()
+    assert main(["activity", "--out", str(tmp_path / "b"), "--spot-chunk", "x"]) == 2
+    assert "--spot-chunk must be a chunk index or 'all'" in capsys.readouterr().err
