@@ -24,7 +24,7 @@ from ._system import multi_transit_counts as multi_transit_counts
 from ._system import hemisphere_cases as hemisphere_cases
 from ._system import case_label as case_label
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 from ._raster import RasterSettings as RasterSettings
 from ._phoenix import band_intensity as band_intensity
 from ._phoenix import claret_power2 as claret_power2

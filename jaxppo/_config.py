@@ -50,8 +50,15 @@ class ScanConfig:
 
     @property
     def digest(self) -> str:
-        """Hash of everything that determines the results (not the path)."""
-        payload = json.dumps(self.raw, sort_keys=True, default=str).encode()
+        """Hash of everything that determines the results (not the path):
+        the config, the data, the jaxppo version (a release that changes the
+        numerics must not resume an older release's progress) and the
+        exposure supersampling."""
+        from . import __version__
+
+        nsub = self.lightcurve.supersampled_times()[1] if self.lightcurve.time.size else 1
+        payload = json.dumps({"config": self.raw, "jaxppo": __version__, "supersampling": nsub},
+                             sort_keys=True, default=str).encode()
         data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
         return hashlib.sha256(payload + data).hexdigest()[:16]
 
@@ -258,7 +265,9 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
     for sec in ("star", "data", "scan"):
         if sec in raw and not isinstance(raw[sec], dict):
             raise _err(source, f"[{sec}] must be a table (a [{sec}] section)")
-    for sec in ("star", "planet", "data", "scan"):
+    raw = dict(raw)
+    raw.setdefault("scan", {})  # every [scan] key has a default (docs/config.md)
+    for sec in ("star", "planet", "data"):
         if sec not in raw:
             raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
     star = _star_from(raw["star"], base, source)
@@ -276,6 +285,10 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         missing = [f for f in _PLANET_FIELDS if f not in p]
         if missing:
             raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
+        for f in _PLANET_FIELDS:  # a quoted number ("0.018") is a typo, not a value
+            if isinstance(p[f], bool) or not isinstance(p[f], (int, float)):
+                raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}): {f} must be a number, "
+                           f"got {p[f]!r}")
         try:
             planets.append(Planet(**{f: float(p[f]) for f in _PLANET_FIELDS}, name=str(p.get("name", f"p{i + 1}"))))
         except (TypeError, ValueError) as e:

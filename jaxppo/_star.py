@@ -74,6 +74,15 @@ def _choose_degree(mu: np.ndarray, inten: np.ndarray, max_degree: int, rtol: flo
         coef, *_ = np.linalg.lstsq(design, inten, rcond=None)
         if np.max(np.abs(design @ coef - inten)) <= rtol * scale:
             return deg
+    design = _sqrt_poly_design(mu, limit)
+    coef, *_ = np.linalg.lstsq(design, inten, rcond=None)
+    resid = float(np.max(np.abs(design @ coef - inten)) / scale)
+    warnings.warn(
+        f"Star.tabulated: no sqrt(mu) polynomial of degree <= {limit} meets rtol = {rtol:g} (max residual "
+        f"{resid:.2g} of max(I) at degree {limit}); the table is smoothed. Use interpolation='linear' or 'cubic' "
+        "for a profile with kinks, or raise max_degree",
+        stacklevel=3,
+    )
     return limit
 
 

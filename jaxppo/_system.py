@@ -58,7 +58,7 @@ def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
             rel = tuple(case)
         except TypeError:
             raise ValueError(f"case must be one of {CASES} or a tuple of +-1, got {case!r}") from None
-        if not all(isinstance(v, (int, float, np.integer, np.floating)) and v in (1, -1) for v in rel):
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_)) and v in (1, -1) for v in rel):
             raise ValueError(f"case signs must each be +1 or -1, got {case!r}")
     if len(rel) != k:
         raise ValueError(f"case must give {k} sign(s) (one per untilted planet), got {case!r}")
@@ -97,8 +97,9 @@ def scan_cases(system: "System", cases) -> tuple[str, ...]:
     for c in cases:
         if not isinstance(c, str):
             raise ValueError(f"each case must be a string ('same', 'opposite', or '+'/'-' signs), got {c!r}")
-        case_signs(len(system.planets), system.tilted, c)  # raises with the reason
-        label = case_label(c)
+        signs = case_signs(len(system.planets), system.tilted, c)  # raises with the reason
+        # canonical label: "+" of a two-planet system is "same", "-+" stays "-+"
+        label = case_label(tuple(int(v) for i, v in enumerate(signs) if i != system.tilted))
         if label in out:
             raise ValueError(f"case {c!r} is listed twice")
         out.append(label)

@@ -27,11 +27,11 @@ def test_default_scan_and_plot(tmp_path):
     assert header == "case,alpha,chi2,delta_chi2,posterior"
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["chi2_0"]) == {"same", "opposite"}
-    # the default is the real long-cadence data: all nine b + c double
-    # transits of Q1-Q17 (the paper's seven plus BKJD 160.33 and 496.77),
-    # detrended per window, errors from the out-of-transit scatter
+    # the default is the real long-cadence data: the eight clean b + c double
+    # transits of Q1-Q17 (the paper's seven plus 496.77; 160.33 is a b + c + e
+    # triple), detrended per window, errors from the out-of-transit scatter
     mids = [round(m["mid"], 1) for m in summary["multi_transits"]]
-    assert len(mids) == 9 and mids[0] == 160.3 and mids[2] == 496.8
+    assert len(mids) == 8 and mids[0] == 334.0 and mids[1] == 496.8 and 160.3 not in mids
     assert all(abs(m["mid"] - p) < 0.1 for p in (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
                for m in [min(summary["multi_transits"], key=lambda m: abs(m["mid"] - p))])
     assert summary["exposure"] == 0.0204335982 and summary["supersampling"] > 1
@@ -46,7 +46,7 @@ def test_default_scan_and_plot(tmp_path):
 
     events, numbers = _demo_events(jp.kepler20_system())
     by_mid = {round(m["mid"], 2): m["number"] for m in summary["multi_transits"]}
-    assert numbers == [by_mid[round(e.mid, 2)] for e in events] == [2, 4, 5, 6, 7, 8, 9]
+    assert numbers == [by_mid[round(e.mid, 2)] for e in events] == [1, 3, 4, 5, 6, 7, 8]
     assert summary["data"]["report"]["kept"] == 64792 and "64792 of 64792 points kept" in summary["data"]["loaded"]
     assert (out / "scan.ecsv").exists()
 

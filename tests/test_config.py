@@ -1,6 +1,7 @@
 """The scan config (TOML): [data] inputs, unknown keys, the template."""
 
 import gzip
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -175,3 +176,21 @@ def test_every_bundled_file_has_provenance_and_licence():
         assert row is not None, f
         cells = [c.strip() for c in row.split("|")[1:-1]]
         assert len(cells) == 5 and all(cells[:4]), (f, cells)  # file, what, source, licence (cite may be '-')
+
+
+def test_quoted_numbers_and_optional_scan_section(tmp_path):
+    """A quoted planet value ("0.01805") was silently converted; a config
+    without [scan] (every key has a default) was refused."""
+    from jaxppo._phoenix import data_path as jp_data
+
+    text = Path(jp_data("kepler20_synthetic.toml")).read_text()
+    data = str(Path(jp_data("kepler20_synthetic_bc.csv")))
+    text = text.replace('path = "kepler20_synthetic_bc.csv"', f'path = "{data}"')
+    p = tmp_path / "c.toml"
+    p.write_text(text.replace("radius = 0.02878", 'radius = "0.02878"'))
+    with pytest.raises(ValueError, match=r"radius must be a number, got '0.02878'"):
+        load_config(p)
+    head, _, _ = text.partition("[scan]")
+    p.write_text(head)
+    cfg = load_config(p)
+    assert cfg.alpha.size == 360 and cfg.cases == ("same", "opposite")

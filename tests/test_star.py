@@ -191,3 +191,18 @@ def test_non_physical_laws():
         jp.Star.power2(0.72, 0.78)
     # traced coefficients are not checked (fits may pass through such values)
     assert np.isfinite(float(jax.grad(lambda u: jp.occultation_flux(jp.Star.quadratic(u, 0.0), 0.3, 0.1, 0.05))(0.4)))
+
+
+def test_tabulated_warns_when_rtol_is_not_met():
+    """A kinked table cannot meet rtol with a smooth sqrt(mu) polynomial: it
+    used to be smoothed (2.7e-2 residual against rtol = 1e-6) silently."""
+    import warnings
+
+    mu = np.r_[np.linspace(0, 0.05, 20), np.linspace(0.06, 1, 60)]
+    inten = np.where(mu < 0.03, mu / 0.03 * 0.3, 0.3 + 0.7 * mu)
+    with pytest.warns(UserWarning, match="meets rtol"):
+        jp.Star.tabulated(mu, inten)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.Star.tabulated(mu, inten, interpolation="linear")
+        jp.Star.tabulated(mu, 1 - 0.5 * (1 - mu))  # smooth: no warning
