@@ -379,11 +379,11 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
         t0 = time.perf_counter()
         res = sample(sysm, data, free=free, num_warmup=num_warmup, num_samples=draws * thin, seed=seed,
                      alpha=a_ref, case=cfg.cases[0], progress_bar=progress)
-        timing["nuts_s"] = time.perf_counter() - t0
+        timing["sampler_s"] = time.perf_counter() - t0
         samples = {n: np.asarray(res.samples[n], float)[::thin][:draws] for n in free}
         sampler = {"method": "numpyro NUTS (jaxppo.sample)", "num_warmup": num_warmup, "num_samples": draws * thin,
                    "thin": thin, "seed": seed, "alpha_ref": a_ref, "case_ref": cfg.cases[0],
-                   "diagnostics": res.diagnostics, "seconds": timing["nuts_s"]}
+                   "diagnostics": res.diagnostics, "seconds": timing["sampler_s"]}
     if stored is None:
         _atomic_write(draws_path, json.dumps({"digest": digest, "sampler": sampler,
                                               "samples": {k: v.tolist() for k, v in samples.items()}},
