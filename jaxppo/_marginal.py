@@ -244,6 +244,16 @@ def _alpha_ref(system: System, tm: np.ndarray, case) -> float:
     return float(grid[int(np.argmax(np.where(quiet, dist, -1)))])
 
 
+def _centre_epochs(system: System, t_mid: float) -> System:
+    """The same orbits with each planet's t0 moved by whole periods to the
+    transit nearest t_mid [d]."""
+    planets = []
+    for pl in system.planets:
+        n = np.round((t_mid - float(pl.t0)) / float(pl.period))
+        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period)))
+    return system.replace(planets=planets)
+
+
 def _digest(cfg: ScanConfig, settings: dict) -> str:
     payload = json.dumps({"scan": cfg.digest, "marginal": settings}, sort_keys=True, default=str).encode()
     return hashlib.sha256(payload).hexdigest()[:16]
@@ -376,13 +386,19 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
         a_ref = _alpha_ref(sysm, tm, cfg.cases[0])
         from ._sample import sample
 
+        # Sample t0 at the transit nearest the middle of the windows: the
+        # same orbit, but t0 and the period are then nearly uncorrelated
+        # (a config's t0 lies hundreds of periods before most events, where
+        # the two are correlated to |r| ~ 1 and NUTS needs deep trees).
+        centred = _centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
         t0 = time.perf_counter()
-        res = sample(sysm, data, free=free, num_warmup=num_warmup, num_samples=draws * thin, seed=seed,
+        res = sample(centred, data, free=free, num_warmup=num_warmup, num_samples=draws * thin, seed=seed,
                      alpha=a_ref, case=cfg.cases[0], progress_bar=progress)
         timing["sampler_s"] = time.perf_counter() - t0
         samples = {n: np.asarray(res.samples[n], float)[::thin][:draws] for n in free}
         sampler = {"method": "numpyro NUTS (jaxppo.sample)", "num_warmup": num_warmup, "num_samples": draws * thin,
                    "thin": thin, "seed": seed, "alpha_ref": a_ref, "case_ref": cfg.cases[0],
+                   "t0_epochs": {pl.name or str(i): float(pl.t0) for i, pl in enumerate(centred.planets)},
                    "diagnostics": res.diagnostics, "seconds": timing["sampler_s"]}
     if stored is None:
         _atomic_write(draws_path, json.dumps({"digest": digest, "sampler": sampler,
