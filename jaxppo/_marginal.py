@@ -348,6 +348,9 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     import jax
 
     sysm = cfg.system
+    if fixed is not None and fixed.get("config_digest") != cfg.digest:
+        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.get('config_digest')}, "
+                         f"this one {cfg.digest})")
     prog_path, draws_path = out / PROGRESS, out / DRAWS
     if restart:
         for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):

@@ -201,3 +201,11 @@ def test_wrong_fixed_parameters_are_mitigated(tmp_path):
     assert abs(peak - 147.0) <= 3.0, peak
     # the posterior mass near the injected alpha dominates (1-deg grid)
     assert t["posterior"][np.abs(t["alpha"] - 147.0) <= 3.0].sum() > 0.5
+
+
+def test_fixed_scan_of_another_config_is_refused(real):
+    system, lc = real
+    other = jp.scan(system, lc, **dict(KW, multi_transits=EVENTS[:1]))
+    with pytest.raises(ValueError, match="fixed"):
+        marginal_scan(system, lc, samples={"b.t0": np.full(2, float(system.planets[0].t0))}, fixed=other,
+                      progress=False, figures=False, **KW)
