@@ -77,6 +77,32 @@ class MarginalResult(dict):
     ``delta_chi2`` [draw, case, alpha] the per-draw curves; ``fixed`` the
     fixed-parameter :class:`ScanResult`."""
 
+    def summary_lines(self) -> list[str]:
+        """What ``jaxppo scan --marginalize N`` prints: per case, each
+        geometry's marginal probability (16-84 % over draws) beside the fixed
+        scan's, the Bayes factor and rating, the posterior peak, the
+        importance ESS; then the timings."""
+        lines = [f"marginalised over {self['draws']} draws ({self['sampler'].get('method', '')})"]
+        for case, c in self["cases"].items():
+            geo, fx = c["geometries"], self.fixed["probabilities"][case]
+            for name, g in geo.items():
+                if isinstance(g, dict):
+                    sp = c["probability_spread_over_draws"][name]
+                    lines.append(f"  case {case}: {name}: {100 * g['probability']:.2f} % "
+                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
+                                 f"{100 * fx[name]['probability']:.2f} %)")
+            k = geo["bayes_factor"]
+            lines.append(f"  case {case}: K = {k:.4g} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
+                         f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
+                         f"min {c['importance_ess']['min']:.1f} of {self['draws']}" if k is not None else
+                         f"  case {case}: log10 K = {geo['log10_bayes_factor']:.4g} ({geo['jeffreys']})")
+        sec = self.get("seconds") or {}
+        if sec:
+            lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
+                         f"{sec['draws_computed']} draws {sec['chi2_s']:.1f} s); load average "
+                         + " ".join(f"{v:.2f}" for v in self["cpu"]["load_average"]))
+        return lines
+
 
 def _systems_from(system: System, samples: dict, names) -> list[System]:
     """One System per draw: the given system with the sampled parameters."""
