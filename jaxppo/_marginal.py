@@ -442,8 +442,15 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     def key(d, case):
         return f"{case}#{d}"
 
+    # The draws were sampled from the transit posterior at tilt alpha_ref:
+    # the exact importance weight of alpha is L(alpha) / L(alpha_ref), so
+    # each draw's chi^2 at alpha_ref is its reference (the no-PPO chi^2
+    # wherever alpha_ref is free of PPOs for that draw). Draws given by the
+    # caller are taken as no-PPO posterior draws: reference chi^2_0.
+    a_ref = sampler.get("alpha_ref")
+
     def finished(d):
-        return (key(d, "null"), 0.0) in done and all((key(d, c), round(float(a), 9)) in done
+        return (key(d, "null"), 0.0) in done and (a_ref is None or (key(d, "ref"), 0.0) in done) and all((key(d, c), round(float(a), 9)) in done
                                                         for c in cfg.cases for a in cfg.alpha)
 
     todo = [d for d in range(n_d) if not finished(d)]
@@ -455,9 +462,15 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
             idx = todo[i:i + chunk]
             chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
             c0 = _chi2_0(chi2, chi2_null, ppo)
+            if a_ref is not None:
+                c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
+                                      (sampler["case_ref"],))[0][:, 0, 0]
             for j, d in enumerate(idx):
                 recs = [{"config_digest": digest, "case": key(d, "null"), "alpha": [0.0],
                          "chi2": [float(chi2_null[j])]}]
+                if a_ref is not None:
+                    recs.append({"config_digest": digest, "case": key(d, "ref"), "alpha": [0.0],
+                                 "chi2": [float(c_ref[j])]})
                 for ci, c in enumerate(cfg.cases):
                     recs.append({"config_digest": digest, "case": key(d, c), "alpha": cfg.alpha.tolist(),
                                  "chi2": chi2[j, ci].tolist()})
@@ -479,6 +492,7 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     c0 = np.array([[done[(key(d, "c0:" + c), 0.0)] for c in cfg.cases] for d in range(n_d)])
     chi2_null = np.array([done[(key(d, "null"), 0.0)] for d in range(n_d)])
     dchi2 = chi2 - c0[:, :, None]  # [draw, case, alpha]
+    chi2_ref = None if a_ref is None else np.array([done[(key(d, "ref"), 0.0)] for d in range(n_d)])
 
     # ---- the fixed-parameter scan, for comparison ----
     if fixed is None:
@@ -486,11 +500,10 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
             fixed = run_scan(cfg, tmp, progress=False, figures=False)
     # a draw is sampled under the no-PPO model iff alpha_ref is quiet for it
     ref_quiet = None
-    if sampler.get("alpha_ref") is not None:
-        a_ref = float(sampler["alpha_ref"])
-        ref_quiet = float(np.mean([~ppo_table(s, [tm], np.array([a_ref]), sampler["case_ref"])[0, 0]
+    if a_ref is not None:
+        ref_quiet = float(np.mean([~ppo_table(s, [tm], np.array([float(a_ref)]), sampler["case_ref"])[0, 0]
                                    for s in systems]))
-    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, fixed, samples, sampler, digest, ref_quiet)
+    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet)
     result["seconds"] = {"total": time.perf_counter() - t_begin, **timing,
                          "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
     result["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
@@ -502,15 +515,20 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     return result
 
 
-def _analyse(cfg, dchi2, chi2, c0, chi2_null, fixed, samples, sampler, digest, ref_quiet) -> MarginalResult:
+def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet) -> MarginalResult:
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
-        logw = -0.5 * dc
-        # marginal Delta chi^2: -2 log of the mean importance weight
-        dm = -2.0 * _logmeanexp(logw, axis=0)
+        ref = c0[:, ci] if chi2_ref is None else chi2_ref
+        # log importance weights L(alpha) / L(reference of the draw)
+        logw = -0.5 * (chi2[:, ci] - ref[:, None])
+        # marginal Delta chi^2: -2 log of the mean importance weight, against
+        # the same average of the ground levels (0 when every reference is
+        # the draw's chi^2_0, as for draws given by the caller)
+        ground = -2.0 * _logmeanexp(-0.5 * (c0[:, ci] - ref)[:, None], axis=0)[0]
+        dm = -2.0 * _logmeanexp(logw, axis=0) - ground
         w = np.exp(-0.5 * (dm - dm.min()))
         post = w / (np.sum(w) * step)
         med, lo, hi = np.percentile(dc, [50.0, 15.865, 84.135], axis=0)
@@ -547,7 +565,9 @@ def _analyse(cfg, dchi2, chi2, c0, chi2_null, fixed, samples, sampler, digest, r
         parameters=pstats, alpha_ref_quiet_fraction=ref_quiet,
         chi2_null={"median": float(np.median(chi2_null)), "min": float(chi2_null.min()),
                    "max": float(chi2_null.max())},
-        weight="p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_0) / 2), chi2_0 per draw and case",
+        weight=("p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_ref) / 2); chi2_ref per draw: "
+                + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
+                   f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
         cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases},
     )
     res.table = np.array(rows, dtype=_DTYPE)

@@ -105,6 +105,63 @@ def test_importance_average_against_brute_force(real, tmp_path):
     assert loud > 0  # some draw has PPO tilts on this grid
 
 
+def _brute(system, samples, windows, exposure, alpha, case, names=("t0", "a", "inc")):
+    """chi^2 [draw, alpha] and chi^2_0 [draw] by a plain loop over draws:
+    System.flux with the exact union integral on every frame."""
+    data = jp.LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                         np.concatenate([w.flux_err for w in windows]), exposure)
+    tm, nsub = data.supersampled_times()
+    per_event = [jp.LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
+    n = len(next(iter(samples.values())))
+    chi2s, c0s = [], []
+    for d in range(n):
+        planets = [pl.replace(**{p: float(samples[f"{pl.name}.{p}"][d]) for p in names}) for pl in system.planets]
+        s = system.replace(planets=planets)
+        model = np.asarray(s.flux(tm, alpha, case=case, method="exact")).reshape(alpha.size, -1, nsub).mean(-1)
+        chi2 = np.sum(((data.flux - model) / data.flux_err) ** 2, axis=1)
+        quiet = ~ppo_table(s, per_event, alpha, case).any(1)
+        chi2s.append(chi2)
+        c0s.append(np.median(chi2[quiet]) if quiet.any() else np.nan)
+    return np.array(chi2s), np.array(c0s)
+
+
+def test_weights_against_the_sampling_tilt(real, tmp_path, monkeypatch):
+    """Draws sampled at a tilt alpha_ref with a PPO: the exact importance
+    weight is L(alpha) / L(alpha_ref). The NUTS call is replaced by fixed
+    draws (the weighting is what is checked) and alpha_ref is put on a PPO
+    feature; the marginal curve is checked against a brute-force loop."""
+    import jaxppo._marginal as mod
+    import jaxppo._sample as smp
+
+    system, lc = real
+    samples = _draws(system, 4, seed=5)
+    fixed = jp.scan(system, lc, **KW)
+    a, d = fixed.delta_chi2("same")
+    a_ref = float(a[np.argmax(np.abs(d))])
+
+    class Fake:
+        def __init__(self):
+            self.samples, self.diagnostics = samples, {}
+
+    monkeypatch.setattr(smp, "sample", lambda *args, **kw: Fake())
+    monkeypatch.setattr(mod, "_alpha_ref", lambda *args: a_ref)
+    free = [f"{pl.name}.{p}" for pl in system.planets for p in ("t0", "a", "inc")]
+    m = marginal_scan(system, lc, draws=4, free=free, fixed=fixed, out=tmp_path, progress=False, figures=False, **KW)
+    assert m["sampler"]["alpha_ref"] == a_ref
+    chi2_ref, _ = _brute(system, samples, fixed.windows, lc.exposure, np.array([a_ref]), "same")
+    assert m["alpha_ref_quiet_fraction"] < 1  # some draw has a PPO at alpha_ref: the reference matters
+    for case in ("same", "opposite"):
+        chi2, c0 = _brute(system, samples, fixed.windows, lc.exposure, KW["alpha"], case)
+        ref = chi2_ref[:, 0]
+        lme = lambda v: np.log(np.mean(np.exp(v), axis=0))  # noqa: E731
+        expect = -2 * lme(-0.5 * (chi2 - ref[:, None])) + 2 * lme(-0.5 * (c0 - ref))
+        t = m.table[m.table["case"] == case]
+        np.testing.assert_allclose(t["marginal_delta_chi2"], expect, atol=1e-5, rtol=0)
+        # and it is not the chi^2_0-referenced average
+        other = -2 * lme(-0.5 * (chi2 - c0[:, None]))
+        assert np.max(np.abs(expect - other)) > 0.05
+
+
 def test_marginal_chi2_no_overlap_is_null(real):
     """A grid with no overlap anywhere (a planet shrunk to a point far from
     the other's path cannot touch it): chi^2 is the no-PPO chi^2 for every
