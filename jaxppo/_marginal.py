@@ -49,7 +49,7 @@ from ._scan import (_atomic_write, _read_progress, _record_line, _scan_windows, 
                     run_scan)
 from ._flux import one_disk_sum
 from ._sweep import overlap_flux
-from ._system import Planet, System, case_signs
+from ._system import System, case_signs
 
 __all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free"]
 
@@ -436,7 +436,7 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     if not prog_path.exists():
         _atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
     systems = _systems_from(sysm, samples, list(samples))
-    n_d, n_c, n_a = len(systems), len(cfg.cases), cfg.alpha.size
+    n_d = len(systems)
 
     # ---- per-draw chi^2 curves, batched per chunk, written as they go ----
     def key(d, case):
