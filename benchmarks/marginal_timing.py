@@ -61,8 +61,8 @@ def real(n, free, warmup, out):
             f"{c['importance_ess']['min']:.1f} of {n}")
     if m["sampler"].get("diagnostics"):
         d = m["sampler"]["diagnostics"]
-        print("  NUTS r_hat max %.3f, n_eff min %.0f" % (max(v["r_hat"] for v in d.values()),
-                                                         min(v["n_eff"] for v in d.values())))
+        print("  NUTS r_hat max %.3f, n_eff min %.0f" % (max(v["r_hat"] or np.nan for v in d.values()),
+                                                         min(v["n_eff"] or np.nan for v in d.values())))
     print(f"  alpha_ref {m['sampler'].get('alpha_ref')}: quiet for {m['alpha_ref_quiet_fraction']} of the draws")
 
 

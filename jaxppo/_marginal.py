@@ -428,7 +428,10 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
         sampler = {"method": "numpyro NUTS (jaxppo.sample)", "num_warmup": num_warmup, "num_samples": draws * thin,
                    "thin": thin, "seed": seed, "alpha_ref": a_ref, "case_ref": cfg.cases[0],
                    "t0_epochs": {pl.name or str(i): float(pl.t0) for i, pl in enumerate(centred.planets)},
-                   "diagnostics": res.diagnostics, "seconds": timing["sampler_s"]}
+                   # strict JSON: a non-finite R-hat (e.g. constant draws) is written as null
+                   "diagnostics": {n: {k: (float(v) if np.isfinite(v) else None) for k, v in dd.items()}
+                                   for n, dd in res.diagnostics.items()},
+                   "seconds": timing["sampler_s"]}
     if stored is None:
         _atomic_write(draws_path, json.dumps({"digest": digest, "sampler": sampler,
                                               "samples": {k: v.tolist() for k, v in samples.items()}},
