@@ -49,4 +49,6 @@ from ._scan import ScanResult as ScanResult
 from ._scan import ScanWindow as ScanWindow
 from ._scan import scan as scan
 from ._scan import scan_windows as scan_windows
+from ._marginal import MarginalResult as MarginalResult
+from ._marginal import marginal_scan as marginal_scan
 from . import activity as activity

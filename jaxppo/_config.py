@@ -47,6 +47,8 @@ class ScanConfig:
     clip: float | None = 5.0
     events: tuple | None = None
     base: str | None = None  # the absolute folder of the config file (relative paths start there)
+    marginalize: int = 0  # [scan] marginalize: draws of the marginalised scan (0: off)
+    fit_free: tuple | None = None  # [fit] free: the parameters the marginalised scan samples
 
     @property
     def digest(self) -> str:
@@ -57,7 +59,12 @@ class ScanConfig:
         from . import __version__
 
         nsub = self.lightcurve.supersampled_times()[1] if self.lightcurve.time.size else 1
-        payload = json.dumps({"config": self.raw, "jaxppo": __version__, "supersampling": nsub},
+        # what only the marginalised scan uses stays out: changing the number
+        # of draws must not discard the plain scan's progress
+        raw = {k: v for k, v in self.raw.items() if k != "fit"}
+        if isinstance(raw.get("scan"), dict):
+            raw["scan"] = {k: v for k, v in raw["scan"].items() if k != "marginalize"}
+        payload = json.dumps({"config": raw, "jaxppo": __version__, "supersampling": nsub},
                              sort_keys=True, default=str).encode()
         data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
         return hashlib.sha256(payload + data).hexdigest()[:16]
@@ -70,7 +77,7 @@ def _err(source, msg):
 # Every key a config may hold (docs/config.md documents each). A key not
 # listed is an error naming it, its section and the closest valid key: a
 # typo must never run with a default (``tilded = true`` tilting planet 1).
-SECTIONS = ("star", "planet", "data", "scan")
+SECTIONS = ("star", "planet", "data", "scan", "fit")
 STAR_KEYS = {
     "uniform": ("law",), "quadratic": ("law", "coefficients"), "nonlinear": ("law", "coefficients"),
     "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
@@ -79,7 +86,8 @@ STAR_KEYS = {
 PLANET_KEYS = ("name",) + _PLANET_FIELDS + ("tilted",)
 DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(_ROLES)
-SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits")
+SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
+FIT_KEYS = ("free",)
 
 
 def _check_keys(table: dict, valid, where: str, source: str) -> None:
@@ -336,8 +344,26 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         if not (isinstance(events, list) and events and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in events)):
             raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
         events = tuple(float(v) for v in events)
+    marginalize = scan.get("marginalize", 0)
+    if isinstance(marginalize, bool) or not isinstance(marginalize, int) or marginalize < 0:
+        raise _err(source, f"[scan] marginalize must be a number of draws >= 0 (0: off), got {marginalize!r}")
+    fit = raw.get("fit", {})
+    if not isinstance(fit, dict):
+        raise _err(source, "[fit] must be a table (a [fit] section)")
+    _check_keys(fit, FIT_KEYS, "[fit]", source)
+    free = fit.get("free")
+    if free is not None:
+        if not (isinstance(free, list) and free and all(isinstance(v, str) for v in free)):
+            raise _err(source, f"[fit] free must be a list of parameter names such as \"b.t0\", got {free!r}")
+        from ._fit import parameter_names
+
+        valid = parameter_names(system)
+        bad = [v for v in free if v not in valid]
+        if bad:
+            raise _err(source, f"[fit] free: unknown parameter(s) {bad}; valid: {list(valid)}")
+        free = tuple(free)
     return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
-                      None if clip is None else float(clip), events, str(base))
+                      None if clip is None else float(clip), events, str(base), marginalize, free)
 
 
 def config_template() -> str:
@@ -405,4 +431,9 @@ baseline = 0.3                 # [d] baseline fitted on each side of an event (>
 clip = 5.0                     # drop out-of-transit points beyond this many robust sigmas, or "none"
 block = 60                     # alphas per progress record (resume granularity)
 # multi_transits = [334.02, 670.45]   # [d] only the events with these mid-times (within 0.1 d)
+marginalize = 0                # draws of the scan marginalised over the transit posterior (0: off)
+
+[fit]
+# free = ["b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius"]
+#   parameters the marginalised scan samples with NUTS (default: these five of every planet)
 """

@@ -471,7 +471,8 @@ def _clear_outputs(out: Path) -> None:
             figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
-    names = ["summary.json", "scan.csv", "scan.ecsv", "table5.csv", "table5.md"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    names = ["summary.json", "scan.csv", "scan.ecsv", "table5.csv", "table5.md", "marginal.csv", "marginal.json",
+             "marginal.png", "marginal_draws.json", "marginal_progress.jsonl"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
     for name in dict.fromkeys(names):
         p = out / name
         if p.is_file():

@@ -178,6 +178,14 @@ def cmd_scan(args) -> int:
     print(table5_text(result["table5"], cfg.cases), end="")
     verb = "results in" if res.get("finished_before") else "wrote"
     print(f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
+    draws = args.marginalize if args.marginalize is not None else cfg.marginalize
+    if draws:
+        from jaxppo._marginal import marginal_scan
+
+        m = marginal_scan(cfg, draws=draws, out=out, fixed=result, free=cfg.fit_free, restart=args.restart,
+                          progress=not args.quiet)
+        print("\n".join(m.summary_lines()))
+        print(f"wrote {out / 'marginal.csv'}, marginal.json and marginal.png")
     return 0
 
 
@@ -343,6 +351,17 @@ def cmd_activity(args) -> int:
     return 0
 
 
+def _draws(text: str) -> int:
+    """argparse type of --marginalize: an integer >= 0."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number of draws >= 0, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number of draws >= 0, got {text!r}")
+    return n
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``jaxppo`` (every option documented with its
     unit and default; docs/cli.md)."""
@@ -366,6 +385,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="tilt grid [deg]: START, STOP (exclusive), STEP, replacing the config's [scan] alpha; "
                    "must span 360 deg with a STEP that divides 360, e.g. --alpha 0 360 2 "
                    "(default: the config's, usually 0 360 1)")
+    p.add_argument("--marginalize", type=_draws, default=None, metavar="N",
+                   help="also run the scan marginalised over N NUTS draws of the transit parameters "
+                   "([fit] free; docs/marginal.md), writing marginal.csv/.json/.png; 0: off "
+                   "(default: the config's [scan] marginalize, usually 0)")
     p.add_argument("--restart", action="store_true",
                    help="discard earlier results in --out instead of resuming (default: resume)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (default: show it)")

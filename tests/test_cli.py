@@ -229,3 +229,30 @@ def test_activity_command(tmp_path, capsys):
     assert (tmp_path / "a" / "activity_map.png").is_file()
     assert main(["activity", "--out", str(tmp_path / "b"), "--spot-chunk", "x"]) == 2
     assert "--spot-chunk must be a chunk index or 'all'" in capsys.readouterr().err
+
+
+def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, capsys):
+    """--marginalize N runs jp.marginal_scan after the plain scan with the
+    config's [fit] free and the fixed scan's result (the marginal scan itself
+    is tested in tests/test_marginal.py); a negative N is one error line."""
+    import jaxppo._marginal as marginal
+    from jaxppo.cli import main
+
+    seen = {}
+
+    class Fake(dict):
+        def summary_lines(self):
+            return ["marginal: fake"]
+
+    def fake(cfg, draws, out, fixed, free, restart, progress):
+        seen.update(draws=draws, fixed=fixed["config_digest"] == cfg.digest, free=free)
+        return Fake()
+
+    monkeypatch.setattr(marginal, "marginal_scan", fake)
+    assert main(["scan", "--out", str(tmp_path / "o"), "--quiet", "--alpha", "0", "360", "10",
+                 "--marginalize", "3"]) == 0
+    assert seen == {"draws": 3, "fixed": True, "free": None}
+    assert "marginal: fake" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        main(["scan", "--out", str(tmp_path / "o"), "--marginalize", "-2"])
+    assert exit_.value.code == 2 and "--marginalize" in capsys.readouterr().err

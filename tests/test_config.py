@@ -194,3 +194,30 @@ def test_quoted_numbers_and_optional_scan_section(tmp_path):
     p.write_text(head)
     cfg = load_config(p)
     assert cfg.alpha.size == 360 and cfg.cases == ("same", "opposite")
+
+
+def test_marginalize_and_fit_free_keys(tmp_path):
+    """[scan] marginalize and [fit] free are read and checked; neither
+    changes the plain scan's digest (its progress survives a new N)."""
+    from jaxppo._phoenix import data_path as jp_data
+
+    text = Path(jp_data("kepler20_synthetic.toml")).read_text()
+    data = str(Path(jp_data("kepler20_synthetic_bc.csv")))
+    text = text.replace('path = "kepler20_synthetic_bc.csv"', f'path = "{data}"')
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    base = load_config(p)
+    assert base.marginalize == 0 and base.fit_free is None
+    p.write_text(text.replace("[scan]\n", "[scan]\nmarginalize = 32\n") + '\n[fit]\nfree = ["b.t0", "c.radius"]\n')
+    cfg = load_config(p)
+    assert cfg.marginalize == 32 and cfg.fit_free == ("b.t0", "c.radius") and cfg.digest == base.digest
+    for bad, match in (("marginalize = -1", "marginalize must be"), ("marginalize = 2.5", "marginalize must be")):
+        p.write_text(text.replace("[scan]\n", f"[scan]\n{bad}\n"))
+        with pytest.raises(ValueError, match=match):
+            load_config(p)
+    p.write_text(text + '\n[fit]\nfree = ["b.tzero"]\n')
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['b.tzero'\]"):
+        load_config(p)
+    p.write_text(text + '\n[fit]\nfrees = ["b.t0"]\n')
+    with pytest.raises(ValueError, match="free"):
+        load_config(p)
