@@ -76,6 +76,10 @@ class Model:
         # fit (the margin covers the parameter changes of a fit; ``fit``
         # checks the final geometry and refits with a wider split if needed).
         self.union_idx = self._union_frames(system, t_model)
+        # Likewise, only frames where a disk is on the star or within
+        # `margin` [R*] of its limb at the start are computed; the others
+        # are exactly 1 (and widened like the union frames).
+        self.active_idx = self._active_frames(system, t_model)
         self.y = jnp.asarray(lc.flux)
         self.sigma = jnp.asarray(lc.flux_err)
 
@@ -90,16 +94,24 @@ class Model:
                 near |= on[:, i] & on[:, j] & (d < r[:, i] + r[:, j] + margin)
         return np.nonzero(near)[0]
 
+    def _active_frames(self, system, t_model, margin: float = 0.25):
+        x, y, r = system.positions(t_model, self.alpha, self.case, xp=np)
+        return np.nonzero(np.any((r > 0) & (np.hypot(x, y) < 1.0 + r + margin), axis=-1))[0]
+
     def widened(self, systems) -> "Model | None":
         """A new Model (traced anew) whose union-integral frames also cover
         the frames where any of ``systems`` brings disks within the margin of
-        touching; None when the current frames cover them already."""
+        touching, and whose computed frames cover every frame where they put
+        a disk within 0.05 R* of the star; None when the current frames
+        cover them already."""
         t = np.asarray(self.t_model)
         needed = np.unique(np.concatenate([self.union_idx] + [self._union_frames(s, t) for s in systems]))
-        if np.all(np.isin(needed, self.union_idx)):
+        active = np.unique(np.concatenate([self.active_idx] + [self._active_frames(s, t, 0.05) for s in systems]))
+        if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
             return None
         wider = Model(self.system, self.lc, self.free, self.alpha, self.case)
         wider.union_idx = np.union1d(wider.union_idx, needed)
+        wider.active_idx = np.union1d(np.union1d(wider.active_idx, active), wider.union_idx)
         return wider
 
     # ---- coordinates ----------------------------------------------------------
@@ -188,11 +200,13 @@ class Model:
         from ._flux import _exact_frames, _separate_frames
 
         sysm = self.to_system(theta)
-        x, y, r = sysm.positions(self.t_model, self.alpha, self.case)
-        f = _separate_frames(sysm.star, x, y, r, 24)
+        act = np.union1d(self.active_idx, self.union_idx)
+        x, y, r = sysm.positions(self.t_model[act], self.alpha, self.case)
+        fa = _separate_frames(sysm.star, x, y, r, 24)
         if self.union_idx.size:
-            idx = self.union_idx
-            f = f.at[idx].set(_exact_frames(sysm.star, x[idx], y[idx], r[idx], 24))
+            idx = np.searchsorted(act, self.union_idx)
+            fa = fa.at[idx].set(_exact_frames(sysm.star, x[idx], y[idx], r[idx], 24))
+        f = jnp.ones(self.t_model.shape, fa.dtype).at[act].set(fa)
         return f.reshape(-1, self.nsub).mean(-1)
 
     def residuals(self, theta, args=None) -> jnp.ndarray:

@@ -85,7 +85,8 @@ def test_nuts_intervals_cover_truth():
     hits = np.zeros(len(free))
     for seed in range(4):
         lc = jp.simulate_kepler20(seed=100 + seed, noise=4e-4)
-        res = jp.sample(truth, lc, free=free, num_warmup=60, num_samples=80, seed=seed, progress_bar=False)
+        res = jp.sample(truth, lc, free=free, num_warmup=60, num_samples=80, seed=seed, num_chains=1,
+                        progress_bar=False)
         tv = _truth_values(truth, free)
         for i, n in enumerate(free):
             _, lo, hi = res.intervals[n]
@@ -123,7 +124,8 @@ def test_sample_widens_the_union_frames_to_the_posterior():
     free = ("c.t0",)
     truth_frames = Model(truth, lc, free, alpha=90.0)._union_frames(truth, lc.time)
     assert not np.all(np.isin(truth_frames, Model(start, lc, free, alpha=90.0).union_idx))
-    post = jp.sample(start, lc, free=free, num_warmup=150, num_samples=150, alpha=90.0, progress_bar=False)
+    post = jp.sample(start, lc, free=free, num_warmup=150, num_samples=150, num_chains=1, alpha=90.0,
+                     progress_bar=False)
     assert np.all(np.isin(truth_frames, post.union_frames))
     lo, hi = post.intervals["c.t0"][1:]
     width = hi - lo
@@ -181,3 +183,23 @@ def test_fit_flags_a_point_that_is_not_a_minimum():
     verdict = _assess(model, model.to_theta(shifted))
     assert not verdict["optimum"] and "Newton step would lower chi^2" in verdict["problems"][0], verdict["problems"]
     assert _assess(model, model.to_theta(jp.fit(truth, lc, free=model.free).system))["optimum"]
+
+
+def test_fit_computes_every_frame_the_solution_transits():
+    """The model computes only frames where a disk is within 0.25 R* of the
+    star at the start (the rest are exactly 1). A start 0.03 d early (b moves
+    ~0.5 R* in that time) must end with every frame of the solution's transit
+    computed: chi^2 of the result equals chi^2 of System.flux at it."""
+    from jaxppo._fit import Model
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=11, noise=4e-4)
+    b, c = truth.planets
+    start = truth.replace(planets=(b.replace(t0=b.t0 - 0.03), c))
+    free = ("b.t0", "b.radius")
+    assert not np.all(np.isin(Model(truth, lc, free)._active_frames(truth, lc.time, 0.0), Model(start, lc, free).active_idx))
+    res = jp.fit(start, lc, free=free)
+    assert res.success, res.message
+    chi2 = float(np.sum(((lc.flux - np.asarray(res.system.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
+    assert abs(res.chi2 - chi2) < 1e-6 * chi2
+    assert abs(res.values[0] - float(b.t0)) < 5 * res.errors[0]
