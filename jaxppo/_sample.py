@@ -228,6 +228,10 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
     model = Model(system, lightcurve, free, alpha, case)
+    # A posterior spreads further than a fit moves (grazing draws keep a
+    # disk near the limb for long): compute the frames within 1 R* of the
+    # star at the start, so that sampling again (below) is rarely needed.
+    model.active_idx = np.union1d(model.active_idx, model._active_frames(system, np.asarray(model.t_model), 1.0))
     for _ in range(3):
         result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass)
         result.union_frames = model.union_idx
