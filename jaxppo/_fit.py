@@ -76,6 +76,10 @@ class Model:
         # fit (the margin covers the parameter changes of a fit; ``fit``
         # checks the final geometry and refits with a wider split if needed).
         self.union_idx = self._union_frames(system, t_model)
+        # Likewise, only frames where a disk is on the star or within
+        # `margin` [R*] of its limb at the start are computed; the others
+        # are exactly 1 (and widened like the union frames).
+        self.active_idx = self._active_frames(system, t_model)
         self.y = jnp.asarray(lc.flux)
         self.sigma = jnp.asarray(lc.flux_err)
 
@@ -90,16 +94,24 @@ class Model:
                 near |= on[:, i] & on[:, j] & (d < r[:, i] + r[:, j] + margin)
         return np.nonzero(near)[0]
 
+    def _active_frames(self, system, t_model, margin: float = 0.25):
+        x, y, r = system.positions(t_model, self.alpha, self.case, xp=np)
+        return np.nonzero(np.any((r > 0) & (np.hypot(x, y) < 1.0 + r + margin), axis=-1))[0]
+
     def widened(self, systems) -> "Model | None":
         """A new Model (traced anew) whose union-integral frames also cover
         the frames where any of ``systems`` brings disks within the margin of
-        touching; None when the current frames cover them already."""
+        touching, and whose computed frames cover every frame where they put
+        a disk within 0.05 R* of the star; None when the current frames
+        cover them already."""
         t = np.asarray(self.t_model)
         needed = np.unique(np.concatenate([self.union_idx] + [self._union_frames(s, t) for s in systems]))
-        if np.all(np.isin(needed, self.union_idx)):
+        active = np.unique(np.concatenate([self.active_idx] + [self._active_frames(s, t, 0.05) for s in systems]))
+        if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
             return None
         wider = Model(self.system, self.lc, self.free, self.alpha, self.case)
         wider.union_idx = np.union1d(wider.union_idx, needed)
+        wider.active_idx = np.union1d(np.union1d(wider.active_idx, active), wider.union_idx)
         return wider
 
     # ---- coordinates ----------------------------------------------------------
@@ -188,15 +200,35 @@ class Model:
         from ._flux import _exact_frames, _separate_frames
 
         sysm = self.to_system(theta)
-        x, y, r = sysm.positions(self.t_model, self.alpha, self.case)
-        f = _separate_frames(sysm.star, x, y, r, 24)
+        act = np.union1d(self.active_idx, self.union_idx)
+        x, y, r = sysm.positions(self.t_model[act], self.alpha, self.case)
+        fa = _separate_frames(sysm.star, x, y, r, 24)
         if self.union_idx.size:
-            idx = self.union_idx
-            f = f.at[idx].set(_exact_frames(sysm.star, x[idx], y[idx], r[idx], 24))
+            idx = np.searchsorted(act, self.union_idx)
+            fa = fa.at[idx].set(_exact_frames(sysm.star, x[idx], y[idx], r[idx], 24))
+        f = jnp.ones(self.t_model.shape, fa.dtype).at[act].set(fa)
         return f.reshape(-1, self.nsub).mean(-1)
 
     def residuals(self, theta, args=None) -> jnp.ndarray:
         return (self.y - self.flux(theta)) / self.sigma
+
+    def scaled_residuals(self, z, args) -> jnp.ndarray:
+        """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
+        scale)``: one function (one compilation) for every restart of a fit."""
+        theta_ref, scale = args
+        return self.residuals(theta_ref + z / scale)
+
+    def chi2_batch(self, thetas):
+        """chi^2 at each row of ``thetas``, jitted once per Model."""
+        if getattr(self, "_chi2", None) is None:
+            self._chi2 = jax.jit(lambda ts: jax.lax.map(lambda t: jnp.sum(self.residuals(t) ** 2), ts))
+        return self._chi2(thetas)
+
+    def jacobian(self, theta):
+        """(d residuals / d theta, residuals), jitted once per Model."""
+        if getattr(self, "_jac", None) is None:
+            self._jac = jax.jit(jax.jacfwd(lambda th: (self.residuals(th),) * 2, has_aux=True))
+        return self._jac(theta)
 
 
 @dataclasses.dataclass
@@ -229,49 +261,172 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     """Least-squares fit (optimistix Levenberg-Marquardt) of the named free
     parameters to the light curve; limb darkening stays fixed unless named
     (``"star.u1"``). Never raises for a failed fit: ``success`` is False and
-    ``message`` says why."""
+    ``message`` says why.
+
+    ``success`` means more points than free parameters, a start and a
+    solution at which every planet with a free parameter transits in the
+    data, a finite chi^2, and a solution that is a minimum: the Hessian of
+    chi^2 there is positive definite and a Newton step from it would lower
+    chi^2 by less than 0.01. When optimistix stops elsewhere (its step
+    criteria are met where chi^2 is flat, e.g. from a start with a tiny
+    radius), the fit restarts from there in coordinates scaled by the
+    Jacobian's columns before it reports failure.
+    """
     import optimistix as optx
 
     model = Model(system, lightcurve, free, alpha, case)
     theta = model.to_theta(system)
+    n, k = lightcurve.time.size, len(free)
+    problems = _start_problems(model, system, n, k)
+    chi2_start = float(jnp.sum(model.residuals(theta) ** 2))
+    if not np.isfinite(chi2_start):
+        problems.append(f"chi^2 at the start is {chi2_start} (flux_err as small as {np.min(lightcurve.flux_err):.3g} "
+                        "makes the residuals overflow float64, or the model is not finite)")
+    if problems:
+        nan = np.full((k, k), np.nan)
+        start = [system.star.params[par] if owner == "star" else getattr(system.planets[owner], par) for owner, par in model.slots]
+        return FitResult(system, chi2_start, nan, False, "failed: " + "; ".join(problems), tuple(free),
+                         np.asarray(start, float), np.full(k, np.nan), chi2_start / max(n - k, 1) if n > k else np.nan,
+                         0, model.union_idx)
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+    steps, restarts = 0, 0
+    scale = jnp.ones_like(theta)
     # The frames that take the union integral are fixed from the starting
     # parameters (with a margin). If the solution brings disks together in
     # other frames, refit from it with those frames added (a new Model, so
-    # the residuals are traced anew).
-    for _ in range(4):
-        sol = optx.least_squares(model.residuals, solver, theta, max_steps=max_steps, throw=False)
-        theta = sol.value
+    # the residuals are traced anew). Levenberg-Marquardt damps with the
+    # identity, so where chi^2 is nearly flat in theta (a radius of 1e-6
+    # R*) its steps are tiny and its step criteria are met far from the
+    # minimum; then restart in theta scaled by the Jacobian's columns
+    # (same residual function, so no recompilation).
+    verdict = None
+    for _ in range(10):
+        sol = optx.least_squares(model.scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale),
+                                 max_steps=max_steps, throw=False)
+        theta = theta + sol.value / scale
+        steps += int(sol.stats.get("num_steps", -1))
+        verdict = None
         wider = model.widened([model.to_system(theta)])
-        if wider is None:
+        if wider is not None:
+            model = wider
+            continue
+        verdict = _assess(model, theta)
+        if verdict["optimum"] or verdict["scale"] is None or restarts == 3:
             break
-        model = wider
-    res = model.residuals(theta)
-    chi2 = float(jnp.sum(res**2))
-    ok = bool(sol.result == optx.RESULTS.successful) and bool(np.isfinite(chi2))
-    message = "converged" if ok else f"failed: {optx.RESULTS[sol.result] if hasattr(optx.RESULTS, '__getitem__') else sol.result}"
-    # Covariance in physical units from the Jacobian of the residuals.
+        scale, restarts = verdict["scale"], restarts + 1
+    optx_ok = bool(sol.result == optx.RESULTS.successful)
+    if verdict is None:
+        verdict = _assess(model, theta)
+    chi2 = verdict["chi2"]
+    problems = []
+    if not optx_ok:
+        problems.append(str(optx.RESULTS[sol.result]) if hasattr(optx.RESULTS, "__getitem__") else str(sol.result))
+    problems += verdict["problems"]
+    problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, model.to_system(theta))]
+    ok = not problems
+    message = ("converged: " + verdict["summary"]) if ok else "failed: " + "; ".join(problems)
     phys = model.physical(theta)
-
-    def res_phys(q):
-        return model.residuals(model.theta_from(q, theta))
-
-    try:
-        jac = np.asarray(jax.jacfwd(res_phys)(phys))
-        cov = np.linalg.pinv(jac.T @ jac)
-        flat = [n for n, col in zip(free, np.abs(jac).max(0)) if not col > 0]
-        if flat:
-            ok = False
-            message = f"failed: the data do not constrain {flat} (zero derivative at the solution)"
-    except Exception as err:  # a singular or non-finite Jacobian: report, don't raise
-        cov = np.full((len(free), len(free)), np.nan)
-        message += f"; no covariance ({err})"
+    cov = np.full((k, k), np.nan)
+    if verdict["cov_theta"] is not None:
+        # covariance in physical units: q = q(theta), cov_q = D cov_theta D^T
+        d = np.asarray(jax.jacfwd(model.physical)(theta))
+        cov = d @ verdict["cov_theta"] @ d.T
     errors = np.sqrt(np.clip(np.diag(cov), 0, None))
-    if not np.all(np.isfinite(errors)):
+    if ok and not np.all(np.isfinite(errors)):
         ok = False
-        message += "; covariance not finite"
-    dof = max(lightcurve.time.size - len(free), 1)
-    steps = int(sol.stats.get("num_steps", -1)) if hasattr(sol, "stats") else -1
-    return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors, chi2 / dof, steps,
-                     model.union_idx)
+        message = "failed: covariance not finite"
+    return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors,
+                     chi2 / (n - k), steps, model.union_idx)
 
+
+def _transit_problems(model: Model, system: System) -> list:
+    """Planets with a free parameter that do not transit in any model frame."""
+    x, y, r = system.positions(np.asarray(model.t_model), model.alpha, model.case, xp=np)
+    owners = sorted({o for o, _ in model.slots if o != "star"})
+    if any(o == "star" for o, _ in model.slots) and not owners:
+        owners = list(range(len(system.planets)))
+        need_all = False
+    else:
+        need_all = True
+    missing = []
+    for i in owners:
+        on = (r[:, i] > 0) & (np.hypot(x[:, i], y[:, i]) < 1.0 + r[:, i])
+        if not np.any(on):
+            pl = system.planets[i]
+            b = float(pl.a * np.cos(np.deg2rad(pl.inc)))
+            missing.append(f"planet {pl.name or i} does not transit in the data at the start "
+                           f"(impact parameter {b:.3g}, t0 {float(pl.t0):.6f} d, radius {float(pl.radius):.3g} R*)")
+    if not need_all and len(missing) < len(owners):
+        return []
+    return missing
+
+
+def _start_problems(model: Model, system: System, n: int, k: int) -> list:
+    out = []
+    if n <= k:
+        out.append(f"{n} data points for {k} free parameters {model.free}: a fit needs more points than free parameters")
+    return out + _transit_problems(model, system)
+
+
+def _assess(model: Model, theta) -> dict:
+    """Is theta a minimum of chi^2? From the residuals' Jacobian J and the
+    full Hessian H of chi^2, both with theta scaled by J's column norms (so
+    the verdict does not depend on units): H positive definite and the
+    Newton decrement g^T H^-1 g / 2 (the chi^2 a Newton step would gain)
+    below 0.01. Also the covariance (J^T J)^-1 in theta."""
+    jac, r = (np.asarray(v) for v in model.jacobian(theta))
+    chi2 = float(np.sum(r**2))
+    out = {"chi2": chi2, "problems": [], "optimum": False, "scale": None, "cov_theta": None, "summary": ""}
+    if not np.isfinite(chi2):
+        out["problems"].append(f"chi^2 at the solution is {chi2}")
+        return out
+    c = np.sqrt(np.sum(jac**2, axis=0))
+    flat = [n for n, ci in zip(model.free, c) if not ci > 0]
+    if flat or not np.all(np.isfinite(jac)):
+        out["problems"].append(f"the data do not constrain {flat} (zero or non-finite derivative at the solution)")
+        return out
+    out["scale"] = jnp.asarray(c)
+    grad = 2.0 * (jac.T @ r) / c
+    # Hessian of chi^2 in the scaled coordinates by second differences of
+    # chi^2 itself (2 k^2 forward evaluations in one program; a traced
+    # jax.hessian costs ~8 s of compilation here). The step, 0.3, is a
+    # fraction of the scale on which chi^2 changes by 1: the light curve's
+    # second derivative jumps at contact points, and differences of the
+    # gradient over tiny steps read a 10-parameter Kepler-20 minimum as a
+    # saddle.
+    h, k = 0.3, c.size
+    eye = np.eye(k) * h
+    pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
+    pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
+    pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
+    f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(pts)) / c))
+    hess = np.empty((k, k))
+    for i in range(k):
+        hess[i, i] = (f[1 + 2 * i] - 2 * f[0] + f[2 + 2 * i]) / h**2
+    base = 1 + 2 * k
+    for n, (i, j) in enumerate(pairs):
+        fpp, fpm, fmp, fmm = f[base + 4 * n: base + 4 * n + 4]
+        hess[i, j] = hess[j, i] = (fpp - fpm - fmp + fmm) / (4 * h**2)
+    if not np.all(np.isfinite(hess)):
+        out["problems"].append("the Hessian of chi^2 at the solution is not finite")
+        return out
+    w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
+    # scaled so that the Gauss-Newton part has unit diagonal: eigenvalues
+    # near 2 for well-determined parameters; 1e-9 of that is degenerate
+    if w[0] <= 2e-9 * max(w[-1], 1.0):
+        out["problems"].append(f"not a minimum: the Hessian of chi^2 is not positive definite (scaled eigenvalues "
+                               f"{w[0]:.3g} .. {w[-1]:.3g}, gradient norm {np.linalg.norm(grad):.3g}); the free parameters are "
+                               "degenerate, or the fit stopped on a slope or a saddle")
+    else:
+        decrement = 0.5 * float(grad @ np.linalg.solve(hess, grad))
+        out["summary"] = f"Newton step would lower chi^2 by {decrement:.2g}"
+        if decrement > 0.01:
+            out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
+        else:
+            out["optimum"] = True
+    jtj = (jac / c).T @ (jac / c)
+    try:
+        out["cov_theta"] = np.linalg.inv(jtj) / np.outer(c, c)
+    except np.linalg.LinAlgError:
+        pass
+    return out

@@ -297,14 +297,27 @@ def cmd_sample(args) -> int:
     import jaxppo as jp
 
     cfg, lc = _fit_inputs(args)
+    if args.netcdf:
+        try:
+            import arviz  # noqa: F401
+        except ImportError:
+            raise ValueError("--netcdf needs arviz: pip install 'jaxppo[arviz]'") from None
+        if not Path(args.netcdf).resolve().parent.is_dir():
+            raise ValueError(f"--netcdf: folder {str(Path(args.netcdf).parent)!r} does not exist")
     res = jp.sample(cfg.system, lc, free=tuple(args.free), num_warmup=args.warmup, num_samples=args.samples,
                     seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet)
     for n, (med, lo, hi) in res.intervals.items():
         d = res.diagnostics[n]
-        print(f"{n:12s} {med:.8f} +{hi - med:.2e} -{med - lo:.2e}   r_hat {d['r_hat']:.3f}  n_eff {d['n_eff']:.0f}")
+        print(f"{n:12s} {med:.8f} +{hi - med:.2e} -{med - lo:.2e}   r_hat {d['r_hat']:.3f}  "
+              f"ess bulk {d['ess_bulk']:.0f} tail {d['ess_tail']:.0f}")
+    div = int(np.sum(res.stats["diverging"]))
+    print(f"{args.chains} chains x {args.samples} draws, {div} divergent transitions")
     if args.out:
         np.savez(args.out, **{k.replace(".", "_"): v for k, v in res.samples.items()})
         print(f"wrote {args.out}")
+    if args.netcdf:
+        res.to_netcdf(args.netcdf)
+        print(f"wrote {args.netcdf} (arviz.from_netcdf reads it)")
     return 0
 
 
@@ -407,9 +420,11 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "sample":
             p.add_argument("--warmup", type=int, default=1000)
             p.add_argument("--samples", type=int, default=1000)
-            p.add_argument("--chains", type=int, default=1)
+            p.add_argument("--chains", type=int, default=4, help="chains, run vectorised (default 4)")
             p.add_argument("--seed", type=int, default=0)
             p.add_argument("--quiet", action="store_true")
+            p.add_argument("--netcdf", default=None, metavar="PATH",
+                           help="write the posterior, log-likelihood, sample stats and data as arviz netCDF")
         p.set_defaults(func=func)
     p = sub.add_parser("activity", help="stellar activity: rotation period, variability, brightness map, spots",
                        description="Rotation period (generalised Lomb-Scargle, astropy), peak-to-peak variability "

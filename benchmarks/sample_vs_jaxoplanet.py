@@ -1,0 +1,134 @@
+"""Sampler efficiency: minimum effective samples per second of ``jp.sample``
+against a numpyro model built on jaxoplanet's limb-darkened light curve, for
+the same single-transit data, priors and free parameters (t0, P, a, i, p of
+one planet), both with NUTS, a dense mass matrix and vectorised chains, in
+one run.
+
+The reference model is what a jaxoplanet user writes: numpyro sample sites
+with the priors of ``jp.sample`` (t0 uniform +-0.05 d, P uniform +-0.1 %,
+a uniform in [1, 4 a], b / (1 + p) uniform in (-1, 1), p log-uniform in
+[1e-4, 0.5]) on a circular orbit (the geometry of CONVENTIONS), flux from
+``jaxoplanet.core.limb_dark.light_curve``; started at the same point.
+
+Times are wall-clock for the whole call (compilation, warmup and sampling);
+ESS is arviz's bulk and tail ESS, the minimum over the five parameters.
+
+    python benchmarks/sample_vs_jaxoplanet.py [--warmup 300 --samples 300 --chains 4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import jaxppo as jp  # noqa: E402
+
+FREE = ("b.t0", "b.period", "b.a", "b.inc", "b.radius")
+
+
+def data(seed: int = 3, noise: float = 2e-4):
+    """One transit of a Kepler-20 b-like planet with b = 0.3, 2-minute
+    cadence over +-0.25 d, generated with jaxoplanet's light curve."""
+    from jaxoplanet.core.limb_dark import light_curve
+
+    star = jp.Star.quadratic(0.4, 0.26)
+    pl = jp.kepler20_system().planets[0]
+    inc = float(np.rad2deg(np.arccos(0.3 / float(pl.a))))
+    planet = jp.Planet(period=float(pl.period), t0=float(pl.t0), a=float(pl.a), inc=inc, radius=float(pl.radius), name="b")
+    t = np.arange(float(pl.t0) - 0.25, float(pl.t0) + 0.25, 2.0 / 1440.0)
+    x, y, r = jp.System(star, [planet]).positions(t, xp=np)
+    f = 1.0 + np.asarray(light_curve(jnp.array([0.4, 0.26]), np.hypot(x[:, 0], y[:, 0]), float(pl.radius)))
+    f = np.where(r[:, 0] > 0, f, 1.0)
+    rng = np.random.default_rng(seed)
+    lc = jp.LightCurve(t, f + noise * rng.standard_normal(t.size), np.full(t.size, noise))
+    return jp.System(star, [planet]), lc
+
+
+def jaxoplanet_sample(system, lc, warmup, samples, chains, seed):
+    import numpyro
+    import numpyro.distributions as dist
+    from jaxoplanet.core.limb_dark import light_curve
+    from numpyro.infer import MCMC, NUTS, init_to_value
+
+    pl = system.planets[0]
+    t, y, sig = jnp.asarray(lc.time), jnp.asarray(lc.flux), jnp.asarray(lc.flux_err)
+    u = jnp.array([0.4, 0.26])
+    t00, p00, a00 = float(pl.t0), float(pl.period), float(pl.a)
+
+    def model():
+        t0 = numpyro.sample("t0", dist.Uniform(t00 - 0.05, t00 + 0.05))
+        period = numpyro.sample("period", dist.Uniform(p00 * (1 - 1e-3), p00 * (1 + 1e-3)))
+        a = numpyro.sample("a", dist.Uniform(1.0, 4.0 * a00))
+        bn = numpyro.sample("bn", dist.Uniform(-1.0, 1.0))
+        p = numpyro.sample("radius", dist.LogUniform(1e-4, 0.5))
+        cosi = bn * (1.0 + p) / a
+        phi = 2.0 * jnp.pi * (t - t0) / period
+        xs, ys, zs = a * jnp.sin(phi), a * jnp.cos(phi) * cosi, a * jnp.cos(phi) * jnp.sqrt(1.0 - cosi**2)
+        flux = 1.0 + jnp.where(zs > 0, light_curve(u, jnp.hypot(xs, ys), p), 0.0)
+        numpyro.sample("obs", dist.Normal(flux, sig), obs=y)
+
+    b0 = float(pl.a * np.cos(np.deg2rad(pl.inc))) / (1 + float(pl.radius))
+    start = {"t0": t00, "period": p00, "a": a00, "bn": b0, "radius": float(pl.radius)}
+    kernel = NUTS(model, dense_mass=True, init_strategy=init_to_value(values=start))
+    mcmc = MCMC(kernel, num_warmup=warmup, num_samples=samples, num_chains=chains, chain_method="vectorized",
+                progress_bar=False)
+    t_start = time.perf_counter()
+    mcmc.run(jax.random.PRNGKey(seed), extra_fields=("num_steps",))
+    s = mcmc.get_samples(group_by_chain=True)
+    jax.block_until_ready(s)
+    wall = time.perf_counter() - t_start
+    steps = float(np.mean(np.asarray(mcmc.get_extra_fields()["num_steps"])))
+    return {k: np.asarray(v) for k, v in s.items()}, wall, steps
+
+
+def ess(chains):
+    import arviz as az
+
+    out = {}
+    for k, v in chains.items():
+        out[k] = (float(az.ess(v, method="bulk")), float(az.ess(v, method="tail")), float(az.rhat(v)))
+    return out
+
+
+def report(label, chains, wall, steps):
+    e = ess(chains)
+    bulk = min(v[0] for v in e.values())
+    tail = min(v[1] for v in e.values())
+    rhat = max(v[2] for v in e.values())
+    print(f"{label:11s} {wall:7.1f} s   min ESS bulk {bulk:7.0f} tail {tail:7.0f}   max R-hat {rhat:.3f}   "
+          f"mean leapfrog steps {steps:6.1f}   min ESS/s {min(bulk, tail) / wall:8.2f}")
+    return min(bulk, tail) / wall
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--warmup", type=int, default=300)
+    ap.add_argument("--samples", type=int, default=300)
+    ap.add_argument("--chains", type=int, default=4)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    system, lc = data()
+    print(f"{len(lc)} points, free {FREE}, {args.chains} chains x ({args.warmup} warmup + {args.samples} draws), "
+          f"{jax.device_count()} {jax.default_backend()} device(s)")
+    t_start = time.perf_counter()
+    res = jp.sample(system, lc, free=FREE, num_warmup=args.warmup, num_samples=args.samples, num_chains=args.chains,
+                    seed=args.seed, progress_bar=False)
+    wall = time.perf_counter() - t_start
+    ours = report("jaxppo", res.chains, wall, float(np.mean(res.stats["n_steps"])))
+    chains, wall_j, steps_j = jaxoplanet_sample(system, lc, args.warmup, args.samples, args.chains, args.seed)
+    ref = report("jaxoplanet", chains, wall_j, steps_j)
+    print(f"ratio jaxppo / jaxoplanet (min ESS per second): {ours / ref:.2f}x")
+    med = {n: res.intervals[n][0] for n in FREE}
+    jx = {"b.t0": "t0", "b.period": "period", "b.a": "a", "b.radius": "radius"}
+    for n, k in jx.items():
+        print(f"  {n:9s} jaxppo median {med[n]:.6f}   jaxoplanet median {np.median(chains[k]):.6f}")
+
+
+if __name__ == "__main__":
+    main()
