@@ -34,3 +34,23 @@ def test_fit_q1_example(tmp_path):
     res = _load("fit_kepler20_q1").main(["--out", str(tmp_path / "f.png")])
     assert res.success and (tmp_path / "f.png").exists()
     assert 0.6 < res.reduced_chi2 < 1.6
+
+
+def test_tutorial_runs_top_to_bottom(tmp_path, monkeypatch):
+    """docs/tutorial.md's Python blocks, in order, as one script (run from
+    the repository root, where its relative data paths point; outputs into a
+    temporary folder)."""
+    import re
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    root = EXAMPLES.parent
+    text = (root / "docs" / "tutorial.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) >= 3
+    code = "\n".join(blocks).replace('out="scan_api"', f'out="{tmp_path / "scan_api"}"')
+    monkeypatch.chdir(root)
+    namespace = {}
+    exec(compile(code, "docs/tutorial.md", "exec"), namespace)
+    assert namespace["res"] is not None and namespace["post"].samples
