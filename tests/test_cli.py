@@ -256,3 +256,19 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
     with pytest.raises(SystemExit) as exit_:
         main(["scan", "--out", str(tmp_path / "o"), "--marginalize", "-2"])
     assert exit_.value.code == 2 and "--marginalize" in capsys.readouterr().err
+
+
+def test_persistent_compilation_cache(tmp_path):
+    """Commands keep JAX's compiled programs in JAXPPO_CACHE_DIR (a second
+    run does not recompile); JAXPPO_CACHE=0 switches the cache off."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, JAXPPO_CACHE_DIR=str(tmp_path / "cache"))
+    cmd = [sys.executable, "-m", "jaxppo.cli", "simulate", "--out", str(tmp_path / "d.csv")]
+    subprocess.run(cmd, env=env, check=True, capture_output=True)
+    assert any((tmp_path / "cache").iterdir())
+    env = dict(os.environ, JAXPPO_CACHE_DIR=str(tmp_path / "off"), JAXPPO_CACHE="0")
+    subprocess.run(cmd, env=env, check=True, capture_output=True)
+    assert not (tmp_path / "off").exists()
