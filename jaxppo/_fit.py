@@ -68,6 +68,7 @@ class Model:
             raise ValueError(f"free parameters repeat: {free}")
         self.system, self.lc, self.free = system, lc, free
         self.alpha, self.case = alpha, case
+        self.union_floor = 0  # see _Data.build
         self.slots = [_split(n, system) for n in free]
         t_model, self.nsub = lc.supersampled_times()
         self.t_model = jnp.asarray(t_model)
@@ -111,6 +112,7 @@ class Model:
         if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
             return None
         wider = Model(self.system, self.lc, self.free, self.alpha, self.case)
+        wider.union_floor = self.union_floor
         wider.union_idx = np.union1d(wider.union_idx, needed)
         wider.active_idx = np.union1d(np.union1d(wider.active_idx, active), wider.union_idx)
         return wider
@@ -248,7 +250,11 @@ class _Data(eqx.Module):
         act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
         union = np.searchsorted(act, model.union_idx).astype(np.int64)
         act = _pad(act, _bucket(act.size))
-        union = _pad(union, _bucket(union.size))
+        # ``fit`` pads the union frames to a power of two (at least
+        # ``union_floor``): they are a small share of the work, and a fit
+        # that brings disks together adds a few of them at each widening
+        union = _pad(union, _bucket(union.size) if not model.union_floor or not union.size
+                     else max(model.union_floor, 1 << int(np.ceil(np.log2(union.size)))))
         case = tuple(model.case) if isinstance(model.case, list) else model.case
         system = jax.tree.map(lambda v: jnp.asarray(v, float) if not isinstance(v, jax.Array) else v, model.system)
         return _Data(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
@@ -363,6 +369,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     import optimistix as optx
 
     model = Model(system, lightcurve, free, alpha, case)
+    model.union_floor = 32
     theta = model.to_theta(system)
     n, k = lightcurve.time.size, len(free)
     problems = _start_problems(model, system, n, k)
