@@ -250,11 +250,16 @@ class _Data(eqx.Module):
         act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
         union = np.searchsorted(act, model.union_idx).astype(np.int64)
         act = _pad(act, _bucket(act.size))
-        # ``fit`` pads the union frames to a power of two (at least
-        # ``union_floor``): they are a small share of the work, and a fit
-        # that brings disks together adds a few of them at each widening
-        union = _pad(union, _bucket(union.size) if not model.union_floor or not union.size
-                     else max(model.union_floor, 1 << int(np.ceil(np.log2(union.size)))))
+        if model.union_floor and act.size:
+            # ``fit`` pads the union frames to a power of two (at least
+            # ``union_floor``, even when there are none: the union integral
+            # is exact, with exact derivatives, for any frame): they are a
+            # small share of the work, and a fit that brings disks together
+            # adds them at its widenings, which would each recompile
+            size = max(model.union_floor, 1 << int(np.ceil(np.log2(max(union.size, 1)))))
+            union = np.concatenate([union, np.full(size - union.size, union[-1] if union.size else 0, np.int64)])
+        else:
+            union = _pad(union, _bucket(union.size))
         case = tuple(model.case) if isinstance(model.case, list) else model.case
         system = jax.tree.map(lambda v: jnp.asarray(v, float) if not isinstance(v, jax.Array) else v, model.system)
         return _Data(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
@@ -369,7 +374,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     import optimistix as optx
 
     model = Model(system, lightcurve, free, alpha, case)
-    model.union_floor = 32
+    model.union_floor = 128
     theta = model.to_theta(system)
     n, k = lightcurve.time.size, len(free)
     problems = _start_problems(model, system, n, k)
