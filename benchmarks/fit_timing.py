@@ -7,7 +7,7 @@
   parameters;
 * gradient: the cost of jax.grad of chi^2 relative to one forward evaluation.
 
-    python benchmarks/fit_timing.py [--warmup 1000 --samples 1000]
+    python benchmarks/fit_timing.py [--warmup 1000 --samples 1000] [--no-nuts]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--warmup", type=int, default=1000)
     ap.add_argument("--samples", type=int, default=1000)
+    ap.add_argument("--no-nuts", action="store_true", help="fit and gradient timings only")
     args = ap.parse_args()
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=7, noise=4e-4)
@@ -42,6 +43,7 @@ def main() -> None:
     jp.fit(start, lc, free=free)
     warm = time.perf_counter() - t0
     print(f"fit: {cold:.2f} s cold (incl. compilation), {warm:.2f} s second call; {res.message}, reduced chi2 {res.reduced_chi2:.3f}")
+    print(res.table())
 
     model = Model(truth, lc, free)
     theta = model.to_theta(truth)
@@ -53,6 +55,8 @@ def main() -> None:
     tg = min(_time(lambda: grad(theta).block_until_ready()) for _ in range(5))
     print(f"chi2 forward {tf * 1e3:.2f} ms, gradient {tg * 1e3:.2f} ms: ratio {tg / tf:.2f}")
 
+    if args.no_nuts:
+        return
     t0 = time.perf_counter()
     post = jp.sample(truth, lc, free=("b.t0", "b.radius", "c.t0", "c.radius"), num_warmup=args.warmup,
                      num_samples=args.samples, seed=0, progress_bar=False)

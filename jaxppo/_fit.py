@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -67,6 +68,7 @@ class Model:
             raise ValueError(f"free parameters repeat: {free}")
         self.system, self.lc, self.free = system, lc, free
         self.alpha, self.case = alpha, case
+        self.union_floor = 0  # see _Data.build
         self.slots = [_split(n, system) for n in free]
         t_model, self.nsub = lc.supersampled_times()
         self.t_model = jnp.asarray(t_model)
@@ -110,6 +112,7 @@ class Model:
         if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
             return None
         wider = Model(self.system, self.lc, self.free, self.alpha, self.case)
+        wider.union_floor = self.union_floor
         wider.union_idx = np.union1d(wider.union_idx, needed)
         wider.active_idx = np.union1d(np.union1d(wider.active_idx, active), wider.union_idx)
         return wider
@@ -136,29 +139,7 @@ class Model:
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
     def to_system(self, theta) -> System:
-        planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in self.system.planets]
-        star_params = self.system.star.params
-        b_theta = {}
-        for k, (owner, par) in enumerate(self.slots):
-            v = theta[k]
-            if owner == "star":
-                star_params = star_params.at[par].set(v)
-            elif par == "t0":
-                planets[owner]["t0"] = v
-            elif par == "period":
-                planets[owner]["period"] = jnp.exp(v)
-            elif par == "a":
-                planets[owner]["a"] = 1.0 + jnp.exp(v)
-            elif par == "radius":
-                planets[owner]["radius"] = jnp.exp(v)
-            else:
-                b_theta[owner] = v
-        for owner, v in b_theta.items():
-            pl = planets[owner]
-            b = (1.0 + pl["radius"]) * jnp.tanh(v)
-            pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
-        star = dataclasses.replace(self.system.star, params=star_params)
-        return System(star, [Planet(**p) for p in planets], self.system.tilted)
+        return _to_system(theta, self.system, tuple(self.slots))
 
     def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
         """Unconstrained theta from parameter values in physical units, except
@@ -196,39 +177,157 @@ class Model:
         return jnp.stack(out)
 
     # ---- model ----------------------------------------------------------------
-    def flux(self, theta) -> jnp.ndarray:
-        from ._flux import _exact_frames, _separate_frames
+    def data(self) -> "_Data":
+        """The arrays the compiled model functions take as traced inputs
+        (rebuilt when the frame sets change). Every Model with the same
+        structure and frame counts reuses one compilation."""
+        key = (self.union_idx, self.active_idx)
+        cached = getattr(self, "_data_cache", None)
+        if cached is None or cached[0][0] is not key[0] or cached[0][1] is not key[1]:
+            # concrete arrays even when first asked for inside a trace (a
+            # tracer kept here would leak into later calls)
+            with jax.ensure_compile_time_eval():
+                cached = (key, _Data.build(self))
+            self._data_cache = cached
+        return cached[1]
 
-        sysm = self.to_system(theta)
-        act = np.union1d(self.active_idx, self.union_idx)
-        x, y, r = sysm.positions(self.t_model[act], self.alpha, self.case)
-        fa = _separate_frames(sysm.star, x, y, r, 24)
-        if self.union_idx.size:
-            idx = np.searchsorted(act, self.union_idx)
-            fa = fa.at[idx].set(_exact_frames(sysm.star, x[idx], y[idx], r[idx], 24))
-        f = jnp.ones(self.t_model.shape, fa.dtype).at[act].set(fa)
-        return f.reshape(-1, self.nsub).mean(-1)
+    def flux(self, theta) -> jnp.ndarray:
+        return _flux(theta, self.data())
 
     def residuals(self, theta, args=None) -> jnp.ndarray:
-        return (self.y - self.flux(theta)) / self.sigma
+        return _residuals(theta, self.data())
 
     def scaled_residuals(self, z, args) -> jnp.ndarray:
         """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
-        scale)``: one function (one compilation) for every restart of a fit."""
+        scale)``."""
         theta_ref, scale = args
-        return self.residuals(theta_ref + z / scale)
+        return _residuals(theta_ref + z / scale, self.data())
 
     def chi2_batch(self, thetas):
-        """chi^2 at each row of ``thetas``, jitted once per Model."""
-        if getattr(self, "_chi2", None) is None:
-            self._chi2 = jax.jit(lambda ts: jax.lax.map(lambda t: jnp.sum(self.residuals(t) ** 2), ts))
-        return self._chi2(thetas)
+        """chi^2 at each row of ``thetas`` (one compiled program)."""
+        return _chi2_batch(thetas, self.data())
 
     def jacobian(self, theta):
-        """(d residuals / d theta, residuals), jitted once per Model."""
-        if getattr(self, "_jac", None) is None:
-            self._jac = jax.jit(jax.jacfwd(lambda th: (self.residuals(th),) * 2, has_aux=True))
-        return self._jac(theta)
+        """(d residuals / d theta, residuals), compiled once per structure."""
+        return _jacobian(theta, self.data())
+
+
+def _bucket(n: int) -> int:
+    """Padded length for n computed frames: steps of 1/16 of a power of two
+    (at most ~6 % extra work), so that widening the frame sets by a few
+    frames usually keeps the compiled programs."""
+    if n <= 64:
+        return max(n, 1)
+    step = 1 << max(int(np.floor(np.log2(n))) - 4, 0)
+    return int(-(-n // step) * step)
+
+
+def _pad(idx: np.ndarray, size: int) -> np.ndarray:
+    # repeat the last entry: a repeated frame is computed twice and written
+    # twice with the same value
+    return np.concatenate([idx, np.full(size - idx.size, idx[-1], idx.dtype)]) if idx.size else idx
+
+
+class _Data(eqx.Module):
+    """Everything the model flux needs, as a pytree: arrays are traced (so a
+    new light curve, start or frame set of the same sizes does not
+    recompile); the structure is static."""
+
+    system: System
+    t: jax.Array          # model times of the computed frames [d]
+    act: jax.Array        # their positions in the supersampled time grid
+    union: jax.Array      # positions (in ``t``) of the union-integral frames
+    y: jax.Array
+    sigma: jax.Array
+    alpha: jax.Array
+    slots: tuple = eqx.field(static=True)
+    nsub: int = eqx.field(static=True)
+    n_model: int = eqx.field(static=True)
+    case: object = eqx.field(static=True)
+
+    @staticmethod
+    def build(model: "Model") -> "_Data":
+        act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
+        union = np.searchsorted(act, model.union_idx).astype(np.int64)
+        act = _pad(act, _bucket(act.size))
+        if model.union_floor and act.size:
+            # ``fit`` pads the union frames to a power of two (at least
+            # ``union_floor``, even when there are none: the union integral
+            # is exact, with exact derivatives, for any frame): they are a
+            # small share of the work, and a fit that brings disks together
+            # adds them at its widenings, which would each recompile
+            size = max(model.union_floor, 1 << int(np.ceil(np.log2(max(union.size, 1)))))
+            union = np.concatenate([union, np.full(size - union.size, union[-1] if union.size else 0, np.int64)])
+        else:
+            union = _pad(union, _bucket(union.size))
+        case = tuple(model.case) if isinstance(model.case, list) else model.case
+        system = jax.tree.map(lambda v: jnp.asarray(v, float) if not isinstance(v, jax.Array) else v, model.system)
+        return _Data(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
+                     model.y, model.sigma, jnp.asarray(model.alpha, float), tuple(model.slots), int(model.nsub),
+                     int(model.t_model.size), case)
+
+
+def _to_system(theta, base: System, slots) -> System:
+    planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in base.planets]
+    star_params = base.star.params
+    b_theta = {}
+    for k, (owner, par) in enumerate(slots):
+        v = theta[k]
+        if owner == "star":
+            star_params = star_params.at[par].set(v)
+        elif par == "t0":
+            planets[owner]["t0"] = v
+        elif par == "period":
+            planets[owner]["period"] = jnp.exp(v)
+        elif par == "a":
+            planets[owner]["a"] = 1.0 + jnp.exp(v)
+        elif par == "radius":
+            planets[owner]["radius"] = jnp.exp(v)
+        else:
+            b_theta[owner] = v
+    for owner, v in b_theta.items():
+        pl = planets[owner]
+        b = (1.0 + pl["radius"]) * jnp.tanh(v)
+        pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
+    star = dataclasses.replace(base.star, params=star_params)
+    return System(star, [Planet(**p) for p in planets], base.tilted)
+
+
+def _flux(theta, d: _Data) -> jnp.ndarray:
+    from ._flux import _exact_frames, _separate_frames
+
+    sysm = _to_system(theta, d.system, d.slots)
+    x, y, r = sysm.positions(d.t, d.alpha, d.case)
+    fa = _separate_frames(sysm.star, x, y, r, 24)
+    if d.union.size:
+        u = d.union
+        fa = fa.at[u].set(_exact_frames(sysm.star, x[u], y[u], r[u], 24))
+    f = jnp.ones((d.n_model,), fa.dtype).at[d.act].set(fa)
+    return f.reshape(-1, d.nsub).mean(-1)
+
+
+@eqx.filter_jit
+def _residuals(theta, d: _Data) -> jnp.ndarray:
+    return (d.y - _flux(theta, d)) / d.sigma
+
+
+def _scaled_residuals(z, args) -> jnp.ndarray:
+    """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
+    scale, data)``: a module-level function with the data as traced inputs,
+    so optimistix compiles it once per model structure and frame counts
+    (not once per fit, restart or Model)."""
+    theta_ref, scale, d = args
+    return _residuals(theta_ref + z / scale, d)
+
+
+@eqx.filter_jit
+def _chi2_batch(thetas, d: _Data):
+    return jax.lax.map(lambda t: jnp.sum(_residuals(t, d) ** 2), thetas)
+
+
+@eqx.filter_jit
+def _jacobian(theta, d: _Data):
+    return jax.jacfwd(lambda th: (_residuals(th, d),) * 2, has_aux=True)(theta)
 
 
 @dataclasses.dataclass
@@ -275,6 +374,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     import optimistix as optx
 
     model = Model(system, lightcurve, free, alpha, case)
+    model.union_floor = 128
     theta = model.to_theta(system)
     n, k = lightcurve.time.size, len(free)
     problems = _start_problems(model, system, n, k)
@@ -301,7 +401,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     # (same residual function, so no recompilation).
     verdict = None
     for _ in range(10):
-        sol = optx.least_squares(model.scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale),
+        sol = optx.least_squares(_scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale, model.data()),
                                  max_steps=max_steps, throw=False)
         theta = theta + sol.value / scale
         steps += int(sol.stats.get("num_steps", -1))
