@@ -308,16 +308,7 @@ class Star(eqx.Module):
             for ak, te in zip(a, twice_e):
                 coef[te] = coef[te] + ak
 
-            def poly(s):
-                m2 = 1.0 - jnp.asarray(s)
-                inside = m2 > 0
-                v = jnp.where(inside, jnp.sqrt(jnp.sqrt(jnp.where(inside, m2, 1.0))), 0.0)
-                out = jnp.zeros_like(v) + coef[-1]
-                for c in coef[-2::-1]:
-                    out = out * v + c
-                return out
-
-            return poly
+            return lambda s: _I.halfint_poly(s, coef)
 
         def intensity(s):
             m2 = 1.0 - jnp.asarray(s)

@@ -47,6 +47,17 @@ PAPER_ROTATION_PERIOD_ERR = 0.001
 KEPLER20_DATA = "kepler20_kic6850504_llc_q1-q17_pdcsap.csv.gz"
 
 
+def _series(time, flux) -> tuple[np.ndarray, np.ndarray]:
+    """time and flux as float arrays: 1D, at least 10 points, same shape."""
+    t = np.asarray(time, float)
+    f = np.asarray(flux, float)
+    if t.ndim != 1 or t.size < 10:
+        raise ValueError(f"time must be 1D with at least 10 points, got shape {t.shape}")
+    if f.shape != t.shape:
+        raise ValueError(f"flux must have the shape of time {t.shape}, got {f.shape}")
+    return t, f
+
+
 def _check_positive(name: str, value, strict: bool = True) -> float:
     try:
         v = float(value)
@@ -177,12 +188,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
         clip: outlier threshold in robust sigmas (1.4826 MAD of the residuals
             from the running median).
     """
-    t = np.asarray(time, float)
-    f = np.asarray(flux, float)
-    if t.ndim != 1 or t.size < 10:
-        raise ValueError(f"time must be 1D with at least 10 points, got shape {t.shape}")
-    if f.shape != t.shape:
-        raise ValueError(f"flux must have the shape of time {t.shape}, got {f.shape}")
+    t, f = _series(time, flux)
     if not np.all(np.isfinite(t)):
         raise ValueError("time must be finite")
     margin = _check_positive("margin", margin, strict=False)
@@ -379,12 +385,7 @@ def rotation_period(time, flux, period_min: float = 2.0, period_max: float = 45.
         resolution of the data. A strictly periodic signal is located much
         better than that; an evolving spot pattern is not (see the bootstrap).
     """
-    t = np.asarray(time, float)
-    y = np.asarray(flux, float)
-    if t.ndim != 1 or t.size < 10:
-        raise ValueError(f"time must be 1D with at least 10 points, got shape {t.shape}")
-    if y.shape != t.shape:
-        raise ValueError(f"flux must have the shape of time {t.shape}, got {y.shape}")
+    t, y = _series(time, flux)
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
         raise ValueError("time and flux must be finite (use prepare_light_curve first)")
     period_min = _check_positive("period_min", period_min)

@@ -115,16 +115,27 @@ def halfint_coefficients(a: Float[Array, " k"], twice_e: tuple[int, ...]) -> Arr
     return jnp.sum((a * scale)[:, None] * jnp.asarray(mask, dtype=a.dtype), axis=0)
 
 
-def halfint_g(s: ArrayLike, coef: Float[Array, " n"]) -> Array:
-    """g(s) = Q(v) / (1 + v + v^2 + v^3), v = (1 - s)**(1/4), s clipped to [0, 1]."""
+def _quarter_root(s: ArrayLike) -> Array:
+    """v = (1 - s)**(1/4), 0 for s >= 1."""
     m2 = 1.0 - jnp.asarray(s)
     inside = m2 > 0
     # double-where: d sqrt / ds is infinite on the limb and beyond it.
-    v = jnp.where(inside, jnp.sqrt(jnp.sqrt(jnp.where(inside, m2, 1.0))), 0.0)
-    num = jnp.zeros_like(v) + coef[-1]
+    return jnp.where(inside, jnp.sqrt(jnp.sqrt(jnp.where(inside, m2, 1.0))), 0.0)
+
+
+def halfint_poly(s: ArrayLike, coef) -> Array:
+    """Q(v) = sum_k coef[k] v^k (Horner), v = (1 - s)**(1/4), s clipped to [0, 1]."""
+    v = _quarter_root(s)
+    out = jnp.zeros_like(v) + coef[-1]
     for c in coef[-2::-1]:
-        num = num * v + c
-    return num / (((v + 1.0) * v + 1.0) * v + 1.0)
+        out = out * v + c
+    return out
+
+
+def halfint_g(s: ArrayLike, coef: Float[Array, " n"]) -> Array:
+    """g(s) = Q(v) / (1 + v + v^2 + v^3), v = (1 - s)**(1/4), s clipped to [0, 1]."""
+    v = _quarter_root(s)
+    return halfint_poly(s, coef) / (((v + 1.0) * v + 1.0) * v + 1.0)
 
 
 # --------------------------------------------------------------------------
