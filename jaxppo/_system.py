@@ -1,7 +1,9 @@
-"""Planets on circular orbits, the tilt alpha of one orbit, and multi-transits.
+"""Planets on circular or eccentric orbits, the tilt alpha of one orbit, and
+multi-transits.
 
-Frame and equations: ../shared/CONVENTIONS.md (sky frame x right, y up, z to
-the observer; Mueller et al. 2021, Sect. 2.5 and Eqs. 2-6).
+Frame and equations: docs/conventions.md (sky frame x right, y up, z to the
+observer; Mueller et al. 2021, Sect. 2.5 and Eqs. 2-6; eccentric orbits as
+in Winn 2010).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from ._flux import occultation_flux
+from .core.geometry import conjunction_mean_anomaly, orbit_position
 from ._star import Star
 
 __all__ = ["scan_cases", 
@@ -171,21 +174,29 @@ def _from_quantity(name: str, value, unit: str):
 
 
 class Planet(eqx.Module):
-    """A planet on a circular orbit.
+    """A planet on a Keplerian orbit (circular by default).
 
     Args:
         period: orbital period P [d], > 0.
-        t0: a mid-transit time [d] (any consistent zero point, e.g. BKJD).
+        t0: a time of conjunction = mid-transit [d] (any consistent zero
+            point, e.g. BKJD), also for eccentric orbits.
         a: semi-major axis [R*], > 1.
-        inc: inclination i [deg] in [0, 180]; b = a cos(i).
+        inc: inclination i [deg] in [0, 180]; b = a cos(i) (1 - e^2) /
+            (1 + e sin omega).
         radius: radius ratio p = R_p / R*, > 0.
         name: optional label used in free-parameter names ("b.t0").
+        e: eccentricity, 0 <= e < 1; the periastron distance a (1 - e)
+            must exceed 1 + radius (the planet would hit the star).
+        omega: argument of periastron [deg], as in Winn (2010), batman
+            (``w``) and jaxoplanet: omega = 90 deg puts periastron at
+            transit, 270 deg apoastron.
 
-    astropy Quantities are converted (inc: any angle unit; period, t0: any
-    time unit; a, radius: dimensionless, e.g. ``(a / R_star).decompose()``;
-    a bare length is refused as ambiguous). Plain numbers mean deg and days.
-    A planet whose |b| >= 1 + radius can never transit: that warns
-    (``inc=1.53`` in radians by habit means 1.53 deg, b ~ a).
+    astropy Quantities are converted (inc, omega: any angle unit; period,
+    t0: any time unit; a, radius, e: dimensionless, e.g.
+    ``(a / R_star).decompose()``; a bare length is refused as ambiguous).
+    Plain numbers mean deg and days. A planet whose |b| >= 1 + radius can
+    never transit: that warns (``inc=1.53`` in radians by habit means
+    1.53 deg, b ~ a).
     """
 
     period: Array
@@ -193,55 +204,110 @@ class Planet(eqx.Module):
     a: Array
     inc: Array
     radius: Array
+    e: Array
+    omega: Array
     name: str = eqx.field(static=True, default="")
 
-    def __init__(self, period, t0, a, inc, radius, name: str = ""):
+    def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0):
         period = _from_quantity("period", period, "d")
         t0 = _from_quantity("t0", t0, "d")
         a = _from_quantity("a", a, "")
         inc = _from_quantity("inc", inc, "deg")
         radius = _from_quantity("radius", radius, "")
+        e = _from_quantity("e", e, "")
+        omega = _from_quantity("omega", omega, "deg")
         _positive("period", period)
         _positive("t0", t0, strict=False, lower=-np.inf)
         _positive("a", a, lower=1.0)
         _positive("radius", radius)
+        _positive("omega", omega, strict=False, lower=-np.inf)
         if not isinstance(inc, jax.core.Tracer):
             inc_arr = np.asarray(inc, dtype=float)
             if not np.all(np.isfinite(inc_arr)) or np.any((inc_arr < 0) | (inc_arr > 180)):
                 raise ValueError(f"inc must be in [0, 180] degrees, got {inc!r}")
+        if not isinstance(e, jax.core.Tracer):
+            e_arr = np.asarray(e, dtype=float)
+            if not np.all(np.isfinite(e_arr)) or np.any((e_arr < 0) | (e_arr >= 1)):
+                raise ValueError(f"e (eccentricity) must be in [0, 1), got {e!r}")
+            if not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
+                peri = np.asarray(a, float) * (1.0 - e_arr)
+                if np.any(peri <= 1.0 + np.asarray(radius, float)):
+                    raise ValueError(
+                        f"planet {str(name)!r}: e = {e!r} puts periastron at a (1 - e) = {np.min(peri):.4g} R* <= "
+                        f"1 + radius = {1.0 + np.max(np.asarray(radius, float)):.4g} R*, so the planet would hit the star"
+                    )
         self.period = jnp.asarray(period, float)
         self.t0 = jnp.asarray(t0, float)
         self.a = jnp.asarray(a, float)
         self.inc = jnp.asarray(inc, float)
         self.radius = jnp.asarray(radius, float)
+        self.e = jnp.asarray(e, float)
+        self.omega = jnp.asarray(omega, float)
         self.name = str(name)
-        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius)):
-            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float))))
+        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
+            b = np.abs(np.asarray(self.impact))
             if np.any(b >= 1.0 + np.asarray(radius, float)):
                 warnings.warn(
-                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = a |cos i| = {np.max(b):.4g} >= 1 + radius, "
+                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {np.max(b):.4g} >= 1 + radius, "
                     "so it never transits (inc is in degrees; a Quantity in radians is converted)",
                     UserWarning, stacklevel=2,
                 )
 
     @property
+    def circular(self) -> bool:
+        """True when e is a concrete 0: the circular code path (exactly the
+        equations of a circular orbit) serves the planet. A traced e (being
+        fitted or differentiated) takes the Keplerian path, whose gradient
+        in e is right also at e = 0."""
+        return not isinstance(self.e, jax.core.Tracer) and not np.any(np.asarray(self.e))
+
+    @property
     def impact(self) -> Array:
-        """Impact parameter b = a cos(i) [R*], signed as the inclination
-        gives it. Transits measure only |b|: :meth:`System.positions` places
-        the planets by |b| and the hemisphere case (docs/conventions.md)."""
-        return self.a * jnp.cos(jnp.deg2rad(self.inc))
+        """Impact parameter b = a cos(i) (1 - e^2) / (1 + e sin omega) [R*]
+        (the sky distance at conjunction), signed as the inclination gives
+        it. Transits measure only |b|: :meth:`System.positions` places the
+        planets by |b| and the hemisphere case (docs/conventions.md)."""
+        b = self.a * jnp.cos(jnp.deg2rad(self.inc))
+        if self.circular:
+            return b
+        return b * (1.0 - self.e**2) / (1.0 + self.e * jnp.sin(jnp.deg2rad(self.omega)))
 
     def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
-        """Sky position (x, y, z) [R*] at times t [d] (CONVENTIONS: circular
-        orbit). ``xp=numpy`` evaluates eagerly in numpy (geometry on the host)."""
-        phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
+        """Sky position (x, y, z) [R*] at times t [d] (docs/conventions.md:
+        circular or Keplerian orbit). ``xp=numpy`` evaluates eagerly in numpy
+        (geometry on the host)."""
         inc = xp.deg2rad(xp.asarray(self.inc))
-        cphi = xp.cos(phi)
         a = xp.asarray(self.a)
+        if not self.circular:
+            return orbit_position(t, xp.asarray(self.period), xp.asarray(self.t0), a, inc,
+                                  xp.asarray(self.e), xp.deg2rad(xp.asarray(self.omega)), xp)
+        phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
+        cphi = xp.cos(phi)
         return a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc)
 
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """First and last contact relative to conjunction t0 + n P [d]:
+        ``(t1 - t0, t4 - t0)`` (t1 < 0 < t4; both 0 if it never transits).
+        Circular orbits: -+ :meth:`half_duration`. Eccentric ones are solved
+        on the host (concrete parameters only) on the exact orbit, where the
+        transit is not symmetric about conjunction."""
+        if self.circular:
+            half = np.asarray(self.half_duration(), float)
+            return -half, half
+        if any(isinstance(getattr(self, f), jax.core.Tracer) for f in ("period", "a", "inc", "radius", "e", "omega")):
+            raise ValueError(f"planet {self.name!r}: contact times of an eccentric orbit need concrete parameters, got traced ones")
+        f = np.vectorize(_eccentric_contacts, otypes=[float, float])
+        return f(*(np.asarray(getattr(self, k), float) for k in ("period", "a", "inc", "radius", "e", "omega")))
+
     def half_duration(self) -> Array:
-        """Half the time [d] from first to last contact (0 if it never transits)."""
+        """Half-width [d] of the window about conjunction t0 + n P that holds
+        the whole transit (0 if it never transits): half the time from first
+        to last contact for circular orbits; for eccentric ones, whose
+        transits are not symmetric about conjunction, the larger of the two
+        contact offsets (see :meth:`contacts`)."""
+        if not self.circular:
+            t1, t4 = self.contacts()
+            return jnp.asarray(np.maximum(-t1, t4))
         sin_i = jnp.sin(jnp.deg2rad(self.inc))
         c2 = (1.0 - ((1.0 + self.radius) / self.a) ** 2) / jnp.maximum(sin_i**2, 1e-300)
         transits = (jnp.abs(self.impact) < 1.0 + self.radius) & (c2 < 1.0)
@@ -249,8 +315,11 @@ class Planet(eqx.Module):
         return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
 
     def __repr__(self) -> str:
-        """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805)."""
+        """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805);
+        eccentric orbits add e and omega [deg]."""
         fields = (("period", " d"), ("t0", " d"), ("a", " R*"), ("inc", " deg"), ("radius", ""))
+        if not self.circular:
+            fields += (("e", ""), ("omega", " deg"))
         parts = [f"name={self.name!r}"] if self.name else []
         for f, unit in fields:
             v = getattr(self, f)
@@ -262,9 +331,73 @@ class Planet(eqx.Module):
         return "Planet(" + ", ".join(parts) + ")"
 
     def replace(self, **changes) -> "Planet":
-        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name")}
+        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega")}
         fields.update(changes)
         return Planet(**fields)
+
+
+def _bisect(g, lo, hi, steps=200):
+    """Root of g in [lo, hi] (g(lo), g(hi) of opposite signs) to rounding."""
+    glo = g(lo)
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        gm = g(mid)
+        if (gm < 0) == (glo < 0):
+            lo, glo = mid, gm
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _eccentric_contacts(period, a, inc, radius, e, omega) -> tuple[float, float]:
+    """(t1 - t0, t4 - t0) [d] of an eccentric orbit: the outermost times
+    about conjunction at which the sky distance equals 1 + radius, on the
+    near side (z > 0). Works in theta = f + omega - pi/2 (0 at conjunction),
+    where r = a (1 - e^2) / (1 + e cos f) and the sky distance is
+    r sqrt(sin^2 theta + cos^2 theta cos^2 i)."""
+    w = math.radians(omega) - 0.5 * math.pi
+    ci = math.cos(math.radians(inc))
+    lim = 1.0 + radius
+
+    def dist(th):
+        r = a * (1.0 - e * e) / (1.0 + e * np.cos(th - w))
+        return r * np.sqrt(np.sin(th) ** 2 + (np.cos(th) * ci) ** 2) - lim
+
+    grid = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 4097)
+    d = dist(grid)
+    k = int(np.argmin(d))
+    if d[k] >= 0:
+        # refine the minimum (a grazing transit may dip below 1 + radius
+        # between grid points): golden-section search on the two cells
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        g = (math.sqrt(5.0) - 1.0) / 2.0
+        for _ in range(100):
+            m1, m2 = hi - g * (hi - lo), lo + g * (hi - lo)
+            if dist(m1) < dist(m2):
+                hi = m2
+            else:
+                lo = m1
+        tmin = 0.5 * (lo + hi)
+        if dist(tmin) >= 0:
+            return 0.0, 0.0
+        grid = np.insert(grid, k + 1 if tmin > grid[k] else k, tmin)
+        d = dist(grid)
+    inside = np.nonzero(d < 0)[0]
+    # the ends of the half orbit are at distance r >= a (1 - e) > 1 + radius
+    j0, j1 = inside[0], inside[-1]
+    th1 = _bisect(lambda th: float(dist(th)), grid[j0 - 1], grid[j0])
+    th4 = _bisect(lambda th: float(dist(th)), grid[j1], grid[j1 + 1])
+    mc = float(conjunction_mean_anomaly(e, math.radians(omega), np))
+
+    def dt(th):
+        f = th - w
+        E = 2.0 * math.atan2(math.sqrt(1.0 - e) * math.sin(0.5 * f), math.sqrt(1.0 + e) * math.cos(0.5 * f))
+        dm = (E - e * math.sin(E)) - mc
+        return period * math.remainder(dm, 2.0 * math.pi) / (2.0 * math.pi)
+
+    return dt(th1), dt(th4)
 
 
 class System(eqx.Module):
@@ -435,16 +568,18 @@ def _transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
     windows = []
     for i in idx:
         pl = system.planets[i]
-        half = float(pl.half_duration())
-        if half <= 0:
+        # first and last contact about conjunction (asymmetric for e > 0)
+        t1, t4 = (float(v) for v in pl.contacts())
+        if t4 <= t1:
             continue
+        half = max(-t1, t4)
         period, t0 = float(pl.period), float(pl.t0)
         n0 = math.floor((t_start - half - t0) / period)
         n1 = math.ceil((t_end + half - t0) / period)
         for n in range(n0, n1 + 1):
             mid = t0 + n * period
-            if mid + half >= t_start and mid - half <= t_end:
-                windows.append((mid - half, mid + half, i, mid))
+            if mid + t4 >= t_start and mid + t1 <= t_end:
+                windows.append((mid + t1, mid + t4, i, mid))
     windows.sort()
     return windows
 
@@ -483,7 +618,7 @@ def multi_transits(
     with no common time is two double transits, not a triple.
 
     ``planets``: restrict to these planets (names or indices); default all.
-    Windows come from the circular-orbit contact times, so events that fall in
+    Windows come from the orbits' contact times (:meth:`Planet.contacts`), so events that fall in
     data gaps are listed too (see :func:`multi_transit_counts` for observed ones).
     """
     for name, v in (("t_start", t_start), ("t_end", t_end)):

@@ -16,7 +16,8 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 __all__ = ["float_dtype", "safe_sqrt", "safe_atan2", "safe_hypot", "heron_product", "crossing_half_width",
-           "circle_intersection_angles", "wrap_angle", "cos_sin"]
+           "circle_intersection_angles", "wrap_angle", "cos_sin",
+           "kepler_eccentric_anomaly", "conjunction_mean_anomaly", "orbit_position"]
 
 
 def float_dtype(*arrays):
@@ -163,3 +164,86 @@ def _cos_sin_jvp(primals, tangents):
     (x,), (dx,) = primals, tangents
     c, s = cos_sin(x)
     return (c, s), (-s * dx, c * dx)
+
+
+# Fixed Halley steps from Danby's starter E0 = M + 0.85 e sign(sin M): on a
+# dense grid of M in [-pi, pi] this reaches the float64 solution (to 4e-16)
+# in 2 steps at e = 0.1, 3 at e = 0.8, 4 at e = 0.95 and 6 at e = 0.999
+# (tests/test_geometry.py checks it against a 50-digit reference). A fixed
+# count keeps the kernel branch-free under vmap; extra steps after
+# convergence change nothing (the residual is zero to rounding).
+_KEPLER_STEPS = 6
+
+
+def _kepler_halley(M, e, xp):
+    """E with E - e sin E = M for M already in [-pi, pi] (numpy or jax)."""
+    E = M + 0.85 * e * xp.sign(xp.sin(M))
+    for _ in range(_KEPLER_STEPS):
+        sE, cE = xp.sin(E), xp.cos(E)
+        f = E - e * sE - M
+        f1 = 1.0 - e * cE
+        E = E - f / (f1 - 0.5 * f * e * sE / f1)
+    return E
+
+
+def _reduce_anomaly(M, xp):
+    """M wrapped to [-pi, pi] (the solver's domain; E keeps the same
+    multiples of 2 pi, which sin and cos of E ignore)."""
+    return M - 2.0 * np.pi * xp.round(M / (2.0 * np.pi))
+
+
+@jax.custom_jvp
+def kepler_eccentric_anomaly(M: ArrayLike, e: ArrayLike) -> Array:
+    """Eccentric anomaly E [rad] in [-pi, pi] solving Kepler's equation
+    E - e sin E = M (mean anomaly M [rad], any value; eccentricity
+    0 <= e < 1). Accurate to a few 1e-16 for e up to 0.999. The derivatives
+    come from the implicit function theorem, dE = (dM + sin E de) /
+    (1 - e cos E), so gradients are exact and do not pass through the
+    iterations; e = 0 returns M (wrapped) exactly."""
+    M, e = jnp.asarray(M), jnp.asarray(e)
+    return _kepler_halley(_reduce_anomaly(M, jnp), e, jnp)
+
+
+@kepler_eccentric_anomaly.defjvp
+def _kepler_jvp(primals, tangents):
+    (M, e), (dM, de) = primals, tangents
+    E = kepler_eccentric_anomaly(M, e)
+    sE, cE = jnp.sin(E), jnp.cos(E)
+    return E, (dM + sE * de) / (1.0 - e * cE)
+
+
+def conjunction_mean_anomaly(e: ArrayLike, omega_rad: ArrayLike, xp=jnp) -> Array:
+    """Mean anomaly [rad] at conjunction (mid-transit), where the true
+    anomaly is f = pi/2 - omega: the time of periastron is
+    t0 - P M_c / (2 pi)."""
+    f = 0.5 * np.pi - omega_rad
+    E = 2.0 * xp.arctan2(xp.sqrt(1.0 - e) * xp.sin(0.5 * f), xp.sqrt(1.0 + e) * xp.cos(0.5 * f))
+    return E - e * xp.sin(E)
+
+
+def orbit_position(t, period, t0, a, inc_rad, e, omega_rad, xp=jnp):
+    """Sky position (x, y, z) [R*] of a Keplerian orbit at times t [d]
+    (docs/conventions.md): t0 is the time of conjunction (mid-transit),
+    omega the argument of periastron measured as in Winn (2010), batman and
+    jaxoplanet (omega = pi/2: periastron at transit). With theta = f + omega
+    - pi/2 (0 at conjunction) the planet is at x = r sin(theta),
+    y = r cos(theta) cos(i), z = r cos(theta) sin(i); e = 0 gives the
+    circular orbit with phi = theta. ``xp=numpy`` evaluates on the host."""
+    t = xp.asarray(t)
+    # the orbit's phase as a fraction in [-1/2, 1/2] first: the mean anomaly
+    # then keeps full precision many periods away from t0
+    u = (t - t0) / period
+    M = 2.0 * np.pi * (u - xp.round(u)) + conjunction_mean_anomaly(e, omega_rad, xp)
+    if xp is jnp:
+        E = kepler_eccentric_anomaly(M, e)
+    else:
+        E = _kepler_halley(_reduce_anomaly(M, np), e, np)
+    sE, cE = xp.sin(E), xp.cos(E)
+    rc = a * (cE - e)                       # r cos f
+    rs = a * xp.sqrt(1.0 - e * e) * sE      # r sin f
+    # rotate by omega - pi/2: omega = 90 deg multiplies by exactly (1, 0)
+    w = omega_rad - 0.5 * np.pi
+    cw, sw = xp.cos(w), xp.sin(w)
+    s_theta = rs * cw + rc * sw             # r sin(theta)
+    c_theta = rc * cw - rs * sw             # r cos(theta)
+    return s_theta, c_theta * xp.cos(inc_rad), c_theta * xp.sin(inc_rad)
