@@ -245,10 +245,16 @@ class Planet(eqx.Module):
         self.omega = jnp.asarray(omega, float)
         self.name = str(name)
         if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
-            b = np.abs(np.asarray(self.impact))
-            if np.any(b >= 1.0 + np.asarray(radius, float)):
+            e_, w_ = np.asarray(e, float), np.deg2rad(np.asarray(omega, float))
+            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
+            # an eccentric orbit's sky distance is smallest off conjunction,
+            # so a b just above 1 + radius may still graze: ask the contacts
+            never = b >= 1.0 + np.asarray(radius, float)
+            if np.any(never) and not self.circular:
+                never = never & (np.asarray(self.contacts()[1]) == 0)
+            if np.any(never):
                 warnings.warn(
-                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {np.max(b):.4g} >= 1 + radius, "
+                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {'a |cos i|' if self.circular else 'a |cos i| (1 - e^2) / (1 + e sin omega)'} = {np.max(b):.4g} >= 1 + radius, "
                     "so it never transits (inc is in degrees; a Quantity in radians is converted)",
                     UserWarning, stacklevel=2,
                 )

@@ -279,3 +279,34 @@ def test_eccentric_windows_hold_the_transits():
             if k == i and 0 < w0 and w1 < 200:
                 inside = t[on & (t >= w0) & (t <= w1)]
                 assert inside.min() - w0 < 1e-3 and w1 - inside.max() < 1e-3
+
+
+def test_eccentric_grazing_beyond_b_is_found():
+    """An eccentric orbit's sky distance is smallest off conjunction: with
+    b = 1 + radius + 1e-6 the planet still grazes the limb (batman shows the
+    dip), so it gets contacts and no "never transits" warning; b = 1.3 warns."""
+    import warnings
+
+    import pytest
+
+    import jaxppo as jp
+
+    batman = pytest.importorskip("batman")
+    e, w, a = 0.5, 30.0, 25.0
+
+    def inc_for(b):
+        return float(np.rad2deg(np.arccos(b * (1 + e * np.sin(np.deg2rad(w))) / (a * (1 - e * e)))))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pl = jp.Planet(period=7.3, t0=0.0, a=a, inc=inc_for(1.1 + 1e-6), radius=0.1, e=e, omega=w)
+    t1, t4 = (float(v) for v in pl.contacts())
+    assert t1 < t4 < 0  # the whole graze happens before conjunction
+    pa = batman.TransitParams()
+    pa.t0, pa.per, pa.rp, pa.a, pa.inc, pa.ecc, pa.w = 0.0, 7.3, 0.1, a, float(pl.inc), e, w
+    pa.u, pa.limb_dark = [0.4, 0.26], "quadratic"
+    f = batman.TransitModel(pa, np.array([0.5 * (t1 + t4), t1 - 1e-4, t4 + 1e-4])).light_curve(pa)
+    assert f[0] < 1 and f[1] == 1 and f[2] == 1
+    with pytest.warns(UserWarning, match=r"\(1 - e\^2\) / \(1 \+ e sin omega\) = 1.3 >= 1 \+ radius"):
+        far = jp.Planet(period=7.3, t0=0.0, a=a, inc=inc_for(1.3), radius=0.1, e=e, omega=w)
+    assert float(far.half_duration()) == 0.0
