@@ -310,3 +310,32 @@ def test_eccentric_grazing_beyond_b_is_found():
     with pytest.warns(UserWarning, match=r"\(1 - e\^2\) / \(1 \+ e sin omega\) = 1.3 >= 1 \+ radius"):
         far = jp.Planet(period=7.3, t0=0.0, a=a, inc=inc_for(1.3), radius=0.1, e=e, omega=w)
     assert float(far.half_duration()) == 0.0
+
+
+def test_eccentric_hemispheres_and_alpha_limits():
+    """Hemisphere cases stay defined from |b| for eccentric planets: i and
+    180 - i give identical PPO light curves at any alpha and case, and
+    alpha_limits uses the eccentric impact parameter (the limits equal those
+    of circular orbits with the same |b| and radii, paper Eqs. 3-6)."""
+    import jaxppo as jp
+
+    star = jp.Star.quadratic(0.4, 0.26)
+    kw_b = dict(period=7.3, t0=0.0, a=25.0, radius=0.1, e=0.4, omega=60.0, name="b")
+    kw_c = dict(period=11.0, t0=0.02, a=32.0, radius=0.06, e=0.2, omega=300.0, name="c")
+    t = np.linspace(-0.15, 0.15, 301)
+    for inc_b, inc_c in ((89.3, 89.8), (90.7, 89.8), (89.3, 90.2), (90.7, 90.2)):
+        sysm = jp.System(star, [jp.Planet(inc=inc_b, **kw_b), jp.Planet(inc=inc_c, **kw_c)])
+        f = np.asarray(sysm.flux(t, jnp.asarray([0.0, 10.0, 170.0]), "same"))
+        g = np.asarray(sysm.flux(t, jnp.asarray([0.0, 10.0, 170.0]), "opposite"))
+        if inc_b == 89.3 and inc_c == 89.8:
+            f0, g0 = f, g
+            assert np.max(np.abs(f - g)) > 1e-3  # a PPO in one hemisphere case and not the other
+        # cos(180 - i) = -cos(i) to rounding only
+        assert np.max(np.abs(f - f0)) < 1e-14 and np.max(np.abs(g - g0)) < 1e-14
+    b_pl, c_pl = sysm.planets
+    circ = jp.System(star, [
+        jp.Planet(period=7.3, t0=0.0, a=25.0, radius=0.1, inc=float(np.rad2deg(np.arccos(abs(float(b_pl.impact)) / 25.0)))),
+        jp.Planet(period=11.0, t0=0.02, a=32.0, radius=0.06, inc=float(np.rad2deg(np.arccos(abs(float(c_pl.impact)) / 32.0))))])
+    assert np.allclose(jp.alpha_limits(sysm), jp.alpha_limits(circ), rtol=0, atol=1e-9)
+    ecc_b = 25.0 * np.cos(np.deg2rad(90.7)) * (1 - 0.16) / (1 + 0.4 * np.sin(np.deg2rad(60.0)))
+    assert abs(abs(float(b_pl.impact)) - abs(ecc_b)) < 1e-14
