@@ -106,25 +106,28 @@ def _kepler_reference(M, e):
 
 
 def _anomaly_grid():
-    M = np.concatenate([np.linspace(-np.pi, np.pi, 61), [1e-12, -1e-9, 1e-6, 1e-3, 0.05, np.pi - 1e-9, -np.pi + 1e-12]])
+    # uniform in [-pi, pi] and log-spaced down to 1e-16 (E ~ M / (1 - e)
+    # there: the corner where Danby's starter needed > 6 Halley steps)
+    tiny = np.logspace(-16, 0, 17)
+    M = np.concatenate([np.linspace(-np.pi, np.pi, 61), tiny, -tiny[::3], [np.pi - 1e-9, -np.pi + 1e-12]])
     return np.unique(M)
 
 
 def test_kepler_solver_against_a_60_digit_reference():
-    """E - e sin E = M solved to float64 accuracy for e up to 0.99 (incl. the
-    hard corner M -> 0, e -> 1), against Newton's method in 60-digit decimal
-    arithmetic; e = 0 returns M exactly."""
+    """E - e sin E = M solved to float64 accuracy for e up to 0.9999 (incl.
+    the hard corner M -> 0, e -> 1), against Newton's method in 60-digit
+    decimal arithmetic; e = 0 returns M exactly."""
     from jaxppo.core.geometry import kepler_eccentric_anomaly
 
     M = _anomaly_grid()
-    for e in (0.0, 0.1, 0.5, 0.8, 0.95, 0.99):
+    for e in (0.0, 0.1, 0.5, 0.8, 0.95, 0.99, 0.999, 0.9999):
         got = np.asarray(kepler_eccentric_anomaly(jnp.asarray(M), e))
         want = np.array([float(_kepler_reference(m, e)) for m in M])
         # a perfect float64 solver is off by ~eps |M| / (1 - e cos E): the
         # rounding of M is amplified by the equation's conditioning
         cond = 1.0 / (1.0 - e * np.cos(want))
         err = np.abs(got - want) / (np.spacing(np.maximum(np.abs(want), np.abs(M))) * cond + 1e-45)  # the reference leaves ~1e-51 at M = 0
-        assert np.max(err) <= 4, (e, np.max(err), M[np.argmax(err)])
+        assert np.max(err) <= 3, (e, np.max(err), M[np.argmax(err)])
         if e == 0.0:
             assert np.array_equal(got, M)
     # any mean anomaly: wrapped to [-pi, pi] (sin and cos of E unchanged)
