@@ -787,13 +787,19 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     if ok and not np.all(np.isfinite(errors)):
         ok = False
         message = "failed: covariance not finite"
-    condition = verdict["condition"]
-    if not condition <= CONDITION_WARN:
+    condition, dchi2 = verdict["condition"], verdict["dchi2_1sigma"]
+    why = []
+    if condition > CONDITION_WARN:
+        why.append(f"condition number {condition:.3g} of the scaled Fisher matrix, most degenerate combination "
+                   f"{verdict['weakest']}")
+    if dchi2 is not None and not np.all((dchi2 > 0.5) & (dchi2 < 2.0)):
+        worst = dchi2[np.argmax(np.abs(np.log(np.where(dchi2 > 0, dchi2, 1e-300))))]
+        why.append(f"chi^2 rises by {worst:.3g} instead of 1 at 1 sigma along a principal axis of the covariance")
+    if why:
         warnings.warn(
-            f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned (condition number "
-            f"{condition:.3g} of the scaled Fisher matrix; most degenerate combination: {verdict['weakest']}): the "
-            "errors and correlations from the curvature are not reliable (e.g. a and inc of a grazing or single "
-            "transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=2)
+            f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned ("
+            + "; ".join(why) + "): the errors and correlations from the curvature are not reliable (e.g. a and inc "
+            "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=2)
     chi2_data = float(np.sum(np.asarray(model.residuals(theta))[:n] ** 2))
     say("done")
     return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors,
@@ -838,7 +844,7 @@ def _assess(model: Model, theta) -> dict:
     jac, r = (np.asarray(v) for v in model.jacobian(theta))
     chi2 = float(np.sum(r**2))
     out = {"chi2": chi2, "problems": [], "optimum": False, "scale": None, "cov_theta": None, "summary": "",
-           "condition": np.nan, "weakest": ""}
+           "condition": np.nan, "weakest": "", "dchi2_1sigma": None}
     if not np.isfinite(chi2):
         out["problems"].append(f"chi^2 at the solution is {chi2}")
         return out
@@ -905,4 +911,22 @@ def _assess(model: Model, theta) -> dict:
             out["cov_theta"] = np.linalg.inv(jtj) / np.outer(c, c)
     except np.linalg.LinAlgError:
         pass
+    out["dchi2_1sigma"] = _quadratic_check(model, theta, out["cov_theta"], chi2, len(pts))
     return out
+
+
+def _quadratic_check(model: Model, theta, cov_theta, chi2: float, batch: int):
+    """chi^2 - chi^2_min at +-1 sigma along each principal axis of the
+    linearised covariance (exactly 1 where the Laplace approximation
+    holds), evaluated in one batch padded to ``batch`` rows (the size of
+    the Hessian's batch, so nothing recompiles). None without a finite
+    covariance."""
+    if cov_theta is None or not np.all(np.isfinite(cov_theta)):
+        return None
+    w, v = np.linalg.eigh(0.5 * (cov_theta + cov_theta.T))
+    if w[0] <= 0:
+        return None
+    steps = [s * np.sqrt(w[i]) * v[:, i] for i in range(w.size) for s in (1.0, -1.0)]
+    steps += [np.zeros(w.size)] * max(batch - len(steps), 0)
+    f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(steps))))
+    return f[: 2 * w.size] - chi2
