@@ -338,9 +338,10 @@ def cmd_sample(args) -> int:
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
+    priors = _cli_priors(args.prior or [])
     cfg, lc = _fit_inputs(args)
     res = jp.sample(cfg.system, lc, free=tuple(args.free), num_warmup=args.warmup, num_samples=args.samples,
-                    seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet)
+                    seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet, priors=priors or None)
     for n, (med, lo, hi) in res.intervals.items():
         d = res.diagnostics[n]
         print(f"{n:12s} {med:.8f} +{hi - med:.2e} -{med - lo:.2e}   r_hat {d['r_hat']:.3f}  "
@@ -354,6 +355,33 @@ def cmd_sample(args) -> int:
         res.to_netcdf(args.netcdf)
         print(f"wrote {args.netcdf} (arviz.from_netcdf reads it)")
     return 0
+
+
+_PRIORS = {"normal": ("Normal", "MEAN SD"), "uniform": ("Uniform", "LOW HIGH"),
+           "loguniform": ("LogUniform", "LOW HIGH")}
+
+
+def _cli_priors(specs) -> dict:
+    """``--prior NAME KIND A B`` -> {name: numpyro distribution}."""
+    import numpyro.distributions as dist
+
+    out = {}
+    for name, kind, a, b in specs:
+        if kind.lower() not in _PRIORS:
+            raise ValueError(f"--prior {name}: unknown kind {kind!r}; use one of {sorted(_PRIORS)}")
+        try:
+            x, y = _finite(a), _finite(b)
+        except argparse.ArgumentTypeError as err:
+            raise ValueError(f"--prior {name} {kind}: {err}") from None
+        cls, args = _PRIORS[kind.lower()]
+        if kind.lower() == "normal" and not y > 0:
+            raise ValueError(f"--prior {name} normal: SD must be > 0, got {b}")
+        if kind.lower() != "normal" and not (y > x and (kind.lower() == "uniform" or x > 0)):
+            raise ValueError(f"--prior {name} {kind}: need 0 < LOW < HIGH (uniform: LOW < HIGH), got {a} {b}")
+        if name in out:
+            raise ValueError(f"--prior {name} given twice")
+        out[name] = getattr(dist, cls)(x, y)
+    return out
 
 
 def cmd_activity(args) -> int:
@@ -475,6 +503,10 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--chains", type=int, default=4, metavar="N",
                            help="chains, run vectorised (default: 4)")
             p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+            p.add_argument("--prior", nargs=4, action="append", default=None, metavar=("NAME", "KIND", "A", "B"),
+                           help="replace the default prior of a free parameter, in its units: KIND normal (A mean, "
+                           "B sd), uniform or loguniform (A low, B high), e.g. --prior b.t0 normal 131.5 1e-4; "
+                           "repeatable (default: the documented defaults of jaxppo.sample)")
             p.add_argument("--netcdf", default=None, metavar="PATH",
                            help="write the posterior, log-likelihood, sample stats and data as arviz netCDF "
                            "(default: none)")

@@ -85,6 +85,30 @@ def test_fit_and_sample_commands(tmp_path, capsys):
     assert post.names == ("c.radius",) and post.chains["c.radius"].shape == (4, 20)
 
 
+def test_sample_prior_option(monkeypatch, capsys):
+    import numpyro.distributions as dist
+
+    import jaxppo as jp
+
+    seen = {}
+
+    def fake_sample(system, lc, **kw):
+        seen.update(kw)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(jp, "sample", fake_sample)
+    assert main(["sample", "--free", "b.t0", "b.radius", "--prior", "b.t0", "normal", "131.5", "1e-4",
+                 "--prior", "b.radius", "loguniform", "0.01", "0.05"]) == 2
+    pr = seen["priors"]
+    assert isinstance(pr["b.t0"], dist.Normal) and float(pr["b.t0"].loc) == 131.5 and float(pr["b.t0"].scale) == 1e-4
+    assert isinstance(pr["b.radius"], dist.LogUniform) and float(pr["b.radius"].low) == 0.01
+    capsys.readouterr()
+    assert main(["sample", "--prior", "b.t0", "gamma", "1", "2"]) == 2
+    assert "unknown kind 'gamma'" in capsys.readouterr().err
+    assert main(["sample", "--prior", "b.t0", "normal", "1", "-2"]) == 2
+    assert "SD must be > 0" in capsys.readouterr().err
+
+
 def test_fit_windows_are_the_scans_detrended_windows(monkeypatch, capsys):
     """On the real Kepler-20 data, --windows must fit the scan's detrended
     windows (flux divided by each window's out-of-transit polynomial), not
