@@ -1,5 +1,7 @@
 """Fits (optimistix) and MCMC (numpyro) on synthetic and real Kepler data."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -251,7 +253,11 @@ def test_kipping_map_is_the_analytic_one():
 def q_fit():
     truth, lc = _one_planet()
     start = truth.replace(star=jp.Star.quadratic(0.3, 0.3))
-    return truth, lc, jp.fit(start, lc, free=("b.t0", "b.radius", "star.q1", "star.q2"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = jp.fit(start, lc, free=("b.t0", "b.radius", "star.q1", "star.q2"))
+    res.caught = [str(w.message) for w in caught]
+    return truth, lc, res
 
 
 def test_fit_with_q1_q2_recovers_the_injected_u1_u2(q_fit):
@@ -306,20 +312,14 @@ def test_fit_per_window_baseline():
         jp.fit(truth, lc, free=("b.t0", "lc.offset", "lc.baseline2"))
 
 
-def test_degenerate_covariance_warns_and_points_to_sample():
-    import warnings
-
+def test_degenerate_covariance_warns_and_points_to_sample(q_fit):
     # a grazing transit (b = 1.05, p = 0.1): radius, a and inc are degenerate
     truth, lc = _one_planet(inc=87.0)
     with pytest.warns(UserWarning, match="jaxppo.sample"):
         res = jp.fit(truth, lc, free=("b.t0", "b.radius", "b.a", "b.inc"))
     assert res.condition > 1e6
-    # well constrained: no warning
-    truth, lc = _one_planet()
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        res = jp.fit(truth, lc, free=("b.t0", "b.radius"))
-    assert res.success and res.condition < 10
+    # well constrained (t0, p, q1, q2 of a full transit): no warning
+    assert q_fit[2].success and q_fit[2].condition < 100 and q_fit[2].caught == []
 
 
 def test_fit_result_save_load_round_trip(q_fit, tmp_path):
