@@ -39,7 +39,9 @@ __all__ = ["sample", "SampleResult", "rank_diagnostics"]
 @dataclasses.dataclass
 class SampleResult:
     """``samples``: name -> array [draw] (physical units: days, degrees, R*;
-    chains concatenated); ``chains``: name -> array [chain, draw];
+    chains concatenated; with Kipping's q1 or q2 free also the implied
+    "star.u1", "star.u2"); ``names``: the free parameters;
+    ``chains``: name -> array [chain, draw];
     ``log_likelihood``: [chain, draw] (Gaussian, with its normalisation);
     ``stats``: sample statistics, name -> [chain, draw] (diverging,
     step_size, tree_depth, n_steps, energy, lp, acceptance_rate);
