@@ -510,10 +510,12 @@ def _residuals(theta, d: _Data) -> jnp.ndarray:
     the full likelihood, whose log-variance term keeps s from growing
     without bound (chi^2 alone would be minimised by s -> infinity)."""
     var, s2 = _variance(theta, d)
-    r = (d.y - _flux(theta, d) * _trend(theta, d)) / jnp.sqrt(var)
+    model = _flux(theta, d)
+    if any(_is_trend(slot) for slot in d.slots):
+        model = model * _trend(theta, d)
     if s2 is None:
-        return r
-    return jnp.concatenate([r, jnp.sqrt(jnp.log1p(s2 / d.sigma**2))])
+        return (d.y - model) / d.sigma
+    return jnp.concatenate([(d.y - model) / jnp.sqrt(var), jnp.sqrt(jnp.log1p(s2 / d.sigma**2))])
 
 
 @eqx.filter_jit
@@ -714,7 +716,9 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     n, k = lightcurve.time.size, len(free)
     problems = _start_problems(model, system, n, k)
     say(f"{n} points, {k} free parameters; compiling the model")
-    chi2_start = float(jnp.sum(model.residuals(theta) ** 2))
+    # from the Jacobian's program, which the minimum check compiles anyway
+    # (a separate residual program would cost a compilation of its own)
+    chi2_start = float(np.sum(np.asarray(model.jacobian(theta)[1]) ** 2))
     if not np.isfinite(chi2_start):
         problems.append(f"chi^2 at the start is {chi2_start} (flux_err as small as {np.min(lightcurve.flux_err):.3g} "
                         "makes the residuals overflow float64, or the model is not finite)")
@@ -805,7 +809,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
             f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned ("
             + "; ".join(why) + "): the errors and correlations from the curvature are not reliable (e.g. a and inc "
             "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=2)
-    chi2_data = float(np.sum(np.asarray(model.residuals(theta))[:n] ** 2))
+    chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
     say("done")
     return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors,
                      chi2_data / (n - k), steps, model.union_idx, derived, condition)
@@ -849,7 +853,7 @@ def _assess(model: Model, theta) -> dict:
     jac, r = (np.asarray(v) for v in model.jacobian(theta))
     chi2 = float(np.sum(r**2))
     out = {"chi2": chi2, "problems": [], "optimum": False, "scale": None, "cov_theta": None, "summary": "",
-           "condition": np.nan, "weakest": "", "dchi2_1sigma": None}
+           "condition": np.nan, "weakest": "", "dchi2_1sigma": None, "residuals": r}
     if not np.isfinite(chi2):
         out["problems"].append(f"chi^2 at the solution is {chi2}")
         return out
@@ -873,6 +877,18 @@ def _assess(model: Model, theta) -> dict:
     pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
     pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
     pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
+    n_hess = len(pts)
+    jtj = (jac / c).T @ (jac / c)
+    jitter = any(par == "jitter" for _, par in model.slots)
+    try:
+        cov_gn = np.linalg.inv(jtj) / np.outer(c, c)
+    except np.linalg.LinAlgError:
+        cov_gn = None
+    # the same batch also evaluates chi^2 at +-1 sigma along the principal
+    # axes of the linearised covariance (see _axis_steps)
+    axes = None if jitter else _axis_steps(cov_gn)
+    if axes is not None:
+        pts += list(axes * c)
     f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(pts)) / c))
     hess = np.empty((k, k))
     for i in range(k):
@@ -898,7 +914,6 @@ def _assess(model: Model, theta) -> dict:
             out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
         else:
             out["optimum"] = True
-    jtj = (jac / c).T @ (jac / c)
     # conditioning of the scaled Fisher matrix (unit diagonal): its smallest
     # eigenvalue is 1 / (the variance inflation of the worst-determined
     # combination of parameters over the parameters one at a time)
@@ -907,31 +922,36 @@ def _assess(model: Model, theta) -> dict:
     v0 = vj[:, 0]
     top = np.argsort(-np.abs(v0))[:3]
     out["weakest"] = " ".join(f"{v0[i]:+.2f} {model.free[i]}" for i in top if abs(v0[i]) > 0.1)
+    if not jitter:
+        out["cov_theta"] = cov_gn
+        if axes is not None:
+            out["dchi2_1sigma"] = f[n_hess:] - chi2
+        return out
     try:
-        if any(par == "jitter" for _, par in model.slots):
-            # Laplace: -2 ln L ~ const + dtheta^T H dtheta, cov = 2 H^-1 (in
-            # scaled coordinates, back to theta by the column scales)
-            out["cov_theta"] = 2.0 * np.linalg.inv(0.5 * (hess + hess.T)) / np.outer(c, c)
-        else:
-            out["cov_theta"] = np.linalg.inv(jtj) / np.outer(c, c)
+        # Laplace: -2 ln L ~ const + dtheta^T H dtheta, cov = 2 H^-1 (in
+        # scaled coordinates, back to theta by the column scales); the
+        # Gauss-Newton form of the augmented residuals misses the jitter's
+        # curvature
+        out["cov_theta"] = 2.0 * np.linalg.inv(0.5 * (hess + hess.T)) / np.outer(c, c)
     except np.linalg.LinAlgError:
-        pass
-    out["dchi2_1sigma"] = _quadratic_check(model, theta, out["cov_theta"], chi2, len(pts))
+        return out
+    axes = _axis_steps(out["cov_theta"])
+    if axes is not None:
+        # padded to the Hessian's batch size: the compiled program is reused
+        steps = list(axes) + [np.zeros(k)] * max(n_hess - len(axes), 0)
+        g = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(steps))))
+        out["dchi2_1sigma"] = g[: len(axes)] - chi2
     return out
 
 
-def _quadratic_check(model: Model, theta, cov_theta, chi2: float, batch: int):
-    """chi^2 - chi^2_min at +-1 sigma along each principal axis of the
-    linearised covariance (exactly 1 where the Laplace approximation
-    holds), evaluated in one batch padded to ``batch`` rows (the size of
-    the Hessian's batch, so nothing recompiles). None without a finite
+def _axis_steps(cov_theta):
+    """Steps in theta to +-1 sigma along each principal axis of the
+    linearised covariance, where chi^2 - chi^2_min is exactly 1 if the
+    Laplace approximation holds; None without a finite, positive-definite
     covariance."""
     if cov_theta is None or not np.all(np.isfinite(cov_theta)):
         return None
     w, v = np.linalg.eigh(0.5 * (cov_theta + cov_theta.T))
     if w[0] <= 0:
         return None
-    steps = [s * np.sqrt(w[i]) * v[:, i] for i in range(w.size) for s in (1.0, -1.0)]
-    steps += [np.zeros(w.size)] * max(batch - len(steps), 0)
-    f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(steps))))
-    return f[: 2 * w.size] - chi2
+    return np.array([s * np.sqrt(w[i]) * v[:, i] for i in range(w.size) for s in (1.0, -1.0)])
