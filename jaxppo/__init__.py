@@ -41,6 +41,8 @@ from ._kepler20 import simulate_kepler20 as simulate_kepler20
 from ._fit import FitResult as FitResult
 from ._fit import fit as fit
 from ._fit import parameter_names as parameter_names
+from ._fit import kipping_q as kipping_q
+from ._fit import kipping_u as kipping_u
 from ._sample import SampleResult as SampleResult
 from ._sample import sample as sample
 from ._config import ScanConfig as ScanConfig

@@ -22,6 +22,8 @@ the physical priors define.
 from __future__ import annotations
 
 import dataclasses
+import json
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -37,7 +39,9 @@ __all__ = ["sample", "SampleResult", "rank_diagnostics"]
 @dataclasses.dataclass
 class SampleResult:
     """``samples``: name -> array [draw] (physical units: days, degrees, R*;
-    chains concatenated); ``chains``: name -> array [chain, draw];
+    chains concatenated; with Kipping's q1 or q2 free also the implied
+    "star.u1", "star.u2"); ``names``: the free parameters;
+    ``chains``: name -> array [chain, draw];
     ``log_likelihood``: [chain, draw] (Gaussian, with its normalisation);
     ``stats``: sample statistics, name -> [chain, draw] (diverging,
     step_size, tree_depth, n_steps, energy, lp, acceptance_rate);
@@ -65,6 +69,52 @@ class SampleResult:
     flux: np.ndarray | None = None
     flux_err: np.ndarray | None = None
     pointwise: object = None  # callable: [draw, k] physical -> [draw, time] log-likelihood
+    names: tuple = ()  # the free parameters (``chains`` also holds derived u1, u2)
+
+    def save(self, path) -> str:
+        """Write the draws, log-likelihood, sample stats, data, intervals,
+        diagnostics and the best system to a numpy ``.npz`` file (no pickle)
+        that :meth:`load` reads back exactly; returns the path. (The MCMC
+        object and the pointwise log-likelihood function are not saved:
+        ``to_arviz`` of a loaded result gives the total log-likelihood.)"""
+        from . import __version__
+        from ._fit import _jsonable, system_to_dict
+
+        meta = {"format": "jaxppo.SampleResult", "version": __version__, "names": list(self.names or self.chains),
+                "chains": list(self.chains), "stats": list(self.stats), "deviance_min": _jsonable(self.deviance_min),
+                "intervals": {k: _jsonable(list(v)) for k, v in self.intervals.items()},
+                "diagnostics": {k: {m: _jsonable(x) for m, x in v.items()} for k, v in self.diagnostics.items()},
+                "best": system_to_dict(self.best)}
+        arrays = {f"chain_{i}": np.asarray(v) for i, v in enumerate(self.chains.values())}
+        arrays.update({f"stat_{i}": np.asarray(v) for i, v in enumerate(self.stats.values())})
+        for k in ("log_likelihood", "time", "flux", "flux_err", "union_frames"):
+            if getattr(self, k) is not None:
+                arrays[k] = np.asarray(getattr(self, k))
+        path = str(path)
+        with open(path, "wb") as fh:  # a file object: numpy appends no ".npz" to the name
+            np.savez(fh, meta=np.array(json.dumps(meta, allow_nan=False)), **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path) -> "SampleResult":
+        """Read a result written by :meth:`save` (or ``jaxppo sample --out``)."""
+        from ._fit import _unjson, system_from_dict
+
+        try:
+            z = np.load(path, allow_pickle=False)
+            meta = json.loads(str(z["meta"]))
+        except (ValueError, KeyError, OSError) as err:
+            raise ValueError(f"{path}: not a file written by SampleResult.save ({err})") from None
+        if meta.get("format") != "jaxppo.SampleResult":
+            raise ValueError(f"{path}: not a SampleResult file (format {meta.get('format')!r})")
+        chains = {n: z[f"chain_{i}"] for i, n in enumerate(meta["chains"])}
+        opt = {k: (z[k] if k in z.files else None) for k in ("log_likelihood", "time", "flux", "flux_err")}
+        return cls({n: v.reshape(-1) for n, v in chains.items()}, system_from_dict(meta["best"]),
+                   {k: tuple(_unjson(v)) for k, v in meta["intervals"].items()},
+                   {k: {m: _unjson(x) for m, x in v.items()} for k, v in meta["diagnostics"].items()},
+                   _unjson(meta["deviance_min"]), None,
+                   union_frames=z["union_frames"] if "union_frames" in z.files else np.zeros(0, int), chains=chains,
+                   stats={n: z[f"stat_{i}"] for i, n in enumerate(meta["stats"])}, names=tuple(meta["names"]), **opt)
 
     def to_arviz(self, pointwise: bool = True):
         """An arviz InferenceData: ``posterior`` (the free parameters in
@@ -77,7 +127,7 @@ class SampleResult:
             import arviz as az
         except ImportError as err:  # pragma: no cover - depends on the environment
             raise ImportError("to_arviz needs arviz: pip install 'jaxppo[arviz]'") from err
-        names = list(self.chains)
+        names = list(self.names or self.chains)
         nc, nd = self.chains[names[0]].shape
         if pointwise and self.pointwise is not None:
             vals = np.stack([self.chains[n].reshape(-1) for n in names], axis=1)
@@ -104,30 +154,56 @@ class SampleResult:
         return self.to_arviz().to_netcdf(str(path))
 
 
-def _priors(model: Model):
-    """Physical priors around the starting system, one per free parameter
-    (inclinations through b / (1 + p))."""
+def _priors(model: Model, user=None):
+    """Physical priors, one per free parameter (inclinations through
+    b / (1 + p)): the defaults around the starting system (see
+    :func:`sample`), replaced by ``user[name]`` where given (a numpyro
+    distribution on the parameter in its public units)."""
     import numpyro.distributions as dist
 
+    user = dict(user or {})
+    unknown = sorted(set(user) - set(model.free))
+    if unknown:
+        raise ValueError(f"priors: {unknown} are not free parameters; free: {list(model.free)}")
+    for name, pr in user.items():
+        if not isinstance(pr, dist.Distribution) or pr.batch_shape or pr.event_shape:
+            raise ValueError(f"priors[{name!r}] must be a scalar numpyro distribution, got {pr!r}")
+        if name.endswith(".inc"):
+            raise ValueError(f"priors[{name!r}]: a prior on the inclination is not supported (the default is uniform "
+                             "in the impact parameter b / (1 + p), |b| < 1 + p); put priors on the other parameters")
+    sigma = float(np.median(np.asarray(model.sigma)))
     out = []
-    for (owner, par) in model.slots:
-        if owner == "star":
+    for name, (owner, par) in zip(model.free, model.slots):
+        if name in user:
+            out.append(user[name])
+        elif par in ("q1", "q2"):
+            out.append(dist.Uniform(0.0, 1.0))  # Kipping (2013): uniform q samples every physical profile
+        elif par == "jitter":
+            out.append(dist.LogUniform(1e-3 * sigma, 10.0 * sigma))
+        elif owner == "lc":  # offset and baseline coefficients: relative flux
+            out.append(dist.Uniform(-0.05, 0.05))
+        elif owner == "star":
             v = float(model.system.star.params[par])
             out.append(dist.Uniform(v - 1.0, v + 1.0))
-            continue
-        pl = model.system.planets[owner]
-        if par == "t0":
-            out.append(dist.Uniform(float(pl.t0) - 0.05, float(pl.t0) + 0.05))
-        elif par == "period":
-            p = float(pl.period)
-            out.append(dist.Uniform(p * (1 - 1e-3), p * (1 + 1e-3)))
-        elif par == "a":
-            out.append(dist.Uniform(1.0, 4.0 * float(pl.a)))
-        elif par == "radius":
-            out.append(dist.LogUniform(1e-4, 0.5))
-        else:  # inc through the impact parameter in units of (1 + p)
-            out.append(dist.Uniform(-1.0, 1.0))
+        else:
+            out.append(_planet_prior(model.system.planets[owner], par))
     return out
+
+
+def _planet_prior(pl, par):
+    """The default prior of a planet parameter (see :func:`sample`)."""
+    import numpyro.distributions as dist
+
+    if par == "t0":
+        return dist.Uniform(float(pl.t0) - 0.05, float(pl.t0) + 0.05)
+    if par == "period":
+        p = float(pl.period)
+        return dist.Uniform(p * (1 - 1e-3), p * (1 + 1e-3))
+    if par == "a":
+        return dist.Uniform(1.0, 4.0 * float(pl.a))
+    if par == "radius":
+        return dist.LogUniform(1e-4, 0.5)
+    return dist.Uniform(-1.0, 1.0)  # inc through the impact parameter in units of (1 + p)
 
 
 class _Coords:
@@ -141,15 +217,23 @@ class _Coords:
     on a is kept on (1 + p, 4 a_start): orbits that graze the star at every
     phase are left out)."""
 
-    def __init__(self, model: Model, priors):
+    def __init__(self, model: Model, priors, user=()):
         from numpyro.distributions.transforms import biject_to
 
         self.model = model
         self.slots = model.slots
         self.index = {s: k for k, s in enumerate(self.slots)}
-        self.duration = {o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index}
+        self.user = {k for k, n in enumerate(model.free) if n in user}
+        # the T14 coordinate replaces a only under the default prior on a
+        # (its map covers the default's support); a user prior on a keeps
+        # plain coordinates for that planet
+        self.duration = {o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index
+                         and self.index[(o, par)] not in self.user}
+        self.plain = sorted({o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index} - self.duration)
         self.maps = [biject_to(pr.support) for pr in priors]
-        self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors) if self.slots[k][1] == "a"}
+        self.priors = list(priors)
+        self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
+                      if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}
 
     @staticmethod
     def _log_t14_range(p, b, period, a_max, xp):
@@ -190,16 +274,30 @@ class _Coords:
             u[ka] = np.log(s / (1.0 - s))
         return u
 
-    def prior_widths(self) -> np.ndarray:
+    def prior_widths(self, u0) -> np.ndarray:
         """Rough prior standard deviations in u: a uniform prior mapped by
-        the logistic function has sd pi / sqrt(3)."""
-        return np.full(len(self.slots), np.pi / np.sqrt(3.0))
+        the logistic function has sd pi / sqrt(3); a user prior with a
+        finite variance, its sd divided by |dq/du| at the start (so that an
+        informative prior sets the Laplace widths)."""
+        out = np.full(len(self.slots), np.pi / np.sqrt(3.0))
+        for k in self.user:
+            try:
+                var = float(np.asarray(self.priors[k].variance))
+            except (NotImplementedError, AttributeError, TypeError):
+                continue
+            slope = abs(float(jax.grad(lambda x: self.maps[k](x))(float(u0[k]))))
+            if np.isfinite(var) and var > 0 and slope > 0:
+                out[k] = np.sqrt(var) / slope
+        return out
 
 
 def _start_q(model: Model, system: System) -> np.ndarray:
     q = []
-    for (owner, par) in model.slots:
-        if owner == "star":
+    phys = np.asarray(model.physical(model.to_theta(system)), float)  # q1, q2, lc.* at the start
+    for k, (owner, par) in enumerate(model.slots):
+        if owner == "lc" or par in ("q1", "q2"):
+            q.append(phys[k])
+        elif owner == "star":
             q.append(float(system.star.params[par]))
         elif par == "inc":
             pl = system.planets[owner]
@@ -215,25 +313,33 @@ def _start_q(model: Model, system: System) -> np.ndarray:
 
 def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), num_warmup: int = 1000,
            num_samples: int = 1000, seed: int = 0, num_chains: int = 4, alpha: float = 0.0, case: str = "same",
-           progress_bar: bool = True, dense_mass: bool = True) -> SampleResult:
+           progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None) -> SampleResult:
     """NUTS over the named free parameters with physical priors: t0 within
     +-0.05 d and P within +-0.1 % of the start, a in [1, 4 a], p log-uniform in
     [1e-4, 0.5], the impact parameter uniform in |b| < 1 + p, limb-darkening
-    coefficients within +-1 of the start. ``num_chains`` chains run
-    vectorised (one program), with a dense mass matrix (``dense_mass``) in
-    the coordinates of the module docstring. Returns samples, the
-    lowest-deviance solution (as the paper reports), 68.3 % intervals and
-    rank-normalised R-hat and bulk / tail ESS."""
+    coefficients within +-1 of the start, Kipping's q1, q2 uniform in [0, 1],
+    "lc.offset" and baseline coefficients uniform in [-0.05, 0.05], the
+    jitter log-uniform in [1e-3, 10] x the median error. ``priors``: name ->
+    numpyro distribution replacing the default of that parameter, in its
+    public units (e.g. ``{"b.t0": dist.Normal(131.5, 1e-4)}``; not for
+    inclinations; a prior on a keeps plain coordinates for that planet, a
+    UserWarning says so). ``lightcurve``: a :class:`LightCurve` or a
+    lightkurve LightCurve. ``num_chains`` chains run vectorised (one
+    program), with a dense mass matrix (``dense_mass``) in the coordinates
+    of the module docstring. Returns samples (and the implied u1, u2 when
+    q1 or q2 is free), the lowest-deviance solution (as the paper reports),
+    68.3 % intervals and rank-normalised R-hat and bulk / tail ESS."""
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
     model = Model(system, lightcurve, free, alpha, case)
+    _check_priors(model, system, priors)
     # A posterior spreads further than a fit moves (grazing draws keep a
     # disk near the limb for long): compute the frames within 1 R* of the
     # star at the start, so that sampling again (below) is rarely needed.
     model.active_idx = np.union1d(model.active_idx, model._active_frames(system, np.asarray(model.t_model), 1.0))
     for _ in range(3):
-        result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass)
+        result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, priors)
         result.union_frames = model.union_idx
         # The union-integral frames were fixed from the start (with a margin);
         # if the posterior brings disks together elsewhere, sample again with
@@ -249,11 +355,27 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     return result
 
 
-def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass) -> SampleResult:
+def _check_priors(model: Model, system: System, user) -> None:
+    """User priors: known names, scalar distributions, a start inside each
+    support; says when a planet leaves the T14 coordinates."""
+    priors = _priors(model, user)
+    q0 = _start_q(model, system)
+    for name, pr, v in zip(model.free, priors, q0):
+        if user and name in user and not bool(pr.support(jnp.asarray(v))):
+            raise ValueError(f"priors[{name!r}]: the start {v:.10g} is outside the prior's support {pr.support}")
+    coords = _Coords(model, priors, user or ())
+    for owner in coords.plain:
+        label = model.system.planets[owner].name or str(owner)
+        warnings.warn(f"sample: a user prior on {label}.a: planet {label} is sampled in plain coordinates (a, b) "
+                      "instead of (T14, b), which mixes more slowly along the a-b ridge", UserWarning, stacklevel=3)
+
+
+def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
+              user=None) -> SampleResult:
     from numpyro.infer import MCMC, NUTS
 
-    priors = _priors(model)
-    coords = _Coords(model, priors)
+    priors = _priors(model, user)
+    coords = _Coords(model, priors, user or ())
     names = model.free
     k = len(names)
     q0 = _start_q(model, system)
@@ -261,6 +383,8 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
     log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
 
     def loglike_u(u):
+        # with a free jitter the residuals carry ln(1 + s^2 / sigma^2) terms:
+        # the sum of squares is -2 ln L - sum ln(2 pi sigma^2) (fit's objective)
         return -0.5 * jnp.sum(model.residuals(model.theta_from(coords.to_q(u))) ** 2) + log_norm
 
     def logprior_u(u):
@@ -286,7 +410,7 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
     # prior's widths as Gaussian curvature, so that a parameter the data do
     # not constrain, like P from one transit, keeps its prior's width): NUTS
     # moves in w = (u - u0) / scale.
-    prior_sd = coords.prior_widths()
+    prior_sd = coords.prior_widths(u0)
     info = jac.T @ jac + np.diag(1.0 / prior_sd**2)
     c = np.sqrt(np.diag(info))
     cov = np.linalg.pinv(info / np.outer(c, c), rcond=1e-12) / np.outer(c, c)
@@ -315,17 +439,20 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
     def post(uu):
         def one(v):
             q = coords.to_q(v)
-            return q, model.physical(model.theta_from(q)), loglike_u(v)
+            th = model.theta_from(q)
+            return q, jnp.concatenate([model.physical(th), model.derived(th)]), loglike_u(v)
 
         return jax.lax.map(one, uu, batch_size=256)
 
     q, phys, loglike = (np.asarray(v) for v in post(flat_u))
-    samples = {n: phys[:, i] for i, n in enumerate(names)}
-    chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(names)}
+    # free parameters, then the derived u1, u2 of Kipping's q1, q2
+    all_names = tuple(names) + model.derived_names()
+    samples = {n: phys[:, i] for i, n in enumerate(all_names)}
+    chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(all_names)}
     best_i = int(np.argmax(loglike))
     best = model.to_system(model.theta_from(jnp.asarray(q[best_i])))
     intervals = {n: tuple(float(x) for x in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
-    diagnostics = {n: rank_diagnostics(chains[n]) for n in names}
+    diagnostics = {n: rank_diagnostics(chains[n]) for n in all_names}
     extra = mcmc.get_extra_fields(group_by_chain=True)
 
     def shaped(v):
@@ -337,22 +464,16 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
              "energy": shaped(extra["energy"]), "lp": -shaped(extra["potential_energy"]),
              "acceptance_rate": shaped(extra["accept_prob"])}
 
-    sigma = np.asarray(model.sigma)
-
     def pointwise(vals):
         """[draw, k] physical free parameters -> [draw, time] log-likelihood."""
         ref = model.to_theta(system)
-
-        def one(v):
-            r = model.residuals(model.theta_from(v, ref))
-            return -0.5 * r**2 - jnp.log(sigma) - 0.5 * jnp.log(2.0 * jnp.pi)
-
-        return np.asarray(jax.lax.map(one, jnp.asarray(vals), batch_size=64))
+        return np.asarray(jax.lax.map(lambda v: model.pointwise_loglike(model.theta_from(v, ref)),
+                                      jnp.asarray(vals), batch_size=64))
 
     return SampleResult(samples, best, intervals, diagnostics, float(-2 * (loglike[best_i] - log_norm)), mcmc,
                         chains=chains, log_likelihood=loglike.reshape(num_chains, num_samples), stats=stats,
                         time=np.asarray(model.lc.time), flux=np.asarray(model.lc.flux),
-                        flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise)
+                        flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise, names=tuple(names))
 
 
 def rank_diagnostics(x) -> dict:

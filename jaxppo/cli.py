@@ -275,17 +275,28 @@ def cmd_simulate(args) -> int:
 
 
 def _fit_inputs(args):
+    """(config, light curve) of ``fit`` / ``sample``: the config's data, or
+    with ``--windows`` the scan's per-window detrended, outlier-cleaned
+    points (``scan_windows``: each multi-transit divided by its
+    out-of-transit polynomial), so that real data with stellar variability
+    are fitted as the scan sees them."""
     from jaxppo._config import load_config
 
     cfg = load_config(args.config)
     lc = cfg.lightcurve
     if args.windows:
-        from jaxppo._scan import scan_events
+        from jaxppo import LightCurve
+        from jaxppo._scan import scan_windows
 
-        keep = np.zeros(len(lc), bool)
-        for _, s in scan_events(cfg):
-            keep |= s
-        lc = lc.select(keep)
+        wins = scan_windows(cfg)
+        t = np.concatenate([w.time for w in wins])
+        f = np.concatenate([w.flux for w in wins])
+        e = np.concatenate([w.flux_err for w in wins])
+        # windows of neighbouring events may share points: keep each once
+        _, first = np.unique(t, return_index=True)
+        lc = LightCurve(t[first], f[first], e[first], exposure=lc.exposure,
+                        report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}"})
+        print(f"data: {len(lc)} points in {len(wins)} detrended multi-transit windows (as jaxppo scan sees them)")
     return cfg, lc
 
 
@@ -294,17 +305,20 @@ def cmd_fit(args) -> int:
     _enable_x64()
     import jaxppo as jp
 
+    if args.out:
+        _out_file(args.out)
     cfg, lc = _fit_inputs(args)
     t0 = time.perf_counter()
-    res = jp.fit(cfg.system, lc, free=tuple(args.free))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        res = jp.fit(cfg.system, lc, free=tuple(args.free), progress=not args.quiet)
+    for w in caught:
+        print(f"jaxppo fit: warning: {w.message}", file=sys.stderr)
     print(res.table())
     print(f"{len(lc)} points, {time.perf_counter() - t0:.1f} s")
     if args.out:
-        Path(args.out).write_text(json.dumps({
-            "names": list(res.names), "values": res.values.tolist(), "errors": res.errors.tolist(),
-            "covariance": res.covariance.tolist(), "chi2": res.chi2, "reduced_chi2": res.reduced_chi2,
-            "success": res.success, "message": res.message}, indent=2))
-        print(f"wrote {args.out}")
+        res.save(args.out)
+        print(f"wrote {args.out} (jaxppo.FitResult.load reads it)")
     return 0 if res.success else 1
 
 
@@ -313,16 +327,21 @@ def cmd_sample(args) -> int:
     _enable_x64()
     import jaxppo as jp
 
-    cfg, lc = _fit_inputs(args)
+    if args.out:
+        _out_file(args.out)
     if args.netcdf:
         try:
             import arviz  # noqa: F401
         except ImportError:
             raise ValueError("--netcdf needs arviz: pip install 'jaxppo[arviz]'") from None
-        if not Path(args.netcdf).resolve().parent.is_dir():
-            raise ValueError(f"--netcdf: folder {str(Path(args.netcdf).parent)!r} does not exist")
+        _out_file(args.netcdf, "--netcdf")
+    for name in ("warmup", "samples", "chains"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
+    priors = _cli_priors(args.prior or [])
+    cfg, lc = _fit_inputs(args)
     res = jp.sample(cfg.system, lc, free=tuple(args.free), num_warmup=args.warmup, num_samples=args.samples,
-                    seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet)
+                    seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet, priors=priors or None)
     for n, (med, lo, hi) in res.intervals.items():
         d = res.diagnostics[n]
         print(f"{n:12s} {med:.8f} +{hi - med:.2e} -{med - lo:.2e}   r_hat {d['r_hat']:.3f}  "
@@ -330,12 +349,39 @@ def cmd_sample(args) -> int:
     div = int(np.sum(res.stats["diverging"]))
     print(f"{args.chains} chains x {args.samples} draws, {div} divergent transitions")
     if args.out:
-        np.savez(args.out, **{k.replace(".", "_"): v for k, v in res.samples.items()})
-        print(f"wrote {args.out}")
+        res.save(args.out)
+        print(f"wrote {args.out} (jaxppo.SampleResult.load reads it)")
     if args.netcdf:
         res.to_netcdf(args.netcdf)
         print(f"wrote {args.netcdf} (arviz.from_netcdf reads it)")
     return 0
+
+
+_PRIORS = {"normal": ("Normal", "MEAN SD"), "uniform": ("Uniform", "LOW HIGH"),
+           "loguniform": ("LogUniform", "LOW HIGH")}
+
+
+def _cli_priors(specs) -> dict:
+    """``--prior NAME KIND A B`` -> {name: numpyro distribution}."""
+    import numpyro.distributions as dist
+
+    out = {}
+    for name, kind, a, b in specs:
+        if kind.lower() not in _PRIORS:
+            raise ValueError(f"--prior {name}: unknown kind {kind!r}; use one of {sorted(_PRIORS)}")
+        try:
+            x, y = _finite(a), _finite(b)
+        except argparse.ArgumentTypeError as err:
+            raise ValueError(f"--prior {name} {kind}: {err}") from None
+        cls, args = _PRIORS[kind.lower()]
+        if kind.lower() == "normal" and not y > 0:
+            raise ValueError(f"--prior {name} normal: SD must be > 0, got {b}")
+        if kind.lower() != "normal" and not (y > x and (kind.lower() == "uniform" or x > 0)):
+            raise ValueError(f"--prior {name} {kind}: need 0 < LOW < HIGH (uniform: LOW < HIGH), got {a} {b}")
+        if name in out:
+            raise ValueError(f"--prior {name} given twice")
+        out[name] = getattr(dist, cls)(x, y)
+    return out
 
 
 def cmd_activity(args) -> int:
@@ -425,23 +471,45 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_scan)
     for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
                                  ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
-        p = sub.add_parser(name, help=helptext)
+        p = sub.add_parser(name, help=helptext, description=helptext + ". Free parameters: PLANET.t0 [d], "
+                           "PLANET.period [d], PLANET.a [R*], PLANET.inc [deg], PLANET.radius [R*]; star.<coefficient> "
+                           "(quadratic: u1 u2, or Kipping's q1 q2; nonlinear: c1..c4; power2: c alpha); lc.offset "
+                           "(multiplicative flux offset), lc.jitter (error added in quadrature [relative flux]), "
+                           "lc.baseline / lc.baseline2 (linear / quadratic trend per data window; docs/cli.md).")
         # fit/sample default to the synthetic example: the real default data
         # (64,792 raw long cadences with stellar variability) need the scan's
-        # per-window detrending, which the fits do not do.
-        p.add_argument("config", nargs="?", default=str(_SYNTHETIC), help="CONFIG.toml (default: the bundled synthetic Kepler-20 set)")
-        p.add_argument("--free", nargs="+", default=["b.t0", "b.radius", "c.t0", "c.radius"],
-                       help="free parameters, e.g. b.t0 b.radius b.a b.inc c.t0 star.c1")
-        p.add_argument("--windows", action="store_true", help="use only the multi-transit windows of the data")
-        p.add_argument("--out", default=None, help="write results (fit: JSON, sample: .npz)")
+        # per-window detrending (--windows)
+        p.add_argument("config", nargs="?", default=str(_SYNTHETIC), metavar="CONFIG",
+                       help="scan config (TOML; docs/config.md) whose system is the start and whose data are fitted "
+                       "(default: the bundled synthetic Kepler-20 set)")
+        p.add_argument("--free", nargs="+", default=["b.t0", "b.radius", "c.t0", "c.radius"], metavar="NAME",
+                       help="free parameters, e.g. b.t0 b.radius b.a b.inc star.q1 star.q2 lc.jitter "
+                       "(units above; default: b.t0 b.radius c.t0 c.radius)")
+        p.add_argument("--windows", action="store_true",
+                       help="fit only the multi-transit windows, detrended as by `jaxppo scan` (each divided by its "
+                       "out-of-transit polynomial, outliers clipped); needed for real data with stellar variability "
+                       "(default: all data as loaded)")
+        what = "JSON, read by jaxppo.FitResult.load" if name == "fit" else ".npz, read by jaxppo.SampleResult.load"
+        p.add_argument("--out", default=None, metavar="FILE",
+                       help=f"write the result ({what}); its folder must exist (default: none)")
+        p.add_argument("--quiet", action="store_true",
+                       help=("no progress lines on stderr" if name == "fit" else "no progress bar")
+                       + " (default: show them)")
         if name == "sample":
-            p.add_argument("--warmup", type=int, default=1000)
-            p.add_argument("--samples", type=int, default=1000)
-            p.add_argument("--chains", type=int, default=4, help="chains, run vectorised (default 4)")
-            p.add_argument("--seed", type=int, default=0)
-            p.add_argument("--quiet", action="store_true")
+            p.add_argument("--warmup", type=int, default=1000, metavar="N",
+                           help="NUTS warm-up (adaptation) steps per chain (default: 1000)")
+            p.add_argument("--samples", type=int, default=1000, metavar="N",
+                           help="draws kept per chain (default: 1000)")
+            p.add_argument("--chains", type=int, default=4, metavar="N",
+                           help="chains, run vectorised (default: 4)")
+            p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+            p.add_argument("--prior", nargs=4, action="append", default=None, metavar=("NAME", "KIND", "A", "B"),
+                           help="replace the default prior of a free parameter, in its units: KIND normal (A mean, "
+                           "B sd), uniform or loguniform (A low, B high), e.g. --prior b.t0 normal 131.5 1e-4; "
+                           "repeatable (default: the documented defaults of jaxppo.sample)")
             p.add_argument("--netcdf", default=None, metavar="PATH",
-                           help="write the posterior, log-likelihood, sample stats and data as arviz netCDF")
+                           help="write the posterior, log-likelihood, sample stats and data as arviz netCDF "
+                           "(default: none)")
         p.set_defaults(func=func)
     p = sub.add_parser("activity", help="stellar activity: rotation period, variability, brightness map, spots",
                        description="Rotation period (generalised Lomb-Scargle, astropy), peak-to-peak variability "

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from jaxppo.cli import main
@@ -66,12 +67,71 @@ def test_bad_config_exits_with_message(tmp_path):
 
 
 def test_fit_and_sample_commands(tmp_path, capsys):
+    import jaxppo as jp
+
     assert main(["fit", "--free", "b.t0", "c.radius", "--out", str(tmp_path / "fit.json")]) == 0
     fitted = json.loads((tmp_path / "fit.json").read_text())
     assert fitted["success"] and len(fitted["errors"]) == 2
+    back = jp.FitResult.load(tmp_path / "fit.json")
+    assert back.names == ("b.t0", "c.radius") and back.success
+    captured = capsys.readouterr()
+    assert "fit: " in captured.err and "Levenberg-Marquardt pass 1" in captured.err  # progress, one line per stage
+    assert main(["fit", "--free", "b.t0", "--quiet"]) == 0
+    assert "fit: " not in capsys.readouterr().err
     assert main(["sample", "--free", "c.radius", "--warmup", "20", "--samples", "20", "--quiet",
                  "--out", str(tmp_path / "s.npz")]) == 0
     assert "r_hat" in capsys.readouterr().out
+    post = jp.SampleResult.load(tmp_path / "s.npz")
+    assert post.names == ("c.radius",) and post.chains["c.radius"].shape == (4, 20)
+
+
+def test_sample_prior_option(monkeypatch, capsys):
+    import numpyro.distributions as dist
+
+    import jaxppo as jp
+
+    seen = {}
+
+    def fake_sample(system, lc, **kw):
+        seen.update(kw)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(jp, "sample", fake_sample)
+    assert main(["sample", "--free", "b.t0", "b.radius", "--prior", "b.t0", "normal", "131.5", "1e-4",
+                 "--prior", "b.radius", "loguniform", "0.01", "0.05"]) == 2
+    pr = seen["priors"]
+    assert isinstance(pr["b.t0"], dist.Normal) and float(pr["b.t0"].loc) == 131.5 and float(pr["b.t0"].scale) == 1e-4
+    assert isinstance(pr["b.radius"], dist.LogUniform) and float(pr["b.radius"].low) == 0.01
+    capsys.readouterr()
+    assert main(["sample", "--prior", "b.t0", "gamma", "1", "2"]) == 2
+    assert "unknown kind 'gamma'" in capsys.readouterr().err
+    assert main(["sample", "--prior", "b.t0", "normal", "1", "-2"]) == 2
+    assert "SD must be > 0" in capsys.readouterr().err
+
+
+def test_fit_windows_are_the_scans_detrended_windows(monkeypatch, capsys):
+    """On the real Kepler-20 data, --windows must fit the scan's detrended
+    windows (flux divided by each window's out-of-transit polynomial), not
+    the raw PDCSAP flux with its stellar variability."""
+    import jaxppo as jp
+    from jaxppo._config import default_config_path, load_config
+    from jaxppo._scan import scan_windows
+
+    seen = {}
+
+    def fake_fit(system, lc, free, **kw):
+        seen["lc"] = lc
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(jp, "fit", fake_fit)
+    assert main(["fit", str(default_config_path()), "--windows", "--free", "b.t0"]) == 2
+    wins = scan_windows(load_config())
+    lc = seen["lc"]
+    t = np.concatenate([w.time for w in wins])
+    assert len(lc) == np.unique(t).size
+    ref = {float(ti): float(fi) for w in wins for ti, fi in zip(w.time, w.flux)}
+    assert np.array_equal(lc.flux, np.array([ref[float(ti)] for ti in lc.time]))
+    assert "detrended multi-transit windows" in capsys.readouterr().out
 
 
 def test_write_failure_is_one_line(tmp_path, capsys):
@@ -103,7 +163,7 @@ def test_every_option_has_help_with_its_default():
 
     parser = build_parser()
     subs = next(a for a in parser._actions if a.dest == "command").choices
-    for name in ("scan", "plot", "init", "simulate", "demo"):
+    for name in ("scan", "plot", "init", "simulate", "demo", "fit", "sample"):
         for action in subs[name]._actions:
             if action.dest == "help":
                 continue
@@ -113,6 +173,8 @@ def test_every_option_has_help_with_its_default():
     helps = {(n, a.dest): a.help for n in ("scan", "simulate") for a in subs[n]._actions}
     assert "[deg]" in helps[("scan", "alpha")] and "[deg]" in helps[("simulate", "alpha")]
     assert "[relative flux]" in helps[("simulate", "noise")]
+    desc = subs["fit"].description
+    assert all(u in desc for u in ("[d]", "[deg]", "[R*]", "[relative flux]", "q1 q2", "lc.jitter", "lc.baseline"))
 
 
 def _synthetic_copy(folder):

@@ -129,3 +129,118 @@ def test_cli_sample_writes_netcdf(tmp_path, capsys):
     assert "ess bulk" in capsys.readouterr().out
     rc = main(["sample", "--free", "b.t0", "--netcdf", str(tmp_path / "missing" / "x.nc")])
     assert rc == 2
+
+
+# ---- user priors, Kipping q1/q2, jitter, results on disk ----
+
+def _one_planet(jitter=0.0, noise=2e-4, seed=0):
+    """One planet on a quadratic star (u = 0.4, 0.25), 2-min cadence over
+    +-0.25 d of one transit."""
+    truth = jp.System(jp.Star.quadratic(0.4, 0.25), [jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.0, radius=0.1,
+                                                               name="b")])
+    t = np.arange(-0.25, 0.25, 2.0 / 1440.0)
+    f = np.asarray(truth.flux(t)) + np.random.default_rng(seed).normal(0.0, np.hypot(noise, jitter), t.size)
+    return truth, jp.LightCurve(t, f, np.full(t.size, noise))
+
+
+def test_sample_q1_q2_jitter_from_a_lightkurve_lightcurve():
+    """q1, q2 are drawn in [0, 1] and reported with the implied u1, u2 (the
+    analytic map, draw by draw); a free jitter has the posterior width the
+    Gaussian likelihood with its log-variance term implies:
+    sd(s) = V / (s sqrt(2 N)), V = sigma^2 + s^2."""
+    import lightkurve as lk
+    from astropy.time import Time
+
+    from jaxppo._fit import kipping_u
+
+    s = 4e-4
+    truth, lc = _one_planet(jitter=s)
+    klc = lk.LightCurve(time=Time(lc.time, format="bkjd", scale="tdb"), flux=lc.flux, flux_err=lc.flux_err)
+    res = jp.sample(truth, klc, free=("b.t0", "star.q1", "star.q2", "lc.jitter"), num_warmup=150, num_samples=150,
+                    num_chains=4, seed=2, progress_bar=False)
+    q1, q2 = res.samples["star.q1"], res.samples["star.q2"]
+    assert np.all((q1 > 0) & (q1 < 1) & (q2 > 0) & (q2 < 1))
+    u1, u2 = kipping_u(q1, q2)
+    assert np.allclose(res.samples["star.u1"], u1, rtol=0, atol=1e-12)
+    assert np.allclose(res.samples["star.u2"], u2, rtol=0, atol=1e-12)
+    assert res.names == ("b.t0", "star.q1", "star.q2", "lc.jitter") and "star.u1" in res.intervals
+    jit = res.samples["lc.jitter"]
+    expect = (2e-4**2 + s**2) / (s * np.sqrt(2.0 * len(lc)))
+    assert abs(np.median(jit) - s) < 3 * expect
+    assert abs(np.std(jit) / expect - 1) < 0.2, (np.std(jit), expect)
+    for n in ("star.u1", "star.u2"):  # the truth within the 99.7 % interval
+        lo, hi = np.percentile(res.samples[n], [0.15, 99.85])
+        assert lo < {"star.u1": 0.4, "star.u2": 0.25}[n] < hi
+
+
+def test_an_informative_prior_sets_the_posterior_width():
+    """A Normal prior on t0 ten times narrower than the likelihood: the
+    posterior is the product of two Gaussians, sd = (1/sp^2 + 1/sl^2)^-1/2
+    and mean = (mp/sp^2 + ml/sl^2) sd^2, with the likelihood's mean and sd
+    (ml, sl) from the least-squares fit."""
+    import numpyro.distributions as dist
+
+    truth, lc = _one_planet()
+    fit = jp.fit(truth, lc, free=("b.t0", "b.radius"))
+    ml, sl = fit.values[0], fit.errors[0]
+    sp = 0.1 * sl
+    mp = ml + 2.0 * sp
+    res = jp.sample(truth, lc, free=("b.t0", "b.radius"), num_warmup=150, num_samples=250, num_chains=4, seed=0,
+                    progress_bar=False, priors={"b.t0": dist.Normal(mp, sp)})
+    want_sd = (1 / sp**2 + 1 / sl**2) ** -0.5
+    want_mean = (mp / sp**2 + ml / sl**2) * want_sd**2
+    t0 = res.samples["b.t0"]
+    assert abs(np.std(t0) / want_sd - 1) < 0.12, (np.std(t0), want_sd)
+    assert abs(np.mean(t0) - want_mean) < 0.2 * want_sd
+    # the radius keeps the likelihood's width (t0 and p are nearly uncorrelated)
+    assert abs(np.std(res.samples["b.radius"]) / fit.errors[1] - 1) < 0.2
+
+
+def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
+    import numpyro.distributions as dist
+
+    from jaxppo._fit import Model
+    from jaxppo._sample import _check_priors, _Coords, _priors, _start_q
+
+    truth, lc = _one_planet()
+    free = ("b.t0", "b.a", "b.inc", "b.radius")
+    with pytest.raises(ValueError, match="not free parameters"):
+        jp.sample(truth, lc, free=free, priors={"c.t0": dist.Normal(0.0, 1.0)})
+    with pytest.raises(ValueError, match="inclination is not supported"):
+        jp.sample(truth, lc, free=free, priors={"b.inc": dist.Normal(89.0, 1.0)})
+    with pytest.raises(ValueError, match="outside the prior's support"):
+        jp.sample(truth, lc, free=free, priors={"b.a": dist.Uniform(25.0, 30.0)})
+    with pytest.raises(ValueError, match="scalar numpyro distribution"):
+        jp.sample(truth, lc, free=free, priors={"b.a": 20.0})
+    model = Model(truth, lc, free)
+    user = {"b.a": dist.TruncatedNormal(20.0, 1.0, low=1.2)}
+    with pytest.warns(UserWarning, match="plain coordinates"):
+        _check_priors(model, truth, user)
+    coords = _Coords(model, _priors(model, user), user)
+    assert not coords.duration and coords.plain == [0]
+    q = _start_q(model, truth)
+    assert np.allclose(np.asarray(coords.to_q(coords.from_q(q))), q, rtol=1e-12)
+    # the prior's own density is what the potential adds for a (identity-free check: a
+    # TruncatedNormal on a through numpyro's bijection onto (1.2, inf))
+    assert float(coords.maps[1](coords.from_q(q)[1])) == pytest.approx(20.0, rel=1e-12)
+
+
+def test_sample_result_save_load_round_trip(small_run, tmp_path):
+    res = small_run[3]
+    path = res.save(tmp_path / "post.npz")
+    back = jp.SampleResult.load(path)
+    assert back.names == res.names and list(back.chains) == list(res.chains)
+    for n in res.chains:
+        assert np.array_equal(back.chains[n], res.chains[n]) and np.array_equal(back.samples[n], res.samples[n])
+    for n in res.stats:
+        assert np.array_equal(back.stats[n], res.stats[n])
+    assert np.array_equal(back.log_likelihood, res.log_likelihood) and np.array_equal(back.time, res.time)
+    assert back.intervals == res.intervals and back.deviance_min == res.deviance_min
+    assert all(np.isclose(back.diagnostics[n][k], res.diagnostics[n][k], rtol=0, atol=0, equal_nan=True)
+               for n in res.diagnostics for k in res.diagnostics[n])
+    assert float(back.best.planets[0].a) == float(res.best.planets[0].a)
+    ar = back.to_arviz()  # without the pointwise function: the total log-likelihood
+    assert list(ar.posterior.data_vars) == list(res.names)
+    with pytest.raises(ValueError, match="not a file written by SampleResult.save"):
+        (tmp_path / "x.npz").write_text("nonsense")
+        jp.SampleResult.load(tmp_path / "x.npz")
