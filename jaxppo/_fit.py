@@ -408,6 +408,7 @@ class _Data(eqx.Module):
     nsub: int = eqx.field(static=True)
     n_model: int = eqx.field(static=True)
     case: object = eqx.field(static=True)
+    eccentric: tuple = eqx.field(static=True, default=())
 
     @staticmethod
     def build(model: "Model") -> "_Data":
@@ -429,11 +430,19 @@ class _Data(eqx.Module):
         return _Data(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
                      model.y, model.sigma, jnp.asarray(model.alpha, float), jnp.asarray(model.basis, float),
                      tuple(model.slots), int(model.nsub),
-                     int(model.t_model.size), case)
+                     int(model.t_model.size), case, tuple(not pl.circular for pl in model.system.planets))
 
 
-def _to_system(theta, base: System, slots) -> System:
+def _to_system(theta, base: System, slots, eccentric=None) -> System:
+    """The system at theta. ``eccentric`` (static flags per planet; None: take
+    e and omega of every planet, for a concrete ``base``) says which planets
+    keep their e and omega: inside a traced program ``base``'s leaves are
+    tracers, so a circular planet given its traced e = 0 would take the
+    slower Keplerian path."""
     planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in base.planets]
+    for k, p in enumerate(base.planets):
+        if eccentric is None or eccentric[k]:
+            planets[k].update(e=p.e, omega=p.omega)
     star_params = base.star.params
     b_theta, q = {}, {}
     for k, (owner, par) in enumerate(slots):
@@ -469,7 +478,7 @@ def _to_system(theta, base: System, slots) -> System:
 def _flux(theta, d: _Data) -> jnp.ndarray:
     from ._flux import _exact_frames, _separate_frames
 
-    sysm = _to_system(theta, d.system, d.slots)
+    sysm = _to_system(theta, d.system, d.slots, d.eccentric)
     x, y, r = sysm.positions(d.t, d.alpha, d.case)
     fa = _separate_frames(sysm.star, x, y, r, 24)
     if d.union.size:
@@ -829,7 +838,7 @@ def _transit_problems(model: Model, system: System) -> list:
         on = (r[:, i] > 0) & (np.hypot(x[:, i], y[:, i]) < 1.0 + r[:, i])
         if not np.any(on):
             pl = system.planets[i]
-            b = float(pl.a * np.cos(np.deg2rad(pl.inc)))
+            b = float(pl.impact)
             missing.append(f"planet {pl.name or i} does not transit in the data at the start "
                            f"(impact parameter {b:.3g}, t0 {float(pl.t0):.6f} d, radius {float(pl.radius):.3g} R*)")
     if not need_all and len(missing) < len(owners):

@@ -370,3 +370,24 @@ def test_fit_accepts_a_lightkurve_lightcurve(q_fit):
     assert np.allclose(got.values, res.values, rtol=0, atol=0.01 * res.errors.min())
     with pytest.raises(ValueError, match="lightcurve must be"):
         jp.fit(truth, (lc.time, lc.flux), free=("b.t0",))
+
+
+def test_fit_model_keeps_an_eccentric_orbit():
+    """The fit's model is the system's light curve, eccentricity included:
+    it used to rebuild every planet circular (e and omega dropped), so an
+    eccentric planet was fitted with the wrong transit duration and shape."""
+    from jaxppo._fit import Model
+
+    truth = jp.System(jp.Star.quadratic(0.4, 0.25),
+                      [jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.0, radius=0.1, name="b", e=0.5, omega=30.0)])
+    t = np.arange(-0.25, 0.25, 2.0 / 1440.0)
+    f = np.asarray(truth.flux(t))
+    lc = jp.LightCurve(t, f, np.full(t.size, 2e-4))
+    m = Model(truth, lc, ("b.t0", "b.radius"))
+    theta = m.to_theta(truth)
+    assert np.max(np.abs(np.asarray(m.flux(theta)) - f)) < 1e-12
+    sys_back = m.to_system(theta)
+    assert float(sys_back.planets[0].e) == 0.5 and float(sys_back.planets[0].omega) == 30.0
+    res = jp.fit(truth, lc, free=("b.t0", "b.radius"))
+    assert res.success, res.message
+    assert abs(res.values[0]) < 1e-6 and abs(res.values[1] - 0.1) < 1e-6
