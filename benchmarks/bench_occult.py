@@ -17,7 +17,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo._flux import _exact_frames, _separate_frames  # noqa: E402
+from jaxppo._terms import _exact_frames, _separate_frames  # noqa: E402
 
 
 def best_of(fn, repeat=5):
@@ -69,7 +69,7 @@ def main() -> None:
         t = best_of(lambda: _exact_frames(star, X, Y, R, 24).block_until_ready())
         print(f"{'overlapping pair (general union only), ' + name:50s} {t / n * 1e6:9.3f}")
     # which path "auto" takes for the pair frames
-    from jaxppo._flux import _lens_rho
+    from jaxppo._terms import _lens_rho
     from jaxppo.core.occult import LENS_RULES
 
     rho = np.asarray(_lens_rho(X, Y, R))

@@ -30,9 +30,9 @@ def _lens_path_on_every_batch(monkeypatch):
     """By default "auto" sends calls with few crossing pairs to the union
     integral (cheaper to compile); here its lens path runs on every batch, so
     the single-configuration checks below test it too."""
-    import jaxppo._flux
+    import jaxppo._plan
 
-    monkeypatch.setattr(jaxppo._flux, "LENS_MIN_PAIRS", 0)
+    monkeypatch.setattr(jaxppo._plan, "LENS_MIN_PAIRS", 0)
 
 
 def _intensity_r(star):
@@ -320,7 +320,7 @@ def test_auto_plan_scenes():
     and lenses where each disk crosses at most one other, and sends the rest
     (a disk crossing two others, lenses at the limb) to the union integral:
     every scene class against the union integral at 96 nodes."""
-    from jaxppo._flux import _survey
+    from jaxppo._plan import _survey
 
     star = STARS["nonlinear"]
     rows = [
@@ -349,7 +349,7 @@ def test_auto_plan_scenes():
 def test_small_batches_take_the_union_integral(monkeypatch):
     """Below LENS_MIN_PAIRS crossing pairs a call's overlap frames are the
     union integral's, bit for bit; above it they take the lens path."""
-    import jaxppo._flux as F
+    import jaxppo._plan as F
 
     star = STARS["nonlinear"]
     x = np.array([[0.1, 0.15], [0.3, 0.32], [0.5, 2.0]])
@@ -499,7 +499,7 @@ def test_gradient_of_a_disk_centred_on_the_star():
         ):
             g = float(jax.grad(fn)(jnp.full(1, v))[0])
             assert np.isfinite(g) and abs(g) < 1e-12
-    from jaxppo._flux import _separate_frames
+    from jaxppo._terms import _separate_frames
 
     for v in (0.0, 1e-170):
         g = jax.grad(lambda a: _separate_frames(S16, a, jnp.zeros((1, 1)), jnp.full((1, 1), 0.2), 24)[0])(jnp.full((1, 1), v))
@@ -521,7 +521,7 @@ def test_traced_bad_input_gives_nan():
         assert np.isnan(out[0])
         g = jax.grad(lambda x: f(x, jnp.array([[0.1]]))[0])(jnp.array([[np.nan]]))
         assert np.isnan(float(g[0, 0]))
-    from jaxppo._flux import _separate_frames
+    from jaxppo._terms import _separate_frames
 
     sep = _separate_frames(S16, jnp.array([[np.nan], [0.2]]), jnp.zeros((2, 1)), jnp.full((2, 1), 0.1), 24)
     assert np.isnan(float(sep[0])) and np.isfinite(float(sep[1]))
