@@ -233,35 +233,42 @@ UNION_BLOCK = 256
 TERM_BLOCK = 1024
 
 
-def _compacted(fn, need: Array, args, pads, block: int, dtype) -> Array:
-    """``fn(*args)`` ([entry, ...] arrays -> [entry]) at the entries where
-    ``need`` (traced [entry] bool), 0 elsewhere, with static shapes: the
-    needed entries are packed to the front (a cumulative sum, no sort) into
-    blocks of ``block`` entries, and a ``lax.cond`` per block skips every
-    block past the last needed entry. Free slots of a block take the
-    harmless ``pads`` entries (never another entry's value, so that no NaN
-    can leak into a gradient). Under ``vmap`` the condition is batched and
-    becomes a select: every block is then computed (correct, not faster)."""
-    m = need.shape[0]
+def _compacted(fns, level: Array, args, pads, block: int, dtype) -> Array:
+    """``fns[level](*args)`` ([entry, ...] arrays -> [entry]) at the entries
+    with ``level`` >= 0 (traced [entry] ints), 0 elsewhere, with static
+    shapes: the entries are packed to the front in order of level (cumulative
+    sums, no sort) into blocks of ``block`` entries, and each block runs,
+    by ``lax.switch``, the rule of the highest level it holds (the rules are
+    ordered so that a higher one is also exact where a lower one is), or
+    nothing past the last entry. Free slots take the harmless ``pads``
+    entries (never another entry's value, so that no NaN can leak into a
+    gradient). Under ``vmap`` the switch index is batched and becomes a
+    select: every block then runs every rule (correct, not faster)."""
+    m = level.shape[0]
     block = max(1, min(block, m))
     nb = -(-m // block)
     slots = nb * block
-    pos = jnp.cumsum(need.astype(jnp.int32)) - 1
-    count = pos[-1] + 1
-    idx = jnp.full(slots, m, jnp.int32).at[jnp.where(need, pos, slots)].set(jnp.arange(m, dtype=jnp.int32), mode="drop")
+    pos = jnp.full(m, slots, jnp.int32)
+    offset = jnp.zeros((), jnp.int32)
+    for lv in range(len(fns)):
+        hit = level == lv
+        run = jnp.cumsum(hit.astype(jnp.int32))
+        pos = jnp.where(hit, offset + run - 1, pos)
+        offset = offset + run[-1]
+    idx = jnp.full(slots, m, jnp.int32).at[pos].set(jnp.arange(m, dtype=jnp.int32), mode="drop")
     valid = idx < m
     take = jnp.minimum(idx, m - 1)
     packed = []
     for a, pad in zip(args, pads):
         v = jnp.where(valid.reshape((-1,) + (1,) * (a.ndim - 1)), a[take], jnp.asarray(pad, a.dtype))
         packed.append(v.reshape((nb, block) + a.shape[1:]))
+    branch = jnp.max(jnp.where(valid, level[take], -1).reshape(nb, block), axis=1) + 1
+    branches = [lambda b: jnp.zeros(block, dtype)] + [lambda b, f=f: f(*b).astype(dtype) for f in fns]
 
     def body(_, xs):
-        start, blk = xs[0], xs[1:]
-        out = jax.lax.cond(start < count, lambda b: fn(*b).astype(dtype), lambda b: jnp.zeros(block, dtype), blk)
-        return None, out
+        return None, jax.lax.switch(xs[0], branches, xs[1:])
 
-    _, vals = jax.lax.scan(body, None, (jnp.arange(nb, dtype=jnp.int32) * block, *packed))
+    _, vals = jax.lax.scan(body, None, (branch, *packed))
     return jnp.zeros(m, dtype).at[idx].set(vals.reshape(-1), mode="drop")
 
 
@@ -280,7 +287,10 @@ def traced_auto_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> 
     g, phi1 = star.radial_kernel()
     inten = star.radial_intensity()
     norm = 2.0 * jnp.pi * phi1
-    multiple, counts, inner, inner_sum, cross = _survey(star, x, y, r)
+    # optimization barriers: each stage's masks are computed once (XLA would
+    # otherwise fuse, say, lens_rho into each of its consumers and evaluate
+    # it several times: measured 1.5x the whole cost)
+    multiple, counts, inner, inner_sum, cross = jax.lax.optimization_barrier(_survey(star, x, y, r))
     ok = jnp.isfinite(x) & jnp.isfinite(y) & jnp.isfinite(r) & (r >= 0) & (r <= MAX_RADIUS)
     union = multiple | ~jnp.all(ok, axis=-1)
     out = 1.0 - inner_sum
@@ -289,32 +299,30 @@ def traced_auto_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> 
         px, py, pr = (v[:, pairs].reshape(-1, 2) for v in (x, y, r))  # [frame * pair, 2]
         flat_cross = cross.reshape(-1)
         if star.smooth:
-            rho = lens_rho(px, py, pr)
-            tier = jnp.select([rho >= rho_min for _, rho_min in LENS_RULES], list(range(len(LENS_RULES))), -1)
-            union = union | jnp.any((cross & (tier < 0).reshape(n, -1)), axis=-1)
-            lens_total = jnp.zeros(n, dtype)
-            use = flat_cross & ~jnp.repeat(union, len(pairs))
             # a crossing pair well inside the star fills the free slots
             pad = (np.array([0.0, 0.01]), np.zeros(2), np.full(2, 0.01))
-            for t, (nodes, _) in enumerate(LENS_RULES):
-                lens = _compacted(
-                    lambda a, b, c, nodes=nodes: lens_deficit(a, b, c, g, nodes, inten) / norm,
-                    use & (tier == t), (px, py, pr), pad, TERM_BLOCK, dtype,
-                )
-                lens_total = lens_total + lens.reshape(n, -1).sum(-1)
-            out = out + lens_total
+            rho = _compacted([lens_rho], jnp.where(flat_cross, 0, -1), (px, py, pr), pad, TERM_BLOCK, dtype)
+            tier = jnp.select([rho >= rho_min for _, rho_min in LENS_RULES], list(range(len(LENS_RULES))), -1)
+            union = union | jnp.any((cross & (tier < 0).reshape(n, -1)), axis=-1)
+            tier, union = jax.lax.optimization_barrier((tier, union))
+            use = flat_cross & ~jnp.repeat(union, len(pairs))
+            lens = _compacted(
+                [lambda a, b, c, nodes=nodes: lens_deficit(a, b, c, g, nodes, inten) / norm for nodes, _ in LENS_RULES],
+                jnp.where(use, tier, -1), (px, py, pr), pad, TERM_BLOCK, dtype,
+            )
+            out = jax.lax.optimization_barrier(out + lens.reshape(n, -1).sum(-1))
         else:
             # kinks of a piecewise table: every overlap by the union integral
             union = union | jnp.any(cross, axis=-1)
     general = (counts & ~inner & ~union[:, None]).reshape(-1)
     one = _compacted(
-        lambda dd, pp: jax.vmap(lambda a, b: disk_deficit(a, b, g, phi1, order, inten))(dd, pp) / norm,
-        general, (safe_hypot(x, y).reshape(-1), r.reshape(-1)), (10.0, 0.1), TERM_BLOCK, dtype,
+        [lambda dd, pp: jax.vmap(lambda a, b: disk_deficit(a, b, g, phi1, order, inten))(dd, pp) / norm],
+        jnp.where(general, 0, -1), (safe_hypot(x, y).reshape(-1), r.reshape(-1)), (10.0, 0.1), TERM_BLOCK, dtype,
     )
-    out = out - one.reshape(n, k).sum(-1)
+    out = jax.lax.optimization_barrier(out - one.reshape(n, k).sum(-1))
     pad = (10.0 + np.arange(k), np.zeros(k), np.full(k, 0.1))
     whole = _compacted(
-        lambda a, b, c: 1.0 - jax.vmap(lambda u, v, w: union_deficit(u, v, w, g, phi1, order, inten))(a, b, c) / norm,
-        union, (x, y, r), pad, UNION_BLOCK, dtype,
+        [lambda a, b, c: 1.0 - jax.vmap(lambda u, v, w: union_deficit(u, v, w, g, phi1, order, inten))(a, b, c) / norm],
+        jnp.where(union, 0, -1), (x, y, r), pad, UNION_BLOCK, dtype,
     )
     return jnp.where(union, whole, out)

@@ -462,32 +462,39 @@ def _lens_parts(x, y, r, g, intensity, order: int, shape: bool):
     xa, ya, pa, xb, yb, pb = x[..., 0], y[..., 0], r[..., 0], x[..., 1], y[..., 1], r[..., 1]
     dx, dy = xb - xa, yb - ya
     delta = safe_hypot(dx, dy)
-    base = safe_atan2(dy, dx)  # direction A -> B, seen from A
     prod = heron_product(pa, delta, pb)
     crosses = (prod > 0) & (delta > 0)
     sq = safe_sqrt(jnp.where(crosses, prod, 0.0))
+    # direction A -> B as a unit vector: the arcs' angles enter only through
+    # cosines and sines, so no atan2 but the half-widths' (cheaper under jit)
+    dl = jnp.where(delta > 0, delta, 1.0)
+    ux, uy = jnp.where(delta > 0, dx / dl, 1.0), dy / dl
     u, w = gauss_legendre_01(order)
     u = jnp.asarray(2.0 * u - 1.0, dtype)  # [-1, 1]
     w = jnp.asarray(w, dtype)
 
-    def arc(cx, cy, p, q, centre):
+    def arc(cx, cy, p, q, cc, sc):
+        """The arc of circle (cx, cy, p) centred on direction (cc, sc)."""
         half = jnp.arctan2(sq, jnp.where(crosses, (p - q) * (p + q) + delta * delta, 1.0))
         d = safe_hypot(cx, cy)
-        mid = centre - safe_atan2(cy, cx)  # arc centre, from the far point
+        ds = jnp.where(d > 0, d, 1.0)
+        cf, sf = jnp.where(d > 0, cx / ds, 1.0), cy / ds  # the far point's direction
+        # the arc centre seen from the far point: mid = centre - far
+        cm, sm = cc * cf + sc * sf, sc * cf - cc * sf
         pd, c0, p2 = (p * d)[..., None], (d * d + p * p)[..., None], (p * p)[..., None]
-        cos_t = _arc_cos(mid, half, u)
+        cu, su = cos_sin(half[..., None] * u)
+        cos_t = cm[..., None] * cu - sm[..., None] * su
         val = 2.0 * half * ((_circle_term(g, cos_t, pd, c0, p2)) @ w)
         if not shape:
             return val, None
         # outward normal (cos th, sin th) at th = centre + half u: moving the
         # disk moves this arc only, dL = p int I (v . n) dth
-        cu, su = cos_sin(half[..., None] * u)
-        cc, sc = jnp.cos(centre)[..., None], jnp.sin(centre)[..., None]
+        cc, sc = cc[..., None], sc[..., None]
         inten = intensity(c0 + 2.0 * pd * cos_t) * (2.0 * half * p)[..., None]
         return val, tuple((inten * f) @ w for f in (cc * cu - sc * su, sc * cu + cc * su, 1.0))
 
-    va, ma = arc(xa, ya, pa, pb, base)
-    vb, mb = arc(xb, yb, pb, pa, base + np.pi)
+    va, ma = arc(xa, ya, pa, pb, ux, uy)
+    vb, mb = arc(xb, yb, pb, pa, -ux, -uy)
     value = jnp.where(crosses, va + vb, 0.0)
     if not shape:
         return value, None
@@ -567,7 +574,8 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     sq = safe_sqrt(prod)
 
     def wrap(a):
-        return jnp.mod(a + np.pi, _TWO_PI) - np.pi
+        # to (-pi, pi] for |a| < 3 pi; round is cheaper than mod under jit
+        return a - _TWO_PI * jnp.round(a / _TWO_PI)
 
     rho = jnp.full(prod.shape, jnp.inf, dtype)
     for i, sign in ((0, 1.0), (1, -1.0)):
