@@ -216,13 +216,35 @@ def _run_padded(fn, star, x, y, r, order, chunk: int):
     return jax.tree_util.tree_map(lambda *v: cat(v), *outs)
 
 
+# Overlap frames per call below which the sweep and the marginalised scan
+# send them all to the union integral, in calls of OVERLAP_CALL frames: one
+# compiled program serves every call (the scan's blocks included), where the
+# lens path's programs (survey, lens_rho, three lens tiers, one-disk rule, at
+# each padded size) cost ~0.1-1 s each to trace and compile per process, and
+# would save ~3 us per frame.
+OVERLAP_LENS_MIN = 65536
+OVERLAP_CALL = 1024
+
+
 def overlap_flux(star, x, y, r, order: int, chunk: int) -> np.ndarray:
-    """Flux of frames known to contain an overlapping pair: few of them (a
-    grid of one system has hundreds) go straight to the union integral, many
-    through "auto" (see ``LENS_MIN_PAIRS``)."""
-    if x.shape[0] < LENS_MIN_PAIRS:
-        return np.asarray(_run_padded(_exact_frames, star, x, y, r, order, chunk))
-    return auto_frames(star, x, y, r, order, chunk)
+    """Flux of frames known to contain an overlapping pair: fewer than
+    OVERLAP_LENS_MIN (a grid of one system has hundreds to tens of
+    thousands) go to the union integral in calls of one padded size, more
+    through "auto"."""
+    n = x.shape[0]
+    if n >= OVERLAP_LENS_MIN:
+        return auto_frames(star, x, y, r, order, chunk)
+    if n == 0:
+        return np.zeros(0, x.dtype)
+    size = min(OVERLAP_CALL, chunk)
+    pad = -n % size
+    if pad:
+        # padding frames: disks far off the star (cost the same, dropped)
+        k = x.shape[1]
+        x = np.concatenate([x, np.full((pad, k), 10.0) + np.arange(k)])
+        y = np.concatenate([y, np.zeros((pad, k))])
+        r = np.concatenate([r, np.full((pad, k), 0.1)])
+    return np.asarray(_run_padded(_exact_frames, star, x, y, r, order, size))[:n]
 
 
 # Entries per block of the compacted calls of ``traced_auto_frames``: the

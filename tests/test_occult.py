@@ -658,3 +658,23 @@ def test_float32_policy_warns_once_when_x64_is_off():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["1", "float32", "False", "True"], out.stdout
+
+
+def test_overlap_calls_share_one_program():
+    """The sweep's overlap frames (fewer than OVERLAP_LENS_MIN per call) run
+    the union integral in calls of one padded size, so the blocks of a scan
+    (each with its own number of overlap frames) reuse one compiled program;
+    the numbers are the union integral's, frame by frame."""
+    from jaxppo._plan import OVERLAP_CALL, overlap_flux
+    from jaxppo._terms import _exact_frames
+
+    star = STARS["nonlinear"]
+    rng = np.random.default_rng(4)
+    x, y, r = _crossing_pairs(rng, 2 * OVERLAP_CALL + 300)
+    # (calls of 512 frames: a program of its own, not counted below)
+    ref = np.asarray(jp.occultation_flux(star, x, y, r, method="exact", chunk=512))
+    before = _exact_frames._cache_size()
+    for n in (5, 700, OVERLAP_CALL + 1, 2 * OVERLAP_CALL + 300):
+        got = overlap_flux(star, x[:n], y[:n], r[:n], 24, 65536)
+        assert np.array_equal(got, ref[:n])
+    assert _exact_frames._cache_size() - before <= 1
