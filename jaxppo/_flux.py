@@ -98,8 +98,11 @@ def occultation_flux(
             (three disks meeting, lenses at the limb) run the union integral.
             Its error is the same as ``"exact"``'s (both ~4e-12 at worst,
             measured). Piecewise-table stars take the union integral for every
-            overlap. Under ``jit``/``grad`` (traced
-            inputs) ``"auto"`` evaluates the union integral for every frame.
+            overlap. Under ``jit``/``grad``/``vmap`` (traced inputs) the same
+            plan runs on the device (``jaxppo._plan.traced_auto_frames``):
+            each rule on the frames that need it, at the host plan's numbers,
+            gradients by shape derivatives; under ``vmap`` every rule runs on
+            every frame (correct, slower: broadcast leading axes instead).
             ``"raster"`` is the pixel-grid method.
         order: Gauss-Legendre nodes per arc piece (24: worst measured error
             ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
