@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._flux import LENS_MIN_PAIRS, _exact_frames, _run_padded, auto_frames, one_disk_sum
+from ._plan import one_disk_sum, overlap_flux
 from ._system import CASES, System, case_signs
 
 __all__ = ["sweep", "SweepStats"]
@@ -118,12 +118,3 @@ def sweep(
         n_union += ai.size
     stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=n_union)
     return (out, stats) if return_stats else out
-
-
-def overlap_flux(star, x, y, r, order: int, chunk: int) -> np.ndarray:
-    """Flux of frames known to contain an overlapping pair: few of them (a
-    grid of one system has hundreds) go straight to the union integral, many
-    through "auto" (see ``LENS_MIN_PAIRS``)."""
-    if x.shape[0] < LENS_MIN_PAIRS:
-        return np.asarray(_run_padded(_exact_frames, star, x, y, r, order, chunk))
-    return auto_frames(star, x, y, r, order, chunk)

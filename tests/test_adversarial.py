@@ -110,12 +110,15 @@ def _fd_step(r):
     return np.clip(0.01 * pos, 1e-9, 1e-6)
 
 
+@pytest.mark.parametrize("method", ["exact", "auto"])
 @pytest.mark.parametrize("law", list(STARS))
-def test_gradients_finite_and_between_one_sided_differences(law):
+def test_gradients_finite_and_between_one_sided_differences(law, method):
+    """Under jit, "auto" plans on the device (lens, midpoint, general and
+    union rules): its gradients are checked as "exact"'s."""
     star = STARS[law]
     names, cfgs = _scenes(SEEDS[law] + 1)
     x, y, r = (jnp.asarray(v) for v in pad_scenes(cfgs))
-    flux = jax.jit(lambda x, y, r: jp.occultation_flux(star, x, y, r, method="exact"))
+    flux = jax.jit(lambda x, y, r: jp.occultation_flux(star, x, y, r, method=method))
     grads = jax.jit(jax.grad(lambda x, y, r: jnp.sum(flux(x, y, r)), argnums=(0, 1, 2)))(x, y, r)
     h = _fd_step(np.asarray(r))
     scale = np.max(np.abs(np.concatenate([np.asarray(x), np.asarray(y), np.asarray(r)], 1)), axis=1).clip(1.0)

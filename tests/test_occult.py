@@ -30,9 +30,9 @@ def _lens_path_on_every_batch(monkeypatch):
     """By default "auto" sends calls with few crossing pairs to the union
     integral (cheaper to compile); here its lens path runs on every batch, so
     the single-configuration checks below test it too."""
-    import jaxppo._flux
+    import jaxppo._plan
 
-    monkeypatch.setattr(jaxppo._flux, "LENS_MIN_PAIRS", 0)
+    monkeypatch.setattr(jaxppo._plan, "LENS_MIN_PAIRS", 0)
 
 
 def _intensity_r(star):
@@ -184,6 +184,97 @@ def test_jit_vmap():
     np.testing.assert_allclose(np.asarray(out), np.asarray(ref), atol=1e-15)
 
 
+def _padded_scenes(cfgs, k=3):
+    x = np.array([c[0] + [5.0] * (k - len(c[0])) for c in cfgs])
+    y = np.array([c[1] + [0.0] * (k - len(c[1])) for c in cfgs])
+    r = np.array([c[2] + [0.01] * (k - len(c[2])) for c in cfgs])
+    return x, y, r
+
+
+def _tabulated(interpolation):
+    mu = np.sort(np.concatenate([[0.0], np.cos(np.linspace(0, np.pi / 2, 40))[:-1]]))
+    mu[-1] = 1.0
+    return jp.Star.tabulated(mu, np.asarray(STARS["nonlinear"].intensity(mu)), interpolation=interpolation)
+
+
+@pytest.mark.parametrize("star", [STARS["nonlinear"], _tabulated("sqrt-poly"), _tabulated("linear")], ids=["nonlinear", "sqrt-poly", "linear"])
+def test_jitted_auto_equals_concrete(star):
+    """Under jit "auto" plans on the device (lens, midpoint, general and
+    union rules on the frames that need them): the same numbers as the host
+    plan and the union integral, on random scenes of two and three disks,
+    contacts, nested, identical and limb-crossing disks."""
+    rng = np.random.default_rng(11)
+    cfgs = random_configs(rng, 150, 2) + random_configs(rng, 60, 3) + adversarial_pairs()
+    cfgs += [(c[0] + [0.2], c[1] + [-0.3], c[2] + [0.05]) for c in adversarial_single()]
+    x, y, r = _padded_scenes(cfgs)
+    jitted = np.asarray(jax.jit(lambda a, b, c: jp.occultation_flux(star, a, b, c))(x, y, r))
+    host = np.asarray(jp.occultation_flux(star, x, y, r))
+    ref = np.asarray(jp.occultation_flux(star, x, y, r, method="exact", order=128))
+    assert np.max(np.abs(jitted - host)) < 1e-12  # measured 3e-15
+    if star.smooth:
+        # as the host plan (test_auto_equals_exact); a piecewise table's
+        # kinks keep every rule at order 24 ~1e-8 from order 128, both plans alike
+        assert np.max(np.abs(jitted - ref)) < 1e-11
+        # the fast rules did run: the union integral alone differs in the last digits
+        assert not np.array_equal(jitted, np.asarray(jp.occultation_flux(star, x, y, r, method="exact")))
+
+
+def test_jitted_auto_gradient_matches_finite_differences():
+    """Gradients of jitted "auto" (shape derivatives of the lens, one-disk and
+    union rules) equal to "exact"'s, and to the mean of the one-sided
+    differences within their spread (random scenes can put a disk h from a
+    contact, where the flux has a kink)."""
+    star = STARS["nonlinear"]
+    rng = np.random.default_rng(12)
+    x, y, r = (jnp.asarray(v) for v in _padded_scenes(random_configs(rng, 40, 2) + random_configs(rng, 20, 3)))
+    f = {m: jax.jit(lambda a, b, c, m=m: jp.occultation_flux(star, a, b, c, method=m)) for m in ("auto", "exact")}
+    g = {m: jax.jit(jax.grad(lambda a, b, c, m=m: jnp.sum(f[m](a, b, c)), argnums=(0, 1, 2)))(x, y, r) for m in f}
+    h = 1e-6
+    for arg in range(3):
+        ga = np.asarray(g["auto"][arg])
+        assert np.all(np.isfinite(ga))
+        np.testing.assert_allclose(ga, np.asarray(g["exact"][arg]), rtol=0, atol=1e-9)
+        for k in range(3):
+            args = [x, y, r]
+            step = jnp.zeros_like(x).at[:, k].set(h)
+            f0 = np.asarray(f["auto"](*args))
+            args[arg] = args[arg] + step
+            fp = np.asarray(f["auto"](*args))
+            args[arg] = args[arg] - 2 * step
+            fm = np.asarray(f["auto"](*args))
+            plus, minus = (fp - f0) / h, (f0 - fm) / h
+            # smooth: the one-sided differences differ by f'' h <~ 3e-6, and the
+            # gradient is their mean; a kink within h: within their spread
+            spread = np.abs(plus - minus)
+            kink = spread > 1e-5
+            assert np.all(np.abs(ga[:, k] - 0.5 * (plus + minus)) <= np.where(kink, spread, 0.0) + 2e-8)
+            assert np.mean(kink) < 0.1
+
+
+def test_lens_gradient_where_its_parametrisation_is_singular():
+    """The lens rule's derivatives are shape derivatives: by automatic
+    differentiation of its parametrisation they were 3% off for equal radii
+    at delta = p (a tie in the sorted Heron product) and half the true value
+    for a disk centred on the star."""
+    from jaxppo.core.occult import lens_deficit
+
+    star = STARS["nonlinear"]
+    g, _ = star.radial_kernel()
+    inten = star.radial_intensity()
+    h = 1e-6
+    for xs, ys, rs in (([0.31, 0.37], [0.12, 0.2], [0.1, 0.1]), ([0.0, 0.06], [0.0, 0.08], [0.1, 0.1])):
+        args = [jnp.array(v) for v in (xs, ys, rs)]
+        for arg in range(3):
+            def lens(v, arg=arg):
+                a = list(args)
+                a[arg] = v
+                return lens_deficit(*a, g, 16, inten)
+
+            got = np.asarray(jax.grad(lens)(args[arg]))
+            fd = [(lens(args[arg].at[i].add(h)) - lens(args[arg].at[i].add(-h))) / (2 * h) for i in range(2)]
+            np.testing.assert_allclose(got, np.asarray(fd), rtol=0, atol=1e-9)
+
+
 def test_float32_error_is_bounded():
     """float32 inputs run in float32; error measured against float64 (docs)."""
     star = STARS["nonlinear"]
@@ -320,7 +411,7 @@ def test_auto_plan_scenes():
     and lenses where each disk crosses at most one other, and sends the rest
     (a disk crossing two others, lenses at the limb) to the union integral:
     every scene class against the union integral at 96 nodes."""
-    from jaxppo._flux import _survey
+    from jaxppo._plan import _survey
 
     star = STARS["nonlinear"]
     rows = [
@@ -349,7 +440,7 @@ def test_auto_plan_scenes():
 def test_small_batches_take_the_union_integral(monkeypatch):
     """Below LENS_MIN_PAIRS crossing pairs a call's overlap frames are the
     union integral's, bit for bit; above it they take the lens path."""
-    import jaxppo._flux as F
+    import jaxppo._plan as F
 
     star = STARS["nonlinear"]
     x = np.array([[0.1, 0.15], [0.3, 0.32], [0.5, 2.0]])
@@ -499,7 +590,7 @@ def test_gradient_of_a_disk_centred_on_the_star():
         ):
             g = float(jax.grad(fn)(jnp.full(1, v))[0])
             assert np.isfinite(g) and abs(g) < 1e-12
-    from jaxppo._flux import _separate_frames
+    from jaxppo._terms import _separate_frames
 
     for v in (0.0, 1e-170):
         g = jax.grad(lambda a: _separate_frames(S16, a, jnp.zeros((1, 1)), jnp.full((1, 1), 0.2), 24)[0])(jnp.full((1, 1), v))
@@ -521,7 +612,7 @@ def test_traced_bad_input_gives_nan():
         assert np.isnan(out[0])
         g = jax.grad(lambda x: f(x, jnp.array([[0.1]]))[0])(jnp.array([[np.nan]]))
         assert np.isnan(float(g[0, 0]))
-    from jaxppo._flux import _separate_frames
+    from jaxppo._terms import _separate_frames
 
     sep = _separate_frames(S16, jnp.array([[np.nan], [0.2]]), jnp.zeros((2, 1)), jnp.full((2, 1), 0.1), 24)
     assert np.isnan(float(sep[0])) and np.isfinite(float(sep[1]))
@@ -567,3 +658,34 @@ def test_float32_policy_warns_once_when_x64_is_off():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["1", "float32", "False", "True"], out.stdout
+
+
+def test_overlap_calls_share_one_program():
+    """The sweep's overlap frames (fewer than OVERLAP_LENS_MIN per call) run
+    the union integral in calls of one padded size, so the blocks of a scan
+    (each with its own number of overlap frames) reuse one compiled program;
+    the numbers are the union integral's, frame by frame."""
+    from jaxppo._plan import OVERLAP_CALL, overlap_flux
+    from jaxppo._terms import _exact_frames
+
+    star = STARS["nonlinear"]
+    rng = np.random.default_rng(4)
+    x, y, r = _crossing_pairs(rng, 2 * OVERLAP_CALL + 300)
+    # (calls of 512 frames: a program of its own, not counted below)
+    ref = np.asarray(jp.occultation_flux(star, x, y, r, method="exact", chunk=512))
+    before = _exact_frames._cache_size()
+    for n in (5, 700, OVERLAP_CALL + 1, 2 * OVERLAP_CALL + 300):
+        got = overlap_flux(star, x[:n], y[:n], r[:n], 24, 65536)
+        assert np.array_equal(got, ref[:n])
+    assert _exact_frames._cache_size() - before <= 1
+
+
+def test_vmapped_auto_takes_the_union_integral():
+    """Batched by vmap, the device plan's switches would run every rule on
+    every frame (2.3x the union integral): "auto" sees the batching and takes
+    the union integral, bit for bit."""
+    star = STARS["nonlinear"]
+    rng = np.random.default_rng(6)
+    x, y, r = (jnp.asarray(v) for v in _crossing_pairs(rng, 300))
+    f = {m: jax.jit(jax.vmap(lambda a, b, c, m=m: jp.occultation_flux(star, a, b, c, method=m))) for m in ("auto", "exact")}
+    assert np.array_equal(np.asarray(f["auto"](x, y, r)), np.asarray(f["exact"](x, y, r)))

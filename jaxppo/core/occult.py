@@ -268,7 +268,7 @@ def _instantiate(t, like):
     return jnp.zeros(jnp.shape(like), jnp.result_type(like)) if _is_zero(t) else t
 
 
-def _shape_jvp(parts, n_geom: int, primals, tangents):
+def _shape_jvp(parts, n_geom: int, primals, tangents, axis=None):
     """JVP from ``parts(*geometry, phi1, consts) -> (value, shape derivatives)``:
     the geometric tangents by the shape derivatives, the profile's (phi1 and
     the radial kernel's constants) by forward differentiation with the
@@ -293,7 +293,7 @@ def _shape_jvp(parts, n_geom: int, primals, tangents):
         )
     for t, dv in zip(tgeom, derivs):
         if not _is_zero(t):
-            dvalue = dvalue + jnp.sum(dv * t)
+            dvalue = dvalue + jnp.sum(dv * t, axis=axis)
     return value, dvalue.astype(value.dtype)
 
 
@@ -455,7 +455,74 @@ LENS_RULES = ((8, 6.0), (12, 3.0), (16, 2.0))
 LENS_ORDER = 12
 
 
-def lens_deficit(x: Array, y: Array, r: Array, g: Callable[[Array], Array], order: int = LENS_ORDER) -> Array:
+def _lens_parts(x, y, r, g, intensity, order: int, shape: bool):
+    """The lens integral (see ``lens_deficit``) of [..., 2] arrays, and with
+    ``shape`` its shape derivatives (dL/dx, dL/dy, dL/dr of both disks)."""
+    dtype = x.dtype
+    xa, ya, pa, xb, yb, pb = x[..., 0], y[..., 0], r[..., 0], x[..., 1], y[..., 1], r[..., 1]
+    dx, dy = xb - xa, yb - ya
+    delta = safe_hypot(dx, dy)
+    prod = heron_product(pa, delta, pb)
+    crosses = (prod > 0) & (delta > 0)
+    sq = safe_sqrt(jnp.where(crosses, prod, 0.0))
+    # direction A -> B as a unit vector: the arcs' angles enter only through
+    # cosines and sines, so no atan2 but the half-widths' (cheaper under jit)
+    dl = jnp.where(delta > 0, delta, 1.0)
+    ux, uy = jnp.where(delta > 0, dx / dl, 1.0), dy / dl
+    u, w = gauss_legendre_01(order)
+    u = jnp.asarray(2.0 * u - 1.0, dtype)  # [-1, 1]
+    w = jnp.asarray(w, dtype)
+
+    def arc(cx, cy, p, q, cc, sc):
+        """The arc of circle (cx, cy, p) centred on direction (cc, sc)."""
+        half = jnp.arctan2(sq, jnp.where(crosses, (p - q) * (p + q) + delta * delta, 1.0))
+        d = safe_hypot(cx, cy)
+        ds = jnp.where(d > 0, d, 1.0)
+        cf, sf = jnp.where(d > 0, cx / ds, 1.0), cy / ds  # the far point's direction
+        # the arc centre seen from the far point: mid = centre - far
+        cm, sm = cc * cf + sc * sf, sc * cf - cc * sf
+        pd, c0, p2 = (p * d)[..., None], (d * d + p * p)[..., None], (p * p)[..., None]
+        cu, su = cos_sin(half[..., None] * u)
+        cos_t = cm[..., None] * cu - sm[..., None] * su
+        val = 2.0 * half * ((_circle_term(g, cos_t, pd, c0, p2)) @ w)
+        if not shape:
+            return val, None
+        # outward normal (cos th, sin th) at th = centre + half u: moving the
+        # disk moves this arc only, dL = p int I (v . n) dth
+        cc, sc = cc[..., None], sc[..., None]
+        inten = intensity(c0 + 2.0 * pd * cos_t) * (2.0 * half * p)[..., None]
+        return val, tuple((inten * f) @ w for f in (cc * cu - sc * su, sc * cu + cc * su, 1.0))
+
+    va, ma = arc(xa, ya, pa, pb, ux, uy)
+    vb, mb = arc(xb, yb, pb, pa, -ux, -uy)
+    value = jnp.where(crosses, va + vb, 0.0)
+    if not shape:
+        return value, None
+    return value, tuple(jnp.where(crosses[..., None], jnp.stack([a, b], -1), 0.0) for a, b in zip(ma, mb))
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
+def _lens_core(order, g_fn, i_fn, x, y, r, phi1, consts):
+    g_consts, i_consts = consts
+    return _lens_parts(x, y, r, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), order, False)[0]
+
+
+@_lens_core.defjvp
+def _lens_core_jvp(order, g_fn, i_fn, primals, tangents):
+    x, y, r, phi1, (g_consts, i_consts) = primals
+    _, _, _, tphi, (tg, _) = tangents
+
+    def parts(x, y, r, phi1, g_consts):
+        return _lens_parts(x, y, r, lambda s: g_fn(s, *g_consts), lambda s: i_fn(s, *i_consts), order, True)
+
+    # each lens is one value: its disks' tangents contract over the last axis
+    return _shape_jvp(parts, 3, (x, y, r, phi1, list(g_consts)), tuple(tangents[:3]) + (tphi, list(tg)), axis=-1)
+
+
+def lens_deficit(
+    x: Array, y: Array, r: Array, g: Callable[[Array], Array], order: int = LENS_ORDER,
+    intensity: Callable[[Array], Array] | None = None,
+) -> Array:
     """Integral of I over the lens A n B of two crossing disks that lies wholly
     on the star (``x, y, r`` have a last axis of length 2; 0 where the circles
     do not cross).
@@ -466,27 +533,21 @@ def lens_deficit(x: Array, y: Array, r: Array, g: Callable[[Array], Array], orde
     circle A (centre at distance d, angle phi_A) the radius of a boundary point
     is s = d^2 + p^2 + 2 p d cos(t - phi_A); the node cosines come from
     ``_arc_cos`` (one cos and sin per arc, polynomials per node).
+
+    Derivatives with respect to the disks are the shape derivatives (each
+    disk's arc moving with it, see ``union_deficit``): the derivatives of the
+    parametrisation are wrong where it is singular (a disk centred on the
+    star, equal radii at delta = p: ties in the Heron product).
+    ``intensity`` (s -> I) is what they integrate (default: from g).
     """
     dtype = float_dtype(x, y, r)
     x, y, r = (jnp.asarray(v, dtype) for v in (x, y, r))
-    xa, ya, pa, xb, yb, pb = x[..., 0], y[..., 0], r[..., 0], x[..., 1], y[..., 1], r[..., 1]
-    dx, dy = xb - xa, yb - ya
-    delta = safe_hypot(dx, dy)
-    base = safe_atan2(dy, dx)  # direction A -> B, seen from A
-    prod = heron_product(pa, delta, pb)
-    crosses = (prod > 0) & (delta > 0)
-    sq = safe_sqrt(jnp.where(crosses, prod, 0.0))
-    rule = gauss_legendre_01(order)
-
-    def arc(cx, cy, p, q, centre):
-        half = jnp.arctan2(sq, jnp.where(crosses, (p - q) * (p + q) + delta * delta, 1.0))
-        d = safe_hypot(cx, cy)
-        mid = centre - safe_atan2(cy, cx)  # arc centre, from the far point
-        pd, c0, p2 = (p * d)[..., None], (d * d + p * p)[..., None], (p * p)[..., None]
-        return 2.0 * half * node_sum(rule, lambda v: _circle_term(g, _arc_cos(mid, half, 2.0 * v - 1.0), pd, c0, p2), dtype)
-
-    lens = arc(xa, ya, pa, pb, base) + arc(xb, yb, pb, pa, base + np.pi)
-    return jnp.where(crosses, lens, 0.0)
+    if intensity is None:
+        intensity = _intensity_from_g(g)
+    shape = x.shape[:-1] + (order,)
+    g_fn, g_consts = _convert(g, shape, dtype)
+    i_fn, i_consts = _convert(intensity, shape, dtype)
+    return _lens_core(order, g_fn, i_fn, x, y, r, jnp.zeros((), dtype), (tuple(g_consts), tuple(i_consts)))
 
 
 def lens_rho(x: Array, y: Array, r: Array) -> Array:
@@ -513,7 +574,8 @@ def lens_rho(x: Array, y: Array, r: Array) -> Array:
     sq = safe_sqrt(prod)
 
     def wrap(a):
-        return jnp.mod(a + np.pi, _TWO_PI) - np.pi
+        # to (-pi, pi] for |a| < 3 pi; round is cheaper than mod under jit
+        return a - _TWO_PI * jnp.round(a / _TWO_PI)
 
     rho = jnp.full(prod.shape, jnp.inf, dtype)
     for i, sign in ((0, 1.0), (1, -1.0)):
