@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import jaxppo as jp  # noqa: E402
-import jaxppo._flux  # noqa: E402
+import jaxppo._plan  # noqa: E402
 from helpers import (  # noqa: E402
     KEPLER20_P100,
     adversarial_pairs,
@@ -42,7 +42,7 @@ from helpers import (  # noqa: E402
 warnings.filterwarnings("ignore")
 # "auto" sends calls with few crossing pairs to the union integral (cheaper to
 # compile); the "auto" column is measured with its lens path on every call.
-jaxppo._flux.LENS_MIN_PAIRS = 0
+jaxppo._plan.LENS_MIN_PAIRS = 0
 
 
 def main() -> None:

@@ -476,7 +476,7 @@ def _to_system(theta, base: System, slots, eccentric=None) -> System:
 
 
 def _flux(theta, d: _Data) -> jnp.ndarray:
-    from ._flux import _exact_frames, _separate_frames
+    from ._terms import _exact_frames, _separate_frames
 
     sysm = _to_system(theta, d.system, d.slots, d.eccentric)
     x, y, r = sysm.positions(d.t, d.alpha, d.case)
