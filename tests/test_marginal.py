@@ -131,7 +131,6 @@ def test_weights_against_the_sampling_tilt(real, tmp_path, monkeypatch):
     draws (the weighting is what is checked) and alpha_ref is put on a PPO
     feature; the marginal curve is checked against a brute-force loop."""
     import jaxppo._marginal as mod
-    import jaxppo._sample as smp
 
     system, lc = real
     samples = _draws(system, 4, seed=5)
@@ -139,11 +138,8 @@ def test_weights_against_the_sampling_tilt(real, tmp_path, monkeypatch):
     a, d = fixed.delta_chi2("same")
     a_ref = float(a[np.argmax(np.abs(d))])
 
-    class Fake:
-        def __init__(self):
-            self.samples, self.diagnostics = samples, {}
-
-    monkeypatch.setattr(smp, "sample", lambda *args, **kw: Fake())
+    monkeypatch.setattr(mod, "nuts_draws", lambda *args, **kw: ({k: np.asarray(v) for k, v in samples.items()},
+                                                                 {"method": "fixed draws"}))
     monkeypatch.setattr(mod, "_alpha_ref", lambda *args: a_ref)
     free = [f"{pl.name}.{p}" for pl in system.planets for p in ("t0", "a", "inc")]
     m = marginal_scan(system, lc, draws=4, free=free, fixed=fixed, out=tmp_path, progress=False, figures=False, **KW)
@@ -266,3 +262,49 @@ def test_fixed_scan_of_another_config_is_refused(real):
     with pytest.raises(ValueError, match="fixed"):
         marginal_scan(system, lc, samples={"b.t0": np.full(2, float(system.planets[0].t0))}, fixed=other,
                       progress=False, figures=False, **KW)
+
+
+def test_kepler_third_law_against_the_earth():
+    """a/R* from the stellar density: the Sun's mean density (M_sun / (4/3
+    pi R_sun^3) = 1.4098 g/cm^3, IAU 2015 nominal values) and the sidereal
+    year give 1 au / R_sun = 215.03 (Earth's mass changes it by 1e-6)."""
+    from jaxppo._marginal import a_from_density, density_from_a
+
+    m_sun, r_sun, au = 1.98847e33, 6.957e10, 1.495978707e13  # [g], [cm], [cm]
+    rho_sun = m_sun / (4.0 / 3.0 * np.pi * r_sun**3)
+    assert a_from_density(rho_sun, 365.256363) == pytest.approx(au / r_sun, rel=2e-5)
+    assert density_from_a(au / r_sun, 365.256363) == pytest.approx(rho_sun, rel=6e-5)
+    # Kepler-20: Buchhave et al. (2016)'s a/R* of b and c imply one density
+    assert density_from_a(10.34, 3.69611525) == pytest.approx(1.53, abs=0.01)
+    assert density_from_a(21.17, 10.85409089) == pytest.approx(1.53, abs=0.01)
+
+
+def test_flat_without_a_ppo(tmp_path):
+    """Synthetic data without a PPO (planets twice Kepler-20's size, 2e-4
+    noise per 1-min point, simulated at a tilt with no overlap in any
+    frame), the marginal over draws scattered about the truth: at every
+    alpha where no draw has a PPO the marginal Delta chi^2 and its 16-84 %
+    band are exactly 0 (the model is the no-PPO model there), and nowhere
+    does the marginal favour a PPO tilt by more than noise; at the PPO
+    tilts the model predicts a bump the data lack, so the curve rises."""
+    from jaxppo._marginal import _alpha_ref
+
+    true = jp.kepler20_system(radius_scale=2.0)
+    kw = dict(alpha=np.arange(0.0, 360.0, 2.0), cases=("same",), detrend="none")
+    tm0 = jp.simulate_kepler20(seed=7, alpha=0.0, case="same", radius_scale=2.0, noise=2e-4).time
+    quiet = _alpha_ref(true, tm0, "same")
+    lc = jp.simulate_kepler20(seed=7, alpha=quiet, case="same", radius_scale=2.0, noise=2e-4)
+    rng = np.random.default_rng(3)
+    b, c = true.planets
+    draws = {"b.a": float(b.a) * (1 + rng.normal(0, 0.005, 8)), "c.t0": float(c.t0) + rng.normal(0, 0.3 / 1440, 8)}
+    m = marginal_scan(true, lc, samples=draws, out=tmp_path, progress=False, figures=False, **kw)
+    t = m.table
+    loud = np.any(m.delta_chi2[:, 0] != 0.0, axis=0)  # some draw has a PPO at this alpha
+    assert loud.any() and (~loud).any()
+    for col in ("marginal_delta_chi2", "delta_chi2_p16", "delta_chi2_p84", "delta_chi2_median"):
+        np.testing.assert_array_equal(t[col][~loud], 0.0)
+    assert t["marginal_delta_chi2"].min() > -4.0  # no PPO preferred beyond 2 sigma
+    assert t["marginal_delta_chi2"].max() > 10.0  # the PPO tilts are excluded
+    # the posterior is flat (uniform density 1/360) wherever no PPO can occur, up to normalisation
+    flat = t["posterior"][~loud]
+    np.testing.assert_allclose(flat, flat[0], rtol=1e-12)
