@@ -328,15 +328,16 @@ def _default_density(system: System, tied) -> tuple[float, float, str]:
 
 class _Posterior:
     """The log-posterior of the transit parameters in coordinates u (one per
-    sampled quantity): t0 - t0_start [d], P - P_start [d], log p, logit(b /
-    (1 + p)), and log rho* when any a/R* is free. Priors: t0 uniform within
-    +-0.05 d, P within +-0.1 %, p log-uniform in [1e-4, 0.5], b / (1 + p)
-    uniform in [0, 1), rho* Gaussian (mean, sd) truncated at 0. b >= 0
-    loses nothing: the scan's cases enumerate the hemispheres of the
+    sampled quantity): t0 - t0_start [d], P - P_start [d], log p, v with
+    b / (1 + p) = |tanh v|, and log rho* when any a/R* is free. Priors: t0
+    uniform within +-0.05 d, P within +-0.1 %, p log-uniform in [1e-4, 0.5],
+    b / (1 + p) uniform in [0, 1), rho* Gaussian (mean, sd) truncated at 0.
+    b >= 0 loses nothing: the scan's cases enumerate the hemispheres of the
     untilted planets (case "opposite" mirrors them) and alpha turns the
-    tilted one through 360 deg; with both signs allowed, the transit
-    posterior of a planet is two mirror modes (+b, -b) that NUTS chains
-    cannot cross. The
+    tilted one through 360 deg. v is signed and the model uses |tanh v|:
+    the density is symmetric in v, so a chain may stay on either side, and
+    a posterior piled up at b = 0 (planet c) is one smooth mode through
+    v = 0 (a logit map would stretch it into an exponential tail). The
     likelihood is :class:`jaxppo._fit.Model`'s (the windows' Gaussian chi^2)
     at the tilt ``alpha``."""
 
@@ -377,8 +378,7 @@ class _Posterior:
                 x = abs(float(pl[i].a * np.cos(np.deg2rad(pl[i].inc)))) / (1.0 + float(pl[i].radius))
                 if not x < 1:
                     raise ValueError(f"planet {labels[i]} does not transit at the start (b / (1 + p) = {x:.3g})")
-                x = min(max(x, 0.05), 0.95)  # off the ends of the logit map
-                lo.append(-np.inf), hi.append(np.inf), start.append(np.log(x / (1.0 - x)))
+                lo.append(-np.inf), hi.append(np.inf), start.append(np.arctanh(min(x, 0.95)))
         self.lo, self.hi, self.u_start = np.array(lo), np.array(hi), np.array(start)
         # rough prior widths in u (the Laplace matrix's prior curvature, so
         # that a parameter the data do not constrain keeps a finite width)
@@ -399,7 +399,7 @@ class _Posterior:
             if (i, p) in val:
                 v = val[(i, p)]
                 return {"t0": float(pl[i].t0) + v, "period": float(pl[i].period) + v,
-                        "radius": jnp.exp(v), "inc": jax.nn.sigmoid(v)}[p]
+                        "radius": jnp.exp(v), "inc": jnp.abs(jnp.tanh(v))}[p]
             return float(getattr(pl[i], p))
 
         out, x_of = [], []
@@ -420,7 +420,7 @@ class _Posterior:
 
         phys, _ = self.physical(u)
         val = {s: u[k] for k, s in enumerate(self.coords)}
-        return jnp.stack([jax.nn.sigmoid(val[s]) if s[1] == "inc" else phys[k] for k, s in enumerate(self.slots)])
+        return jnp.stack([jnp.abs(jnp.tanh(val[s])) if s[1] == "inc" else phys[k] for k, s in enumerate(self.slots)])
 
     def residuals(self, u):
         """Data residuals, and (rho* - mean) / sd appended (the Gaussian prior
@@ -443,7 +443,7 @@ class _Posterior:
             if i == "star":
                 lp = lp + u[k]
             elif p == "inc":
-                lp = lp + jax.nn.log_sigmoid(u[k]) + jax.nn.log_sigmoid(-u[k])
+                lp = lp + jnp.log1p(-jnp.tanh(u[k]) ** 2)
         inside = jnp.all((u > jnp.asarray(self.lo)) & (u < jnp.asarray(self.hi)))
         return jnp.where(inside, lp, -jnp.inf)
 
