@@ -223,6 +223,24 @@ def test_bad_input(real):
         marginal_scan(system, lc, samples={"b.ecc": np.ones(3)}, **KW)
     with pytest.raises(ValueError, match="chunk"):
         marginal_scan(system, lc, samples={"b.t0": np.full(2, 134.5)}, chunk=0, **KW)
+    with pytest.raises(ValueError, match="stellar_density"):
+        marginal_scan(system, lc, draws=2, stellar_density=(-1.5, 0.1), progress=False, figures=False, **KW)
+    with pytest.raises(ValueError, match="'star.c1'"):
+        marginal_scan(system, lc, draws=2, free=["b.t0", "star.c1"], progress=False, figures=False, **KW)
+
+
+def test_config_stellar_density_is_checked(tmp_path):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / REAL).read_text()
+    base = str((Path(__file__).resolve().parents[1] / REAL).parent)
+    text = text.replace('path = "kepler20_kic', f'path = "{base}/kepler20_kic')
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("stellar_density = [1.53, 0.15]", "stellar_density = [1.53, -0.15]"))
+    with pytest.raises(ValueError, match=r"\[fit\] stellar_density"):
+        jp.load_config(bad)
+    good = jp.load_config(Path(__file__).resolve().parents[1] / REAL)
+    assert good.raw["fit"]["stellar_density"] == [1.53, 0.15]
 
 
 def test_wrong_fixed_parameters_are_mitigated(tmp_path):
