@@ -52,7 +52,8 @@ from ._flux import one_disk_sum
 from ._sweep import overlap_flux
 from ._system import System, case_signs
 
-__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free"]
+__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "nuts_draws", "joint_alpha",
+           "alpha_windows", "a_from_density", "density_from_a"]
 
 PROGRESS = "marginal_progress.jsonl"
 DRAWS = "marginal_draws.json"
@@ -422,23 +423,43 @@ class _Posterior:
         val = {s: u[k] for k, s in enumerate(self.coords)}
         return jnp.stack([jnp.abs(jnp.tanh(val[s])) if s[1] == "inc" else phys[k] for k, s in enumerate(self.slots)])
 
-    def residuals(self, u):
-        """Data residuals, and (rho* - mean) / sd appended (the Gaussian prior
-        as one more residual) when rho* is sampled."""
+    def residuals(self, u, alpha=None):
+        """Data residuals (at the tilt ``alpha`` [deg] when given, else the
+        Model's), and (rho* - mean) / sd appended (the Gaussian prior as one
+        more residual) when rho* is sampled."""
+        import equinox as eqx
         import jax.numpy as jnp
 
-        r = self.model.residuals(self.model.theta_from(self.model_q(u)))
+        from ._fit import _residuals
+
+        theta = self.model.theta_from(self.model_q(u))
+        if alpha is None:
+            r = self.model.residuals(theta)
+        else:
+            r = _residuals(theta, eqx.tree_at(lambda d: d.alpha, self.model.data(), jnp.asarray(alpha, float)))
         if self.tied:
             r = jnp.concatenate([r, ((jnp.exp(u[-1]) - self.density[0]) / self.density[1])[None]])
         return r
 
-    def log_density(self, u):
+    def exact_overlaps_anywhere(self):
+        """Compute every frame with two disks within 0.05 R* of the star's
+        limb by the exact union integral: the tilt turns an orbit about the
+        star's centre, so these frames (from the untilted geometry) hold
+        every overlap at any alpha; for sampling alpha (:func:`joint_alpha`)."""
+        t = np.asarray(self.model.t_model)
+        x, y, r = self.system.positions(t, 0.0, "same", xp=np)
+        near = np.hypot(x, y) - r < 1.05
+        idx = np.nonzero(near.sum(-1) >= 2)[0]
+        self.model.union_idx = np.union1d(self.model.union_idx, idx)
+        self.model.active_idx = np.union1d(self.model.active_idx, self.model.union_idx)
+
+    def log_density(self, u, alpha=None):
         """log posterior in u (up to a constant): -chi^2 / 2, the rho* prior
         and the Jacobians of the maps (exp for rho*, tanh for b / (1 + p);
         log p is flat in u for a log-uniform prior)."""
         import jax.numpy as jnp
 
-        lp = -0.5 * jnp.sum(self.residuals(u) ** 2)
+        lp = -0.5 * jnp.sum(self.residuals(u, alpha) ** 2)
         for k, (i, p) in enumerate(self.coords):
             if i == "star":
                 lp = lp + u[k]
@@ -544,6 +565,84 @@ def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, ca
                             for n, v in chains_of.items()},
             "seconds": time.perf_counter() - t0}
     return samples, info
+
+
+def alpha_windows(alpha, posterior, floor: float = 1e-3):
+    """The modes of a grid posterior p(alpha) [1/deg] on a uniform circular
+    grid: each run of grid points above ``floor`` x the maximum, split at
+    the local minima inside it. Returns [(lo, hi, alpha_peak, mass)] with
+    lo, hi [deg] half a grid step outside the run (hi may exceed 360), mass
+    the posterior mass of the run (sums to ~1)."""
+    alpha, post = np.asarray(alpha, float), np.asarray(posterior, float)
+    n, step = alpha.size, float(alpha[1] - alpha[0])
+    above = post > floor * post.max()
+    # local minima split a run into modes
+    prev, nxt = np.roll(post, 1), np.roll(post, -1)
+    cut = above & (post <= prev) & (post <= nxt) & ~((post == prev) & (post == nxt))
+    start = int(np.argmin(above)) if not above.all() else int(np.argmin(post))
+    out, run = [], []
+    for k in range(n + 1):
+        i = (start + k) % n
+        if k < n and above[i] and not (cut[i] and run):
+            run.append(i)
+            continue
+        if run:
+            idx = np.array(run)
+            lo = alpha[idx[0]] - 0.5 * step
+            peak = alpha[idx[np.argmax(post[idx])]]
+            hi = lo + idx.size * step
+            out.append((float(lo), float(hi), float(peak if peak >= lo else peak + 360.0),
+                        float(post[idx].sum() * step)))
+        run = [i] if (k < n and above[i]) else []
+    return out
+
+
+def joint_alpha(system: System, data: LightCurve, free, density, case: str, windows, draws: int = 200,
+                num_warmup: int = 200, seed: int = 0, chains: int = 2, progress: bool = False):
+    """alpha sampled jointly with the transit parameters (numpyro NUTS):
+    one run per alpha window (a mode of the grid marginal, from
+    :func:`alpha_windows`), alpha uniform in the window and chains started
+    at its grid peak, the transit parameters in the coordinates of
+    :func:`nuts_draws` (whitened at the no-PPO mode). The alpha posterior is
+    multi-modal with narrow modes separated by plateaus of zero PPO signal
+    the chains cannot cross in finite time, so the modes are sampled one at
+    a time and combined with the grid's marginal mass of each window as
+    weights: within a window the shape is the joint sampler's own, between
+    windows the weights are the importance average's (parallel tempering
+    would estimate them too, at several times the cost).
+
+    Returns a list per window: {"lo", "hi", "mass", "alpha" [draws, deg],
+    "r_hat", "ess", "divergences"}."""
+    import jax.numpy as jnp
+    from numpyro.infer import MCMC, NUTS
+
+    from ._sample import rank_diagnostics
+
+    post = _Posterior(system, data, free, density, 0.0, case)
+    u_mode, L, _ = _mode_and_cov(post)
+    post.exact_overlaps_anywhere()
+    uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
+    out = []
+    for wi, (lo, hi, peak, mass) in enumerate(windows):
+        def potential(z, lo=lo, hi=hi):
+            a = lo + (hi - lo) * jax.nn.sigmoid(z[-1])
+            v = -(post.log_density(uj + Lj @ z[:-1], a) + jax.nn.log_sigmoid(z[-1]) + jax.nn.log_sigmoid(-z[-1]))
+            return jnp.where(jnp.isnan(v), jnp.inf, v)
+
+        s0 = float(np.log((peak - lo) / (hi - peak)))
+        per = -(-draws // chains)
+        mc = MCMC(NUTS(potential_fn=jax.jit(potential), adapt_mass_matrix=False), num_warmup=num_warmup,
+                  num_samples=per, num_chains=chains, chain_method="vectorized", progress_bar=progress)
+        init = 0.3 * np.random.default_rng(seed + wi).standard_normal((chains, L.shape[0] + 1))
+        init[:, -1] = s0 + 0.1 * init[:, -1]
+        mc.run(jax.random.PRNGKey(seed + wi), init_params=jnp.asarray(init), extra_fields=("diverging",))
+        z = np.asarray(mc.get_samples(group_by_chain=True))[..., -1]
+        a = (lo + (hi - lo) / (1.0 + np.exp(-z))) % 360.0
+        diag = rank_diagnostics(np.unwrap(np.deg2rad(a), axis=1))
+        out.append({"lo": lo, "hi": hi, "peak": peak, "mass": mass, "alpha": a.T.reshape(-1)[:draws],
+                    "r_hat": diag["r_hat"], "ess": diag["ess_bulk"],
+                    "divergences": int(np.sum(np.asarray(mc.get_extra_fields()["diverging"])))})
+    return out
 
 
 def _digest(cfg: ScanConfig, settings: dict) -> str:
