@@ -87,7 +87,7 @@ PLANET_KEYS = ("name",) + _PLANET_FIELDS + ("tilted",)
 DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
-FIT_KEYS = ("free",)
+FIT_KEYS = ("free", "stellar_density", "stellar_density_source")
 
 
 def _check_keys(table: dict, valid, where: str, source: str) -> None:
@@ -362,6 +362,13 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         if bad:
             raise _err(source, f"[fit] free: unknown parameter(s) {bad}; valid: {list(valid)}")
         free = tuple(free)
+    rho = fit.get("stellar_density")
+    if rho is not None and not (isinstance(rho, list) and len(rho) == 2
+                                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in rho)
+                                and all(np.isfinite(v) and v > 0 for v in rho)):
+        raise _err(source, f"[fit] stellar_density must be [mean, sd] in g/cm^3, both > 0, got {rho!r}")
+    if not isinstance(fit.get("stellar_density_source", ""), str):
+        raise _err(source, f"[fit] stellar_density_source must be a string, got {fit['stellar_density_source']!r}")
     return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
                       None if clip is None else float(clip), events, str(base), marginalize, free)
 
@@ -435,5 +442,9 @@ marginalize = 0                # draws of the scan marginalised over the transit
 
 [fit]
 # free = ["b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius"]
-#   parameters the marginalised scan samples with NUTS (default: these five of every planet)
+#   parameters the marginalised scan samples with NUTS (default: these five of every planet;
+#   the a/R* named here are tied to one stellar density by Kepler's third law)
+# stellar_density = [1.53, 0.15]   # [g/cm^3] mean, sd: Gaussian prior on rho* (default: the
+#                                  # density the planets' a/R* imply, 10 % wide)
+# stellar_density_source = "..."   # where the value comes from (copied to marginal.json)
 """
