@@ -9,9 +9,7 @@ from jaxtyping import Array, ArrayLike
 
 from ._star import Star
 from ._plan import _is_concrete, _run_padded, auto_frames, traced_auto_frames
-from ._plan import one_disk_sum as one_disk_sum  # noqa: F401  (used by the marginalised scan)
 from ._terms import _exact_frames
-from ._terms import _separate_frames as _separate_frames  # noqa: F401  (used by fits)
 from .core.geometry import float_dtype
 from .core.occult import MAX_RADIUS
 

@@ -48,8 +48,7 @@ from ._config import ScanConfig
 from ._lightcurve import LightCurve
 from ._scan import (_atomic_write, _read_progress, _record_line, _scan_windows, geometry_probabilities, ppo_table,
                     run_scan)
-from ._flux import one_disk_sum
-from ._sweep import overlap_flux
+from ._plan import one_disk_sum, overlap_flux
 from ._system import System, case_signs
 
 __all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "nuts_draws", "joint_alpha",
