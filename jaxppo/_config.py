@@ -20,6 +20,7 @@ from ._system import CASES, Planet, System, scan_cases
 __all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "config_from_dict", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
+_PLANET_OPTIONAL = {"e": 0.0, "omega": 90.0}  # circular unless given
 
 
 def default_config_path() -> Path:
@@ -83,7 +84,7 @@ STAR_KEYS = {
     "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
     "phoenix": ("law", "path", "limb"),
 }
-PLANET_KEYS = ("name",) + _PLANET_FIELDS + ("tilted",)
+PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted",)
 DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
@@ -293,12 +294,15 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         missing = [f for f in _PLANET_FIELDS if f not in p]
         if missing:
             raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
-        for f in _PLANET_FIELDS:  # a quoted number ("0.018") is a typo, not a value
+        for f in _PLANET_FIELDS + tuple(k for k in _PLANET_OPTIONAL if k in p):
+            # a quoted number ("0.018") is a typo, not a value
             if isinstance(p[f], bool) or not isinstance(p[f], (int, float)):
                 raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}): {f} must be a number, "
                            f"got {p[f]!r}")
         try:
-            planets.append(Planet(**{f: float(p[f]) for f in _PLANET_FIELDS}, name=str(p.get("name", f"p{i + 1}"))))
+            values = {f: float(p[f]) for f in _PLANET_FIELDS}
+            values.update({k: float(p.get(k, v)) for k, v in _PLANET_OPTIONAL.items()})
+            planets.append(Planet(**values, name=str(p.get("name", f"p{i + 1}"))))
         except (TypeError, ValueError) as e:
             raise _err(source, f"[[planet]] #{i + 1}: {e}") from e
         if p.get("tilted", False):
@@ -402,6 +406,8 @@ t0 = 134.501962       # [d] a mid-transit time, on the data's time scale (BKJD h
 a = 10.60             # [stellar radii] semi-major axis, > 1
 inc = 87.687          # [deg] inclination, 0..180
 radius = 0.01805      # planet-to-star radius ratio
+e = 0.0               # eccentricity (optional, default 0: circular)
+omega = 90.0          # [deg] argument of periastron (optional, default 90: periastron at transit)
 tilted = true         # this orbit is rotated by alpha (at most one planet; default: the first)
 
 [[planet]]

@@ -221,3 +221,21 @@ def test_marginalize_and_fit_free_keys(tmp_path):
     p.write_text(text + '\n[fit]\nfrees = ["b.t0"]\n')
     with pytest.raises(ValueError, match="free"):
         load_config(p)
+
+
+def test_planet_eccentricity_keys(tmp_path):
+    """e and omega are optional planet keys (they were rejected as unknown, so
+    an eccentric system could not be scanned from a config)."""
+    p = tmp_path / "c.toml"
+    text = _valid(tmp_path)
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = 0.2\nomega = 40.0', 1))
+    b = load_config(p).system.planets[0]
+    assert float(b.e) == 0.2 and float(b.omega) == 40.0 and not b.circular
+    p.write_text(text)
+    assert load_config(p).system.planets[0].circular
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = "0.2"', 1))
+    with pytest.raises(ValueError, match="e must be a number"):
+        load_config(p)
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = 1.2', 1))
+    with pytest.raises(ValueError, match=r"e \(eccentricity\) must be in \[0, 1\)"):
+        load_config(p)
