@@ -135,6 +135,29 @@ def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None, tim
         per_frame = s.n * s.n * (1 if analytic else s.ss * s.ss) * max(k + (star.spots.n if star.spots is not None else 0), 1)
         batch = max(1, _SAMPLE_BUDGET // per_frame)
         return _full(star, xf, yf, rf, tf, s.n, s.ss, analytic, batch).reshape(lead)
+    if star.spots is not None:
+        # frames with no disk on the star cost only the spots' quadrature
+        xn, yn, rn = (np.asarray(v) for v in (xf, yf, rf))
+        on = np.any((rn > 0) & (np.hypot(xn, yn) - rn < 1.0), axis=-1)
+        out = _spots_only(star, tf)
+        idx = np.nonzero(on)[0]
+        if idx.size:
+            sub = (xf[idx], yf[idx], rf[idx])
+            out = out.at[idx].set(_window_frames(star, *sub, tf[idx], s))
+        return out.reshape(lead)
+    return _window_frames(star, xf, yf, rf, tf, s).reshape(lead)
+
+
+@jax.jit
+def _spots_only(star, t):
+    """Unocculted flux of a spotted star at times t, relative to F0."""
+    deficit = jax.vmap(lambda tt: _R.spot_deficit(star.spots, tt, star.intensity))(t)
+    return 1.0 - deficit / star.total_flux
+
+
+def _window_frames(star: Star, xf, yf, rf, tf, s: RasterSettings):
+    """Window-mode raster of [frame, disk] arrays (concrete x, y, r)."""
+    k = xf.shape[-1]
     rmax = float(np.max(np.asarray(rf))) if rf.size else 0.0
     rpos = np.asarray(rf)[np.asarray(rf) > 0]
     scale = s.scale if s.scale is not None else (float(rpos.min()) / 16.0 if rpos.size else 0.01)
@@ -151,7 +174,7 @@ def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None, tim
         f0 = star.total_flux
     else:
         f0 = _surface_total(star)
-    return _window(star, xf, yf, rf, tf, f0, float(scale), window, s.ss, s.aa == "exact", batch).reshape(lead)
+    return _window(star, xf, yf, rf, tf, f0, float(scale), window, s.ss, s.aa == "exact", batch)
 
 
 def _surface_total(star: Star):
