@@ -93,7 +93,43 @@ def scenes() -> list[dict]:
         0, -1.13, "same", centred(0.0, 0.2, 81), "Claret & Southworth (2023) table1 (M1)")
     # 9. the paper's Appendix B prototype: Kepler-89 d (tilted) + e
     out.extend(kepler89_prototype())
+    # 10. a planet crossing a spot on a rotating, inclined, tilted star
+    out.append(spot_crossing())
     return out
+
+
+def spot_on_sky(x: float, y: float, inc: float, obliquity: float) -> tuple[float, float]:
+    """(lat, lon) [deg] of the spot whose centre is at sky (x, y) (front
+    hemisphere) at rotational phase 0: undo the sky rotation by the obliquity,
+    then read latitude off the axis (0, sin i, cos i) and the longitude off
+    the meridian facing the observer (0, -cos i, sin i) and +x."""
+    z = math.sqrt(1.0 - x * x - y * y)
+    ps, i = math.radians(obliquity), math.radians(inc)
+    x0, y0 = x * math.cos(ps) - y * math.sin(ps), x * math.sin(ps) + y * math.cos(ps)
+    lat = math.asin(y0 * math.sin(i) + z * math.cos(i))
+    dl = math.atan2(x0, -y0 * math.cos(i) + z * math.sin(i))
+    return round(math.degrees(lat), 8), round(-math.degrees(dl), 8)
+
+
+def spot_crossing() -> dict:
+    """One planet (p = 0.08, b = 0.3) crossing a dark spot (radius 10 deg,
+    contrast 0.7, smooth 2-deg edge) on a quadratic star rotating in 5 d with
+    its axis inclined to 70 deg and tilted by 20 deg on the sky; at
+    mid-transit the spot's centre is at sky (-0.05, 0.3), and it moves by
+    about 0.15 R* during the transit. A second spot on the other side rotates
+    in over the limb (the rotational modulation)."""
+    inc, obl = 70.0, 20.0
+    lat1, lon1 = spot_on_sky(-0.05, 0.3, inc, obl)
+    lat2, lon2 = spot_on_sky(-0.93, -0.2, inc, obl)
+    spots = {"lat": [lat1, lat2], "lon": [lon1, lon2], "radius": [10.0, 6.0], "contrast": [0.7, 0.5],
+             "period": 5.0, "inc": inc, "t_ref": 0.0, "obliquity": obl, "edge": 2.0}
+    return {"name": "spot_crossing",
+            "description": "quadratic star (0.4, 0.26) with two rotating spots (P 5 d, axis inclination 70 deg, sky obliquity 20 deg); one planet p = 0.08, b = 0.3 crosses the 10-deg spot (contrast 0.7)",
+            "source": "", "resolution": RESOLUTION, "samples": SAMPLES, "seed": 0,
+            "star": {"law": "quadratic", "coefficients": [0.4, 0.26]},
+            "planets": [{"name": "b", "period": 3.0, "t0": 0.0, "a": 8.0, "inc": round(math.degrees(math.acos(0.3 / 8.0)), 10), "radius": 0.08}],
+            "tilted": 0, "alpha": 0.0, "case": "same", "spots": spots,
+            "times": centred(0.0, 0.065, 27)}
 
 
 def kepler89_prototype() -> list[dict]:

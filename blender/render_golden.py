@@ -44,10 +44,27 @@ Set-up, after Mueller et al. (2021, Sect. 2.3.2):
   N x N frame), the Box pixel filter (Blackman-Harris blurs the limb, paper
   Sect. 2.3.2), no denoising, no adaptive sampling, a fixed seed, the "Raw"
   view transform and 32-bit float EXR output (the paper: 16-bit PNG).
-* flux = pixel sum normalised by the unocculted frame. Only the pixel box
+* spots (optional ``"spots"`` in the scene: lat, lon, radius, contrast per
+  spot [deg, deg, deg, 1], period [d], inc [deg], t_ref [d], obliquity [deg],
+  edge [deg]): an Empty "star_axis" carries the rotation axis (its z axis
+  goes to (0, sin i, cos i) on the sky, then the sky rotation by the
+  obliquity, the same matrix as alpha's), and its child "star_spin" turns
+  about that axis by 2 pi (t - t_ref) / P, set per frame by the handler. The
+  star's shader reads the point hit in star_spin's frame (a Texture
+  Coordinate node bound to that object: Blender applies the rotation), where
+  each spot is a fixed unit vector (cos lat cos lon, -cos lat sin lon,
+  sin lat); the emission colour I(mu) is multiplied by
+  1 - sum_k c_k S(theta_k), theta_k the angle to spot k (arccos of the dot
+  product) and S the cubic smoothstep from 1 at radius - edge/2 to 0 at
+  radius + edge/2. A spot's longitude is the rotational phase at which it
+  faces the observer.
+* flux = pixel sum normalised by the unocculted frame (with spots: the
+  unocculted frame of the unspotted star). Only the pixel box
   around the planets in front of the star is rendered (border rendering with a
   transparent film: alpha marks the rendered pixels); outside it the frame
-  equals the unocculted render, whose pixel sum is reused.
+  equals the unocculted render, whose pixel sum is reused (with spots the
+  box also holds every spot's cap, so that outside it the frame equals the
+  unspotted star's).
 """
 
 from __future__ import annotations
@@ -63,7 +80,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-from mathutils import Matrix
+from mathutils import Matrix, Vector
 
 STAR_SEGMENTS = 512
 PLANET_SEGMENTS = 256
@@ -92,7 +109,9 @@ def law_terms(law: str, c) -> list[tuple[float, float]]:
     raise ValueError(f"unknown law {law!r}")
 
 
-def star_material(star: dict):
+def star_material(star: dict, spots: dict | None = None, spin=None):
+    """The star's emission shader; with ``spots``, the returned material has
+    a Value node "spots_on" (1: spotted, 0: bare star)."""
     mat = bpy.data.materials.new("star")
     mat.use_nodes = True
     # seen by camera rays only (no bounces): not a light to sample, which would
@@ -160,9 +179,66 @@ def star_material(star: dict):
         img.extension = "EXTEND"
         L(comb.outputs[0], img.inputs["Vector"])
         L(img.outputs["Color"], em.inputs["Color"])
+    if spots is not None:
+        # the emission colour times 1 - sum_k c_k S_k, in the rotating star frame
+        color_link = em.inputs["Color"].links[0]
+        base = color_link.from_socket
+        nt.links.remove(color_link)
+        sc_coord = N("ShaderNodeTexCoord")
+        sc_coord.object = spin
+        norm = N("ShaderNodeVectorMath")
+        norm.operation = "NORMALIZE"
+        L(sc_coord.outputs["Object"], norm.inputs[0])
+        total = None
+        w = math.radians(float(spots["edge"]))
+        for lat, lon, rad, c in zip(spots["lat"], spots["lon"], spots["radius"], spots["contrast"]):
+            la, lo = math.radians(lat), math.radians(lon)
+            dot = N("ShaderNodeVectorMath")
+            dot.operation = "DOT_PRODUCT"
+            L(norm.outputs[0], dot.inputs[0])
+            dot.inputs[1].default_value = (math.cos(la) * math.cos(lo), -math.cos(la) * math.sin(lo), math.sin(la))
+            theta = math_node("ARCCOSINE", math_node("MINIMUM", math_node("MAXIMUM", dot.outputs["Value"], -1.0), 1.0))
+            u = N("ShaderNodeMath")
+            u.operation = "MULTIPLY_ADD"
+            u.use_clamp = True  # s in [0, 1]
+            L(theta, u.inputs[0])
+            u.inputs[1].default_value = -1.0 / w
+            u.inputs[2].default_value = math.radians(float(rad)) / w + 0.5
+            sv = u.outputs[0]
+            smooth = math_node("MULTIPLY", math_node("MULTIPLY", sv, sv), math_node("MULTIPLY_ADD", sv, -2.0, 3.0))
+            term = math_node("MULTIPLY", smooth, float(c))
+            total = term if total is None else math_node("ADD", total, term)
+        on = N("ShaderNodeValue")
+        on.name = "spots_on"
+        on.outputs[0].default_value = 1.0
+        factor = math_node("SUBTRACT", 1.0, math_node("MULTIPLY", total, on.outputs[0]))
+        mix = N("ShaderNodeVectorMath")
+        mix.operation = "SCALE"
+        L(base, mix.inputs[0])
+        L(factor, mix.inputs["Scale"])
+        L(mix.outputs[0], em.inputs["Color"])
     out = N("ShaderNodeOutputMaterial")
     L(em.outputs[0], out.inputs[0])
     return mat
+
+
+def spin_frame(spots: dict):
+    """Empties star_axis (the rotation axis on the sky) and its child
+    star_spin (the rotating star frame)."""
+    sc = bpy.context.scene
+    i = math.radians(float(spots["inc"]))
+    # columns: star x -> the meridian facing the observer (0, -cos i, sin i),
+    # star y -> +x on the sky, star z -> the axis (0, sin i, cos i)
+    b = Matrix(((0.0, 1.0, 0.0, 0.0), (-math.cos(i), 0.0, math.sin(i), 0.0),
+                (math.sin(i), 0.0, math.cos(i), 0.0), (0.0, 0.0, 0.0, 1.0)))
+    axis = bpy.data.objects.new("star_axis", None)
+    sc.collection.objects.link(axis)
+    axis.matrix_basis = tilt_matrix(float(spots.get("obliquity", 0.0))) @ b
+    spin = bpy.data.objects.new("star_spin", None)
+    sc.collection.objects.link(spin)
+    spin.parent = axis
+    spin.matrix_parent_inverse = Matrix.Identity(4)
+    return spin
 
 
 def black_material():
@@ -254,7 +330,10 @@ def setup(spec: dict):
     world.color = (0.0, 0.0, 0.0)
     sc.world = world
 
-    uv_sphere(1.0, STAR_SEGMENTS, "star", star_material(spec["star"]))
+    spots = spec.get("spots")
+    spin = spin_frame(spots) if spots else None
+    star_mat = star_material(spec["star"], spots, spin)
+    uv_sphere(1.0, STAR_SEGMENTS, "star", star_mat)
     black = black_material()
     tilt = bpy.data.objects.new("tilt", None)  # Empty carrying R_y(alpha)
     sc.collection.objects.link(tilt)
@@ -287,11 +366,36 @@ def setup(spec: dict):
         t = times[scene.frame_current]
         for k, (pl, el) in enumerate(zip(planets, spec["planets"])):
             pl.location = orbit_position(el, t, mirror=(case == "opposite" and k != tilted))
+        if spin is not None:
+            spin.rotation_euler = (0.0, 0.0, 2.0 * math.pi * (t - float(spots["t_ref"])) / float(spots["period"]))
 
     bpy.app.handlers.frame_change_pre.clear()
     bpy.app.handlers.frame_change_pre.append(move_planets)
     sc.frame_start, sc.frame_end = 0, len(times) - 1
     return sc, planets, n
+
+
+def spots_switch(on: bool) -> None:
+    node = bpy.data.materials["star"].node_tree.nodes.get("spots_on")
+    if node is not None:
+        node.outputs[0].default_value = 1.0 if on else 0.0
+
+
+def spot_boxes(spec: dict) -> list[tuple[float, float, float]]:
+    """(x, y, half size) [R*] on the sky of a square holding each visible
+    spot's cap (angular radius radius + edge/2: chord 2 sin(beta/2))."""
+    spots = spec.get("spots")
+    if not spots:
+        return []
+    spin = bpy.data.objects["star_spin"]
+    out = []
+    for lat, lon, rad in zip(spots["lat"], spots["lon"], spots["radius"]):
+        la, lo = math.radians(lat), math.radians(lon)
+        v = spin.matrix_world.to_3x3() @ Vector((math.cos(la) * math.cos(lo), -math.cos(la) * math.sin(lo), math.sin(la)))
+        beta = math.radians(float(rad) + 0.5 * float(spots["edge"]))
+        if v.z > -math.sin(beta):  # some of the cap is on the visible side
+            out.append((v.x, v.y, 2.0 * math.sin(0.5 * beta)))
+    return out
 
 
 def render(sc, path, border=None):
@@ -359,11 +463,13 @@ def main(scene_file, out_file):
     spec = json.loads(Path(scene_file).read_text())
     sc, planets, n = setup(spec)
     tmp = Path(tempfile.mkdtemp(prefix="jaxppo_blender_"))
+    spots_switch(False)
     check_orientation(sc, planets, tmp)
     t_start = time.time()
     for pl in planets:
         pl.hide_render = True
     full, _ = render(sc, tmp / "unocculted.exr")
+    spots_switch(True)
     full_frame_seconds = time.time() - t_start
     for pl in planets:
         pl.hide_render = False
@@ -378,6 +484,7 @@ def main(scene_file, out_file):
             x, y, z = pl.matrix_world.translation
             if z > 0 and math.hypot(x, y) - r < 1.0:
                 on.append((x, y, r))
+        on += spot_boxes(spec)  # the spotted star differs from the bare one there
         if not on:
             rows.append((t, 1.0))
             continue
@@ -392,7 +499,7 @@ def main(scene_file, out_file):
         rows.append((t, 1.0 - lost / total))
         n_rendered += 1
     elapsed = time.time() - t_start
-    scene = {k: spec[k] for k in ("star", "planets", "tilted", "alpha", "case")}
+    scene = {k: spec[k] for k in ("star", "planets", "tilted", "alpha", "case", "spots") if k in spec}
     meta = {
         "name": spec["name"],
         "description": spec["description"],

@@ -646,6 +646,10 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         from ._figures import scan_figures
 
         result["figures"] = scan_figures(out, result, by_case, sysm, windows, cfg.cases)
+    # each negative dip: a spot-crossing bump against the PPO (failure-safe)
+    from .activity._ppo_or_spot import scan_hook
+
+    result["ppo_or_spot"] = scan_hook(result, sysm, out if figures else None)
     result["seconds"] = time.perf_counter() - t_begin
     # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
     _atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))

@@ -13,7 +13,7 @@ from jaxtyping import Array, ArrayLike
 
 from .core import intensity as _I
 
-__all__ = ["Star", "LAWS"]
+__all__ = ["Star", "Spots", "LAWS"]
 
 LAWS = ("uniform", "quadratic", "nonlinear", "power2", "tabulated")
 _INTERPOLATIONS = ("sqrt-poly", "linear", "cubic")
@@ -86,6 +86,89 @@ def _choose_degree(mu: np.ndarray, inten: np.ndarray, max_degree: int, rtol: flo
     return limit
 
 
+def _deg_array(name: str, value, ndim: int) -> Array:
+    _check_finite(name, value)
+    arr = jnp.asarray(value, float)
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must be {'a 1D array (one value per spot)' if ndim else 'a scalar'}, got shape {arr.shape}")
+    return arr
+
+
+class Spots(eqx.Module):
+    """Circular spots on a rotating star (Mueller et al. 2021, Sect. 2.4).
+
+    Every field but ``edge`` is an array, so ``jax.grad``/``jit`` see them
+    (spot sizes, positions, contrasts and the rotation are fit parameters).
+
+    * ``lat``, ``lon``, ``radius``: latitude, longitude and angular radius
+      of each spot [deg], 1D over spots. The longitude is the rotational
+      phase (x 360 deg) at which the spot crosses the central meridian, as in
+      ``jaxppo.activity.spot_flux``.
+    * ``contrast``: 1 - I_spot / I_phot per spot (1: black; < 0: a facula).
+    * ``period`` [d], ``t_ref`` [d]: rotation period and time of phase 0.
+    * ``inc`` [deg]: angle between the rotation axis and the line of sight
+      (90: equator-on). The axis points to +y on the sky, rotated by
+      ``obliquity`` [deg] the way ``System``'s ``alpha`` rotates the tilted
+      planet's orbit, so a star with obliquity = alpha spins with that orbit;
+      spots near the central meridian move to +x, like a transiting planet.
+    * ``edge`` [deg] (static): width of the smooth (C1, cubic smoothstep)
+      edge; the contrast falls from c to 0 over radius +- edge/2 in angular
+      distance. The edge keeps the raster's flux smooth in the spot
+      parameters (finite, useful gradients); a hard edge is the limit
+      edge -> 0 (the raster's pixels must stay several times smaller).
+
+    Spots must not overlap: contrasts add (1 - sum_k c_k S_k).
+    """
+
+    lat: Array
+    lon: Array
+    radius: Array
+    contrast: Array
+    period: Array
+    inc: Array
+    t_ref: Array
+    obliquity: Array
+    edge: float = eqx.field(static=True, default=0.5)
+
+    def __init__(self, lat, lon, radius, contrast, period, inc=90.0, t_ref=0.0, obliquity=0.0, edge=0.5):
+        for name, v in (("lat", lat), ("lon", lon), ("radius", radius), ("contrast", contrast)):
+            _check_finite(name, v)
+        lat, lon, radius, contrast = (jnp.atleast_1d(jnp.asarray(v, float)) for v in (lat, lon, radius, contrast))
+        for name, v in (("lat", lat), ("lon", lon), ("radius", radius), ("contrast", contrast)):
+            if v.ndim != 1:
+                raise ValueError(f"{name} must be a scalar or a 1D array over spots, got shape {v.shape}")
+        try:
+            n = np.broadcast_shapes(lat.shape, lon.shape, radius.shape, contrast.shape)
+        except ValueError:
+            raise ValueError(
+                f"lat, lon, radius, contrast must have one value per spot, got shapes "
+                f"{lat.shape}, {lon.shape}, {radius.shape}, {contrast.shape}"
+            ) from None
+        self.lat, self.lon, self.radius, self.contrast = (jnp.broadcast_to(v, n) for v in (lat, lon, radius, contrast))
+        self.period = _deg_array("period", period, 0)
+        self.inc = _deg_array("inc", inc, 0)
+        self.t_ref = _deg_array("t_ref", t_ref, 0)
+        self.obliquity = _deg_array("obliquity", obliquity, 0)
+        if not (isinstance(edge, (int, float, np.floating, np.integer)) and 0 < float(edge) < 30):
+            raise ValueError(f"edge must be a number of degrees in (0, 30), got {edge!r}")
+        self.edge = float(edge)
+        checks = (
+            ("lat", self.lat, lambda v: np.all(np.abs(v) <= 90), "in [-90, 90] deg"),
+            ("radius", self.radius, lambda v: np.all((v > 0) & (v < 90)), "in (0, 90) deg"),
+            ("contrast", self.contrast, lambda v: np.all(v <= 1), "<= 1 (1: a black spot)"),
+            ("period", self.period, lambda v: v > 0, "> 0 [d]"),
+            ("inc", self.inc, lambda v: 0 <= v <= 180, "in [0, 180] deg"),
+        )
+        for name, v, ok, what in checks:
+            if not _is_traced(v) and not ok(np.asarray(v)):
+                raise ValueError(f"spot {name} must be {what}, got {np.asarray(v)!r}")
+
+    @property
+    def n(self) -> int:
+        """Number of spots."""
+        return self.lat.shape[0]
+
+
 class Star(eqx.Module):
     """A radially symmetric star of unit radius.
 
@@ -122,6 +205,7 @@ class Star(eqx.Module):
     q_matrix: Array | None = None
     table_residual: float = eqx.field(static=True, default=0.0)
     surface: object = eqx.field(static=True, default=None)
+    spots: Spots | None = None
 
     # ---- constructors --------------------------------------------------------
     @classmethod
@@ -331,8 +415,8 @@ class Star(eqx.Module):
 
     @property
     def symmetric(self) -> bool:
-        """Radially symmetric (no surface map)."""
-        return self.surface is None
+        """Radially symmetric (no surface map, no spots)."""
+        return self.surface is None and self.spots is None
 
     def with_surface(self, surface) -> "Star":
         """This star times a surface map ``surface(x, y)`` in sky coordinates
@@ -342,6 +426,23 @@ class Star(eqx.Module):
         if not callable(surface):
             raise ValueError(f"surface must be a function surface(x, y), got {type(surface).__name__}")
         return dataclasses.replace(self, surface=surface)
+
+    def with_spots(self, spots: Spots | None = None, **kwargs) -> "Star":
+        """This star with rotating circular spots: a :class:`Spots`, or its
+        arguments (``lat``, ``lon``, ``radius``, ``contrast``, ``period``,
+        ``inc``, ``t_ref``, ``obliquity``, ``edge``). The surface depends on
+        time, so the flux needs the time of every frame: ``System.flux``
+        passes it as ``raster=RasterSettings(times=t)`` (or call
+        ``raster_flux(..., times=t)``). Only the raster models it; the flux
+        is relative to the unspotted star's total flux F0 (docs/activity.md).
+        """
+        if spots is None:
+            spots = Spots(**kwargs)
+        elif kwargs:
+            raise ValueError(f"pass either a Spots or its arguments, not both (got {sorted(kwargs)})")
+        if not isinstance(spots, Spots):
+            raise ValueError(f"spots must be a jaxppo Spots, got {type(spots).__name__}")
+        return dataclasses.replace(self, spots=spots)
 
     def __repr__(self) -> str:
         if self.law == "tabulated":

@@ -1,7 +1,8 @@
 """Stellar activity (Mueller et al. 2021, Sects. 2.4 and 3.2): rotation
 period from a generalised Lomb-Scargle periodogram, per-quarter
 variability, the rotation-chunk brightness map (paper Fig. 3) and a
-few-spot inversion of one chunk.
+few-spot inversion of one chunk; rotating spotted stars (``Spots``, also
+``Star.with_spots``) and the PPO-or-spot comparison of a scan's dips.
 
 Imports point down only: this package uses jaxppo's model layer (System,
 kepler20_system); nothing in the model layer imports it."""
@@ -16,6 +17,9 @@ from ._spots import SpotFit as SpotFit
 from ._spots import fit_spots as fit_spots
 from ._spots import spot_flux as spot_flux
 from ._report import activity_report as activity_report
+from ._ppo_or_spot import plot_ppo_or_spot as plot_ppo_or_spot
+from ._ppo_or_spot import ppo_or_spot as ppo_or_spot
+from .._star import Spots as Spots
 from ._rotation import PAPER_ROTATION_PERIOD as PAPER_ROTATION_PERIOD
 from ._rotation import PreparedLightCurve as PreparedLightCurve
 from ._rotation import RotationResult as RotationResult

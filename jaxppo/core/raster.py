@@ -13,7 +13,8 @@ placed on a regular sub-grid) or the analytic edge approximation:
 
 Each sample's weight is the star's intensity at its mu, times an optional
 surface map m(x, y) (spots, faculae) for stars that are not radially
-symmetric.
+symmetric. Rotating circular spots (``spot_surface``, ``spot_deficit``)
+give a map that depends on the frame's time.
 """
 
 from __future__ import annotations
@@ -24,7 +25,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-__all__ = ["subsample_offsets", "full_disk_flux", "windowed_deficit", "edge_coverage", "pixel_disk_area"]
+__all__ = [
+    "subsample_offsets", "full_disk_flux", "windowed_deficit", "edge_coverage", "pixel_disk_area",
+    "spot_centres", "spot_profile", "spot_surface", "spot_deficit",
+]
 
 
 def subsample_offsets(ss: int) -> np.ndarray:
@@ -53,9 +57,13 @@ def _star_weight(px: Array, py: Array, intensity: Callable, surface: Callable | 
 
 def full_disk_flux(
     x: Array, y: Array, r: Array, intensity: Callable, n: int, ss: int = 1,
-    surface: Callable | None = None, analytic: bool = False,
+    surface: Callable | None = None, analytic: bool = False, unspotted_norm: bool = False,
 ) -> Array:
-    """Relative flux from an n x n raster of the whole star (one frame)."""
+    """Relative flux from an n x n raster of the whole star (one frame):
+    relative to the same raster of the unocculted star with its surface map,
+    or, with ``unspotted_norm``, without it (rotating spots: the flux
+    relative to the unspotted star, like a Blender frame divided by a frame
+    of the bare star)."""
     pix = 2.0 / n
     c = -1.0 + (np.arange(n) + 0.5) * pix
     cx, cy = np.meshgrid(c, c, indexing="xy")
@@ -65,13 +73,15 @@ def full_disk_flux(
         dist = jnp.sqrt((px[:, None] - x) ** 2 + (py[:, None] - y) ** 2)
         cov = edge_coverage(dist, r, pix)
         visible = jnp.prod(1.0 - cov, axis=-1)
-        return jnp.sum(w * visible) / jnp.sum(w)
+        w0 = _star_weight(px, py, intensity, None) if unspotted_norm else w
+        return jnp.sum(w * visible) / jnp.sum(w0)
     off = subsample_offsets(ss) * pix
     px = jnp.asarray((cx.ravel()[:, None] + off[None, :, 0]).ravel())
     py = jnp.asarray((cy.ravel()[:, None] + off[None, :, 1]).ravel())
     w = _star_weight(px, py, intensity, surface)
     hidden = jnp.any((px[:, None] - x) ** 2 + (py[:, None] - y) ** 2 < r * r, axis=-1)
-    return jnp.sum(jnp.where(hidden, 0.0, w)) / jnp.sum(w)
+    w0 = _star_weight(px, py, intensity, None) if unspotted_norm else w
+    return jnp.sum(jnp.where(hidden, 0.0, w)) / jnp.sum(w0)
 
 
 def windowed_deficit(
@@ -237,3 +247,102 @@ def _fraction(x0, x1, y0, y1, xc, yc, r, crosses, inside, n_edge, area):
     vals = pixel_disk_area(x0[sel], x1[sel], y0[sel], y1[sel], xc, yc, r) / area
     base = jnp.where(inside, 1.0, 0.0)
     return base.at[sel].set(jnp.where(valid, vals, base[sel]))
+
+
+# ---- rotating circular spots -------------------------------------------------
+
+
+def spot_centres(spots, t: Array) -> tuple[Array, Array, Array]:
+    """Unit vectors (x, y, z) [R*] of the spot centres at time t [d]
+    (z towards the observer), each of shape t.shape + (spots,).
+
+    The rotation axis is a = (0, sin i, cos i) before the sky rotation by the
+    obliquity; a spot at latitude phi and longitude lambda sits at
+    sin(phi) a + cos(phi) [cos(dl) e1 + sin(dl) x], e1 = (0, -cos i, sin i),
+    dl = 2 pi (t - t_ref) / P - lambda, so that z = mu is the small-spot
+    formula's mu (``jaxppo.activity.spot_flux``).
+    """
+    t = jnp.asarray(t)[..., None]
+    lat, lon = jnp.deg2rad(spots.lat), jnp.deg2rad(spots.lon)
+    inc, psi = jnp.deg2rad(spots.inc), jnp.deg2rad(spots.obliquity)
+    dl = 2.0 * jnp.pi * (t - spots.t_ref) / spots.period - lon
+    cl, sl = jnp.cos(lat), jnp.sin(lat)
+    vx = cl * jnp.sin(dl)
+    vy = sl * jnp.sin(inc) - cl * jnp.cos(dl) * jnp.cos(inc)
+    vz = sl * jnp.cos(inc) + cl * jnp.cos(dl) * jnp.sin(inc)
+    # sky rotation by the obliquity, the same sense as System's alpha
+    cp, sp = jnp.cos(psi), jnp.sin(psi)
+    return vx * cp + vy * sp, -vx * sp + vy * cp, vz
+
+
+def spot_profile(theta: Array, radius: Array, edge: float) -> Array:
+    """Fraction of full contrast at angular distance theta [rad] from a
+    spot's centre: 1 inside radius - edge/2, 0 outside radius + edge/2, a C1
+    cubic smoothstep between (radius and edge [rad]); symmetric about the
+    radius, so the spot's area equals a hard-edged one's to O(edge^2)."""
+    s = jnp.clip((radius - theta) / edge + 0.5, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+def _angular_distance(chord2: Array) -> Array:
+    # 2 arcsin(chord / 2), guarded so that neither the centre (chord 0: the
+    # derivative of sqrt) nor the antipode (arcsin' at 1) gives a NaN gradient
+    chord = jnp.sqrt(chord2 + 1e-24)
+    return 2.0 * jnp.arcsin(jnp.minimum(0.5 * chord, 1.0 - 1e-12))
+
+
+def spot_surface(spots, t: Array) -> Callable:
+    """The surface map m(x, y) = 1 - sum_k c_k S_k at time t [d] (scalar):
+    a function of sky coordinates [R*] on the visible hemisphere."""
+    vx, vy, vz = spot_centres(spots, t)
+    rho, edge = jnp.deg2rad(spots.radius), np.deg2rad(spots.edge)
+
+    def surface(px, py):
+        pz = jnp.sqrt(jnp.maximum(1.0 - px * px - py * py, 0.0))
+        d2 = (px[..., None] - vx) ** 2 + (py[..., None] - vy) ** 2 + (pz[..., None] - vz) ** 2
+        prof = spot_profile(_angular_distance(d2), rho, edge)
+        return 1.0 - jnp.sum(spots.contrast * prof, axis=-1)
+
+    return surface
+
+
+_THETA_IN = np.polynomial.legendre.leggauss(24)
+_THETA_EDGE = np.polynomial.legendre.leggauss(16)
+
+
+def spot_deficit(spots, t: Array, intensity: Callable, n_psi: int = 128) -> Array:
+    """Flux the spots remove from the unocculted star at time t [d]
+    (scalar), sum_k c_k int S_k I(mu) mu dOmega over the visible hemisphere,
+    in the units of the star's total flux F0 = int I dA.
+
+    Each spot is integrated on its own cap in polar coordinates (theta,
+    psi) about its centre v: mu = cos(theta) v_z + sin(theta) cos(psi)
+    sqrt(1 - v_z^2) (the azimuth measured from the direction towards the
+    observer), Gauss-Legendre in theta on [0, radius - edge/2] and across the
+    edge (24 + 16 nodes: the profile is smooth on each piece), midpoints in
+    psi on [0, pi] (the integrand is even in psi). The only kink left is the
+    limb (mu = 0) where I mu goes to zero continuously.
+    """
+    _, _, vz = spot_centres(spots, t)
+    rho, edge = jnp.deg2rad(spots.radius), np.deg2rad(spots.edge)
+    a = jnp.maximum(rho - 0.5 * edge, 0.0)
+    b = rho + 0.5 * edge
+    pieces = []
+    for (nodes, weights), lo, hi in ((_THETA_IN, 0.0, a), (_THETA_EDGE, a, b)):
+        half = 0.5 * (hi - lo)
+        theta = (lo + half * (1.0 + jnp.asarray(nodes)[:, None]))  # [node, spot]
+        pieces.append((theta, half * jnp.asarray(weights)[:, None]))
+    theta = jnp.concatenate([p[0] for p in pieces])
+    wt = jnp.concatenate([p[1] for p in pieces])
+    psi = (np.arange(n_psi) + 0.5) * np.pi / n_psi
+    sinv = jnp.sqrt(jnp.maximum(1.0 - vz * vz, 0.0) + 1e-30)
+    cpsi = jnp.asarray(np.cos(psi))
+    # [node, spot, psi]
+    mu = jnp.cos(theta)[..., None] * vz[None, :, None] + (jnp.sin(theta) * sinv)[..., None] * cpsi
+    vis = mu > 0
+    mu_v = jnp.where(vis, mu, 0.0)
+    f = jnp.where(vis, intensity(mu_v) * mu_v, 0.0)
+    per_node = jnp.sum(f, axis=-1) * (2.0 * np.pi / n_psi)
+    prof = spot_profile(theta, rho, edge)
+    per_spot = jnp.sum(wt * jnp.sin(theta) * prof * per_node, axis=0)
+    return jnp.sum(spots.contrast * per_spot)
