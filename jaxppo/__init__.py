@@ -13,6 +13,7 @@ Enable float64 for science work: ``jax.config.update("jax_enable_x64", True)``
 """
 
 from ._flux import occultation_flux as occultation_flux
+from ._star import Spots as Spots
 from ._star import Star as Star
 from ._sweep import sweep as sweep
 from ._system import MultiTransit as MultiTransit

@@ -88,6 +88,7 @@ def occultation_flux(
     order: int = 24,
     chunk: int = 65536,
     raster=None,
+    times=None,
 ) -> Array:
     """Relative flux of ``star`` behind opaque disks.
 
@@ -119,6 +120,9 @@ def occultation_flux(
         chunk: frames per compiled batch (bounds memory).
         raster: ``RasterSettings`` for ``method="raster"`` (default: windowed,
             pixel scale = smallest radius / 24, 4 x 4 supersampling).
+        times: time [d] of each frame (broadcast against the leading axes),
+            needed only by a star with rotating spots (``Star.with_spots``);
+            :meth:`System.flux` passes its t.
 
     Returns:
         Relative flux, shape = the broadcast leading axes (1 per frame when
@@ -160,7 +164,7 @@ def occultation_flux(
     if method == "raster":
         from ._raster import raster_flux
 
-        return raster_flux(star, x, y, r, raster)
+        return raster_flux(star, x, y, r, raster, times=times)
     concrete = _is_concrete(x, y, r, *jax.tree_util.tree_leaves(star))
     if _is_concrete(x, y, r):
         _validate_concrete(x, y, r)

@@ -33,9 +33,8 @@ class RasterSettings:
     ss: samples per pixel per axis (coverage with "supersample", intensity
         with "exact").
     times: the time [d] of each frame (broadcast against the frames), needed
-        by a star with rotating spots (``Star.with_spots``); this is how
-        ``System.flux(t, raster=RasterSettings(times=t))`` hands the times
-        through ``occultation_flux``.
+        by a star with rotating spots (``Star.with_spots``) when the call has no
+        ``times`` of its own (``System.flux`` passes its t).
     """
 
     def __init__(self, mode="window", n=500, scale=None, ss=None, aa=None, times=None):
@@ -121,8 +120,8 @@ def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None, tim
             raise ValueError("a star takes a static surface map or rotating spots, not both")
         if times is None:
             raise ValueError(
-                "a star with rotating spots needs the time of each frame: System.flux(t, "
-                "raster=RasterSettings(times=t)) or raster_flux(..., times=t)"
+                "a star with rotating spots needs the time of each frame: System.flux(t) passes it; "
+                "occultation_flux(..., times=t) or raster_flux(..., times=t)"
             )
         try:
             tf = jnp.broadcast_to(jnp.asarray(times, xf.dtype), lead).reshape(-1)

@@ -432,8 +432,8 @@ class Star(eqx.Module):
         arguments (``lat``, ``lon``, ``radius``, ``contrast``, ``period``,
         ``inc``, ``t_ref``, ``obliquity``, ``edge``). The surface depends on
         time, so the flux needs the time of every frame: ``System.flux``
-        passes it as ``raster=RasterSettings(times=t)`` (or call
-        ``raster_flux(..., times=t)``). Only the raster models it; the flux
+        passes its t (``occultation_flux`` and ``raster_flux`` take
+        ``times=``). Only the raster models it; the flux
         is relative to the unspotted star's total flux F0 (docs/activity.md).
         """
         if spots is None:

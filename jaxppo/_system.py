@@ -499,6 +499,9 @@ class System(eqx.Module):
             x, y, r = self.positions(t[None], a_grid, case)
         else:
             x, y, r = self.positions(t, alpha, case)
+        if getattr(self.star, "spots", None) is not None and "times" not in kwargs:
+            # a rotating spotted star's surface depends on time
+            kwargs["times"] = jnp.broadcast_to(t, x.shape[:-1])
         return occultation_flux(self.star, x, y, r, method=method, **kwargs)
 
     def __repr__(self) -> str:

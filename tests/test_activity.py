@@ -285,3 +285,9 @@ def test_ppo_or_spot_recovers_an_injected_bump():
     assert dip["windows"][0]["chi2_spot"] < 1e-3 < dip["windows"][0]["chi2_no_ppo"]
     assert dip["delta_chi2"]["ppo"] == 0.0 and dip["preferred"] == "spot"
     assert dip["delta_bic"]["spot"] == pytest.approx(dip["delta_chi2"]["spot"] + 3 * math.log(60))
+    # without the bump neither alternative pays for its parameters: the verdict
+    # is "no PPO" (it used to be whichever of PPO and spot cost less)
+    win.flux = base + np.random.default_rng(3).normal(0.0, 1e-5, t.size)
+    quiet = ppo_or_spot(res, system)["dips"][0]
+    assert quiet["delta_bic"]["ppo"] > 0 and quiet["delta_bic"]["spot"] > 0
+    assert quiet["preferred"] == "no PPO"

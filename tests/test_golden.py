@@ -66,10 +66,9 @@ def model(name, method="exact", alpha=None, case=None, t0_shift=0.0, spots=None)
     if spots is not None:
         sc["spots"] = spots
     system = system_from_scene(sc, t0_shift)
-    # a rotating spotted star needs the frames' times (raster only)
-    extra = {"raster": jp.RasterSettings(times=data[:, 0])} if "spots" in sc else {}
+    # a rotating spotted star takes the frames' times from System.flux
     return np.asarray(system.flux(data[:, 0], sc["alpha"] if alpha is None else alpha,
-                                  sc["case"] if case is None else case, method=method, **extra))
+                                  sc["case"] if case is None else case, method=method))
 
 
 def _blender_error():

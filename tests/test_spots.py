@@ -130,7 +130,7 @@ T_B = np.linspace(-0.05, 0.05, 5)
 def test_spot_crossing_bump_matches_numpy_pixel_sum():
     system = jp.System(STAR.with_spots(**SPOTS_B), [PLANET_B])
     t = T_B
-    f = np.asarray(system.flux(t, raster=RasterSettings(times=t)))
+    f = np.asarray(system.flux(t))
     x, y, r = (np.asarray(v) for v in system.positions(t))
     ref = np.array([numpy_flux(SPOTS_B, tt, [(x[i, 0], y[i, 0], r[i, 0])]) for i, tt in enumerate(t)])
     bare = np.asarray(jp.System(STAR, [PLANET_B]).flux(t, method="exact"))
@@ -148,11 +148,16 @@ def test_auto_routes_spots_to_raster_and_exact_refuses():
     t = T_B
     with pytest.raises(ValueError, match="radially symmetric"):
         system.flux(t, method="exact")
+    x, y, r = system.positions(t)
     with pytest.raises(ValueError, match="needs the time of each frame"):
-        system.flux(t)
-    auto = system.flux(t, raster=RasterSettings(times=t))
+        jp.occultation_flux(system.star, x, y, r)
+    auto = system.flux(t)  # System.flux passes its times to the spotted star
     ras = system.flux(t, method="raster", raster=RasterSettings(times=t))
     np.testing.assert_array_equal(np.asarray(auto), np.asarray(ras))
+    # an alpha grid: the times broadcast over the [alpha, time] frames
+    grid = np.asarray(system.flux(t, alpha=np.array([0.0, 90.0])))
+    np.testing.assert_array_equal(grid[0], np.asarray(auto))
+    assert grid.shape == (2, t.size)
 
 
 def test_bad_spot_input():

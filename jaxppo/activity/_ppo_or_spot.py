@@ -149,7 +149,8 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         chi2 of the no-PPO, PPO and spot models, the bump's parameters
         [relative flux, d, d] and the crossing planet), and the totals
         ``delta_chi2`` and ``delta_bic`` of both models against no-PPO,
-        ``n_points``, ``k`` and ``preferred`` ("PPO" or "spot" by BIC);
+        ``n_points``, ``k`` and ``preferred`` ("no PPO", "PPO" or "spot":
+        the least BIC of the three);
         and ``figure`` (the PNG's path, if drawn).
     """
     windows = {w.number: w for w in result.windows}
@@ -192,7 +193,10 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             delta_chi2={"ppo": chi["ppo"] - chi["none"], "spot": chi["spot"] - chi["none"]},
             delta_bic={"ppo": chi["ppo"] - chi["none"] + ln_n, "spot": chi["spot"] - chi["none"] + k_spot * ln_n},
         )
-        entry["preferred"] = "PPO" if entry["delta_bic"]["ppo"] < entry["delta_bic"]["spot"] else "spot"
+        # the no-PPO model (Delta BIC 0) competes too: a dip that neither
+        # extra model explains better than its parameters cost is noise
+        bic = {"no PPO": 0.0, "PPO": entry["delta_bic"]["ppo"], "spot": entry["delta_bic"]["spot"]}
+        entry["preferred"] = min(bic, key=bic.get)
         entry["bic_spot_minus_ppo"] = entry["delta_bic"]["spot"] - entry["delta_bic"]["ppo"]
         rows.append(entry)
     summary = {
