@@ -40,6 +40,7 @@ bounds), from a grid of starting centres and widths; the lowest chi^2 kept.
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -93,42 +94,48 @@ def _planet_transits(system, window):
     return out
 
 
+def _unpack(th, bounds):
+    """Bump parameters from unbounded coordinates: A in [0, a_max], t_c in
+    [lo, hi], w in [w_min, w_max] (bounds = (a_max, lo, hi, w_min, w_max))."""
+    a_max, lo, hi, w_min, w_max = bounds
+    s = jax.nn.sigmoid(th)
+    return a_max * s[0], lo + (hi - lo) * s[1], w_min + (w_max - w_min) * s[2]
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _solve_bump(nsub, th0, tm, y, sig, base, bounds):
+    """One Levenberg-Marquardt solve (compiled once per window size, not per
+    dip: the scan runs it on every negative dip)."""
+    import optimistix as optx
+
+    def resid(th, _):
+        a, c, w = _unpack(th, bounds)
+        bump = bump_model(tm, a, c, w).reshape(-1, nsub).mean(-1)
+        return (y - base - bump) / sig
+
+    sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10), th0, max_steps=400, throw=False)
+    r = resid(sol.value, None)
+    return sol.value, jnp.sum(r * r), sol.result == optx.RESULTS.successful
+
+
 def _fit_bump(tm, nsub, y, sig, base, lo, hi, a_max, w_min, w_max, starts=7):
     """Least-squares bump (optimistix LM) with t_c in [lo, hi], A in
     [0, a_max], w in [w_min, w_max]; returns (params, chi2, converged)."""
-    import optimistix as optx
-
-    tm_j = jnp.asarray(tm)
-    y_j, sig_j, base_j = (jnp.asarray(v) for v in (y, sig, base))
-
-    def unpack(th):
-        s = jax.nn.sigmoid(th)
-        return a_max * s[0], lo + (hi - lo) * s[1], w_min + (w_max - w_min) * s[2]
-
-    def resid(th, _):
-        a, c, w = unpack(th)
-        bump = bump_model(tm_j, a, c, w).reshape(-1, nsub).mean(-1)
-        return (y_j - base_j - bump) / sig_j
-
-    solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
-
-    @jax.jit
-    def solve(th0):
-        sol = optx.least_squares(resid, solver, th0, max_steps=400, throw=False)
-        r = resid(sol.value, None)
-        return sol.value, jnp.sum(r * r), sol.result == optx.RESULTS.successful
-
+    args = tuple(jnp.asarray(v, float) for v in (tm, y, sig, base))
+    bounds = jnp.asarray([a_max, lo, hi, w_min, w_max], float)
     best = None
     logit = lambda q: math.log(q / (1 - q))
     for q_c in (np.arange(starts) + 0.5) / starts:
         for q_w in (0.1, 0.5):
             th0 = jnp.array([logit(0.3), logit(q_c), logit(q_w)])
-            th, chi2, ok = solve(th0)
+            th, chi2, ok = _solve_bump(int(nsub), th0, *args, bounds)
             chi2 = float(chi2)
             if np.isfinite(chi2) and (best is None or chi2 < best[1]):
                 best = (th, chi2, bool(ok))
+    if best is None:
+        raise ValueError("ppo_or_spot: no start of the bump fit gave a finite chi^2")
     th, chi2, ok = best
-    a, c, w = (float(v) for v in unpack(th))
+    a, c, w = (float(v) for v in _unpack(th, bounds))
     return {"amplitude": a, "centre": c, "width": w}, chi2, ok
 
 
