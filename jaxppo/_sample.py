@@ -515,8 +515,10 @@ def rank_diagnostics(x) -> dict:
     folded = z(np.abs(split - np.median(split)))
     r_hat = max(rhat(zs), rhat(folded))
     bulk = ess(zs)
-    q05, q95 = np.quantile(split, [0.05, 0.95])
-    tail = min(ess((split <= q05).astype(float)), ess((split <= q95).astype(float)))
+    # quantiles of every draw (a split drops the middle draw of an odd chain)
+    q05, q95 = np.quantile(x, [0.05, 0.95])
+    halves = lambda v: np.concatenate([v[:, :n], v[:, -n:]], axis=0)
+    tail = min(ess(halves((x <= q05).astype(float))), ess(halves((x <= q95).astype(float))))
     return {"r_hat": r_hat, "ess_bulk": bulk, "ess_tail": tail, "n_eff": bulk}
 
 
