@@ -48,6 +48,7 @@ from ._config import ScanConfig
 from ._lightcurve import LightCurve
 from ._scan import (_atomic_write, _read_progress, _record_line, _scan_windows, geometry_probabilities, ppo_table,
                     run_scan)
+from ._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 from ._plan import one_disk_sum, overlap_flux
 from ._system import System, case_signs
 
@@ -86,6 +87,11 @@ class MarginalResult(dict):
         lines = [f"marginalised over {self['draws']} draws ({self['sampler'].get('method', '')})"]
         for case, c in self["cases"].items():
             geo, fx = c["geometries"], self.fixed["probabilities"][case]
+            imp = c["importance"]
+            if not c["reliable"]:
+                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
+                             f"(--marginalize N, now {self['draws']}) or sample alpha jointly")
+                continue
             for name, g in geo.items():
                 if isinstance(g, dict):
                     sp = c["probability_spread_over_draws"][name]
@@ -93,10 +99,12 @@ class MarginalResult(dict):
                                  f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
                                  f"{100 * fx[name]['probability']:.2f} %)")
             k = geo["bayes_factor"]
-            lines.append(f"  case {case}: K = {k:.4g} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
+            kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
+            ess = min(g["ess"] for g in imp["groups"].values())
+            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
                          f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
-                         f"min {c['importance_ess']['min']:.1f} of {self['draws']}" if k is not None else
-                         f"  case {case}: log10 K = {geo['log10_bayes_factor']:.4g} ({geo['jeffreys']})")
+                         f"of the geometry masses min {ess:.1f} of {self['draws']} (per alpha min "
+                         f"{c['importance_ess']['min']:.1f})")
         sec = self.get("seconds") or {}
         if sec:
             lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
@@ -668,7 +676,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
                   chunk: int = 16, fixed=None,
                   restart: bool = False, progress: bool = True, figures: bool = True, alpha=None,
                   cases=("same", "opposite"), margin: float = 0.05, detrend=2, baseline: float = 0.3,
-                  clip=5.0, multi_transits=None) -> MarginalResult:
+                  clip=5.0, multi_transits=None, min_ess: float = MIN_IMPORTANCE_ESS) -> MarginalResult:
     """The obliquity scan marginalised over the transit parameters (issue 11;
     the paper's proposal at the end of Sect. 4.2). docs/marginal.md.
 
@@ -697,6 +705,12 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         fixed: the fixed-parameter :class:`ScanResult` of the same config, if
             already computed (else it is computed, without figures).
         restart: discard this folder's marginal progress and draws.
+        min_ess: the guard: a case's geometry probabilities, posterior peak
+            and rating are given only when the importance weights of each
+            geometry's mass and of the total have a Kish ESS >= ``min_ess``
+            and a Pareto k-hat <= min(0.7, 1 - 1/log10 N)
+            (:func:`jaxppo._importance.importance_reliability`); otherwise
+            they are None and the case says why.
         alpha, cases, margin, detrend, baseline, clip, multi_transits: as
             :func:`jaxppo.scan` (only with a System).
 
@@ -713,6 +727,9 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         if isinstance(draws, bool) or int(draws) != draws or int(draws) < 1:
             raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
         draws = int(draws)
+    if not (isinstance(min_ess, (int, float)) and not isinstance(min_ess, bool) and np.isfinite(min_ess)
+            and min_ess >= 1):
+        raise ValueError(f"min_ess must be a number >= 1, got {min_ess!r}")
     for name, v, lo in (("chunk", chunk, 1), ("thin", thin, 1), ("num_warmup", num_warmup, 1), ("chains", chains, 1)):
         if isinstance(v, bool) or int(v) != v or int(v) < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
@@ -745,15 +762,15 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     if out is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_marginal_") as tmp:
             return _run(cfg, Path(tmp), digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed,
-                        restart, progress, False, t_begin, tqdm, chains, density, density_source)
+                        restart, progress, False, t_begin, tqdm, chains, density, density_source, min_ess)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     return _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart,
-                progress, figures, t_begin, tqdm, chains, density, density_source)
+                progress, figures, t_begin, tqdm, chains, density, density_source, min_ess)
 
 
 def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart, progress,
-         figures, t_begin, tqdm, chains, density, density_source):
+         figures, t_begin, tqdm, chains, density, density_source, min_ess):
     import jax
 
     sysm = cfg.system
@@ -884,7 +901,7 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     if a_ref is not None:
         ref_quiet = float(np.mean([~ppo_table(s, [tm], np.array([float(a_ref)]), sampler["case_ref"])[0, 0]
                                    for s in systems]))
-    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet)
+    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet, min_ess)
     if "star.density" in sampler:
         rho = np.asarray(sampler["star.density"], float)
         result["parameters"]["star.density"] = {"median": float(np.median(rho)),
@@ -901,7 +918,19 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     return result
 
 
-def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet) -> MarginalResult:
+def _withheld(geo: dict, names, reason: str) -> dict:
+    """The geometry block of a case whose importance weights are
+    unreliable: every probability, the Bayes factor and the rating withheld
+    (None), the reason in their place."""
+    out = {k: v for k, v in geo.items()}
+    for nm in names:
+        out[nm] = dict(geo[nm], probability=None)
+    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
+    return out
+
+
+def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
+             min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
@@ -927,12 +956,21 @@ def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler,
             spread[nm] = {"median": float(np.median(p)), "p16": float(np.percentile(p, 15.865)),
                           "p84": float(np.percentile(p, 84.135)), "std": float(np.std(p))}
         # Kish effective sample size of the importance weights at each alpha
-        wn = np.exp(logw - logw.max(0, keepdims=True))
-        ess = wn.sum(0) ** 2 / (wn**2).sum(0)
+        ess = kish_ess(logw, axis=0)
+        # the guard: a probability, peak or rating only from weights that
+        # do not rest on a handful of draws (per geometry and in total)
+        a_mod = np.mod(cfg.alpha, 360.0)
+        pro = (a_mod <= 90.0) | (a_mod > 270.0)
+        check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
+        if not check["reliable"]:
+            geo = _withheld(geo, names, check["reason"])
+            post = np.full_like(post, np.nan)
         fx_a, fx_d = fixed.delta_chi2(case)
         cases[case] = {
             "geometries": geo, "probability_spread_over_draws": spread,
-            "peak": {"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())},
+            "reliable": check["reliable"], "importance": check,
+            "peak": ({"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())}
+                     if check["reliable"] else None),
             "fixed_peak": {"alpha": float(fx_a[np.argmin(fx_d)]), "delta_chi2": float(fx_d.min())},
             "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())},
             "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())},
@@ -1000,7 +1038,11 @@ def _plot(out: Path, result: MarginalResult, cfg) -> Path:
         fa, fd = result.fixed.delta_chi2(case)
         fw = np.exp(-0.5 * (fd - fd.min()))
         step = float(fa[1] - fa[0]) if fa.size > 1 else 360.0
-        ax.plot(s["alpha"], s["posterior"], color="C3", lw=1.0, label="marginal")
+        if result["cases"][case]["reliable"]:
+            ax.plot(s["alpha"], s["posterior"], color="C3", lw=1.0, label="marginal")
+        else:
+            ax.text(0.5, 0.5, "marginal withheld:\nimportance weights unreliable", transform=ax.transAxes,
+                    ha="center", va="center", color="C3", fontsize=8)
         ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
         ax.set_xlabel("tilt angle alpha [deg]")
         ax.set_ylabel("p(alpha | D) [1/deg]")

@@ -47,10 +47,11 @@ def _strict(text):
 
 def test_equal_draws_reproduce_the_plain_scan(real, tmp_path):
     """N draws all at the fixed parameters: every curve, the marginal curve,
-    the posterior and the geometry probabilities are those of jp.scan."""
+    the posterior and the geometry probabilities are those of jp.scan (30
+    equal draws: importance ESS 30, above the guard's 25)."""
     system, lc = real
     fixed = jp.scan(system, lc, **KW)
-    same = {f"{pl.name}.{p}": np.full(3, float(getattr(pl, p))) for pl in system.planets for p in ("t0", "a")}
+    same = {f"{pl.name}.{p}": np.full(30, float(getattr(pl, p))) for pl in system.planets for p in ("t0", "a")}
     m = marginal_scan(system, lc, samples=same, out=tmp_path, progress=False, figures=False, **KW)
     for case in ("same", "opposite"):
         a, d = fixed.delta_chi2(case)
@@ -64,6 +65,7 @@ def test_equal_draws_reproduce_the_plain_scan(real, tmp_path):
             if isinstance(geo, dict):
                 assert m["probabilities"][case][name]["probability"] == pytest.approx(geo["probability"], abs=1e-10)
         assert m["probabilities"][case]["jeffreys"] == fixed["probabilities"][case]["jeffreys"]
+        assert m["cases"][case]["reliable"]
         # the features are not all zero: the check has something to compare
         assert np.ptp(d) > 0.1
     _strict((tmp_path / "marginal.json").read_text())
@@ -275,9 +277,11 @@ def test_wrong_fixed_parameters_are_mitigated(tmp_path):
     free = ("b.a", "c.t0")
     fit = jp.fit(wrong, lc, free=free, alpha=_alpha_ref(wrong, lc.time, "same"))
     assert fit.success, fit.message
-    draws = np.random.default_rng(0).multivariate_normal(fit.values, fit.covariance, size=16)
+    draws = np.random.default_rng(0).multivariate_normal(fit.values, fit.covariance, size=64)
     m = marginal_scan(wrong, lc, samples={n: draws[:, i] for i, n in enumerate(free)}, fixed=fixed, out=tmp_path,
                       progress=False, figures=False, **kw)
+    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]["groups"]
+    assert m["cases"]["same"]["peak"]["alpha"] == pytest.approx(147.0, abs=3.0)
     t = m.table
     peak = t["alpha"][np.argmax(t["posterior"])]
     assert abs(peak - 147.0) <= 3.0, peak
@@ -325,7 +329,7 @@ def test_flat_without_a_ppo(tmp_path):
     lc = jp.simulate_kepler20(seed=7, alpha=quiet, case="same", radius_scale=2.0, noise=2e-4)
     rng = np.random.default_rng(3)
     b, c = true.planets
-    draws = {"b.a": float(b.a) * (1 + rng.normal(0, 0.005, 8)), "c.t0": float(c.t0) + rng.normal(0, 0.3 / 1440, 8)}
+    draws = {"b.a": float(b.a) * (1 + rng.normal(0, 0.005, 32)), "c.t0": float(c.t0) + rng.normal(0, 0.3 / 1440, 32)}
     m = marginal_scan(true, lc, samples=draws, out=tmp_path, progress=False, figures=False, **kw)
     t = m.table
     loud = np.any(m.delta_chi2[:, 0] != 0.0, axis=0)  # some draw has a PPO at this alpha
@@ -335,7 +339,9 @@ def test_flat_without_a_ppo(tmp_path):
     assert t["marginal_delta_chi2"].min() > -4.0  # no PPO preferred beyond 2 sigma
     assert t["marginal_delta_chi2"].max() > 10.0  # the PPO tilts are excluded
     # the posterior is flat (uniform density 1/360) wherever no PPO can occur, up to normalisation
+    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]["groups"]
     flat = t["posterior"][~loud]
+    assert np.all(np.isfinite(flat)) and flat[0] > 0
     np.testing.assert_allclose(flat, flat[0], rtol=1e-12)
 
 
@@ -400,6 +406,46 @@ def test_wrong_fixed_parameters_with_nuts_draws(tmp_path):
     off = m["parameters"]["c.t0"]["median"] - float(c.t0)  # sampled at the transit nearest the windows' middle
     off -= np.round(off / float(c.period)) * float(c.period)
     assert abs(off) < 0.5 / 1440, off * 1440  # c's t0 back within 0.5 min of the truth
+    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]
     t = m.table
     peak = t["alpha"][np.argmax(t["posterior"])]
     assert abs(peak - 147.0) <= 3.0, peak
+
+
+def test_guard_withholds_what_one_draw_carries(tmp_path):
+    """The held-out failure of issue 22: when a few draws carry the
+    importance average the scan printed their probability, peak and a
+    "decisive" rating. The fragility case (high-SNR PPO at 147 deg) with 30
+    draws of (b.a, c.t0) five times wider than jp.fit's errors: a handful
+    of draws put the PPO where the data have it (geometry-mass ESS ~4 of
+    30). No probability, peak or rating in the result, the JSON, the CSV or
+    the printed summary; the case says why; the figure is still drawn."""
+    from jaxppo._marginal import _alpha_ref
+
+    true, lc, wrong, kw, fixed = _fragility()
+    free = ("b.a", "c.t0")
+    fit = jp.fit(wrong, lc, free=free, alpha=_alpha_ref(wrong, lc.time, "same"))
+    draws = np.random.default_rng(0).multivariate_normal(fit.values, 25.0 * fit.covariance, size=30)
+    m = marginal_scan(wrong, lc, samples={n: draws[:, i] for i, n in enumerate(free)}, fixed=fixed, out=tmp_path,
+                      progress=False, figures=True, **kw)
+    cc = m["cases"]["same"]
+    assert cc["reliable"] is False
+    assert cc["importance"]["groups"]["total"]["ess"] < 10.0
+    assert cc["peak"] is None and "unreliable" in cc["importance"]["reason"]
+    geo = m["probabilities"]["same"]
+    assert geo["bayes_factor"] is None and geo["jeffreys"] == "not rated" and geo["favoured"] is None
+    assert all(v["probability"] is None for v in geo.values() if isinstance(v, dict))
+    assert np.all(np.isnan(m.table["posterior"]))
+    text = "\n".join(m.summary_lines())
+    assert "decisive" not in text and "%" not in text and "no probability" in text
+    saved = _strict((tmp_path / "marginal.json").read_text())
+    assert saved["cases"]["same"]["reliable"] is False
+    assert "nan" in (tmp_path / "marginal.csv").read_text().splitlines()[1]
+    assert (tmp_path / "marginal.png").is_file()
+
+
+def test_guard_refuses_bad_min_ess(real):
+    system, lc = real
+    with pytest.raises(ValueError, match="min_ess"):
+        marginal_scan(system, lc, samples={"b.t0": np.full(30, float(system.planets[0].t0))}, min_ess=0,
+                      progress=False, figures=False, **KW)
