@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import jaxppo as jp  # noqa: E402
-import jaxppo._plan  # noqa: E402
+import jaxppo.model._plan  # noqa: E402
 from helpers import (  # noqa: E402
     KEPLER20_P100,
     adversarial_pairs,
@@ -42,7 +42,7 @@ from helpers import (  # noqa: E402
 warnings.filterwarnings("ignore")
 # "auto" sends calls with few crossing pairs to the union integral (cheaper to
 # compile); the "auto" column is measured with its lens path on every call.
-jaxppo._plan.LENS_MIN_PAIRS = 0
+jaxppo.model._plan.LENS_MIN_PAIRS = 0
 
 
 def main() -> None:
@@ -85,7 +85,7 @@ import jax
 jax.config.update("jax_enable_x64", sys.argv[1] == "64")
 warnings.simplefilter("ignore")
 import jaxppo as jp
-from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
 system = kepler20_system(jp.Star.quadratic(0.495, 0.154))
 t = np.concatenate([np.arange(e.start - 0.05, e.end + 0.05, 1 / 1440) for e in paper_multi_transits(system)])
 alphas = np.arange(87.0, 100.0, 0.5)
@@ -98,7 +98,7 @@ def lightcurve() -> None:
     import json
     import subprocess
 
-    from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+    from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
 
     runs = {}
     for bits in ("64", "32"):

@@ -25,13 +25,13 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import jaxppo as jp  # noqa: E402
-import jaxppo._plan  # noqa: E402
+import jaxppo.model._plan  # noqa: E402
 from helpers import adversarial_classes, pad_scenes  # noqa: E402
 from test_adversarial import STARS, _as32, _fd_step, _reference, float32_representable  # noqa: E402
 
 warnings.filterwarnings("ignore")
 # the "auto" column with its lens path on every call (see benchmarks/accuracy.py)
-jaxppo._plan.LENS_MIN_PAIRS = 0
+jaxppo.model._plan.LENS_MIN_PAIRS = 0
 
 
 def _grad_error(star, x, y, r):

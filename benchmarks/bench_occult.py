@@ -19,7 +19,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo._terms import _exact_frames, _separate_frames  # noqa: E402
+from jaxppo.model._terms import exact_frames, separate_frames  # noqa: E402
 
 
 def best_of(fn, repeat=5):
@@ -73,7 +73,7 @@ def main() -> None:
         cold = time.perf_counter() - t0
         t = best_of(lambda: jitted(xs, ys, rs).block_until_ready())
         print(f"{'single disk (auto under jax.jit), ' + name:50s} {t / n * 1e6:9.3f}   (compile + first call {cold:.1f} s)")
-        t = best_of(lambda: _separate_frames(star, xs, ys, rs, 24).block_until_ready())
+        t = best_of(lambda: separate_frames(star, xs, ys, rs, 24).block_until_ready())
         print(f"{'single disk (general rule only), ' + name:50s} {t / n * 1e6:9.3f}")
         t = best_of(lambda: np.asarray(jp.occultation_flux(star, X, Y, R)))
         print(f"{'overlapping pair (auto), ' + name:50s} {t / n * 1e6:9.3f}")
@@ -82,13 +82,13 @@ def main() -> None:
         cold = time.perf_counter() - t0
         t = best_of(lambda: jitted(X, Y, R).block_until_ready())
         print(f"{'overlapping pair (auto under jax.jit), ' + name:50s} {t / n * 1e6:9.3f}   (compile + first call {cold:.1f} s)")
-        t = best_of(lambda: _exact_frames(star, X, Y, R, 24).block_until_ready())
+        t = best_of(lambda: exact_frames(star, X, Y, R, 24).block_until_ready())
         print(f"{'overlapping pair (general union only), ' + name:50s} {t / n * 1e6:9.3f}")
     # which path "auto" takes for the pair frames
-    from jaxppo._terms import _lens_rho
+    from jaxppo.model._terms import lens_rho_jit
     from jaxppo.core.occult import LENS_RULES
 
-    rho = np.asarray(_lens_rho(X, Y, R))
+    rho = np.asarray(lens_rho_jit(X, Y, R))
     tiers = [f"{nodes} nodes {np.mean(np.select([rho >= m for _, m in LENS_RULES], list(range(len(LENS_RULES))), -1) == t):.1%}"
              for t, (nodes, _) in enumerate(LENS_RULES)]
     print(f"pair frames by path: lens with {', '.join(tiers)}; union integral {np.mean(rho < LENS_RULES[-1][1]):.1%}")

@@ -20,7 +20,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo._kepler20 import kepler20_system  # noqa: E402
+from jaxppo.model._kepler20 import kepler20_system  # noqa: E402
 
 PAPER_MIDS = (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
 

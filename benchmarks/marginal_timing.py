@@ -1,5 +1,5 @@
 """Timings and the injected-PPO recovery of the marginal obliquity scan
-(jaxppo._marginal.marginal_scan, issue 11). Prints every figure it measures,
+(jaxppo.obliquity._marginal.marginal_scan, issue 11). Prints every figure it measures,
 with the load average beside each time (the machine is shared).
 
     python benchmarks/marginal_timing.py real 64 [--free b.t0,b.a,...] [--warmup 300]
@@ -25,7 +25,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo._marginal import marginal_scan  # noqa: E402
+from jaxppo.obliquity._marginal import marginal_scan  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

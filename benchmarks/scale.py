@@ -7,7 +7,7 @@ largest grid that fits in a memory budget; sharding over forced CPU devices.
 axes: the Kepler-20 b + c grid (jp.sweep over [case, alpha, time], the
 seven double transits at 1-minute cadence) grown along one axis at a time
 from a base point, and the marginalised scan's chi^2 of D posterior draws
-(jaxppo._marginal.marginal_chi2: D x case x alpha x time frames). Every point
+(jaxppo.obliquity._marginal.marginal_chi2: D x case x alpha x time frames). Every point
 runs in a fresh process, so its peak resident memory (VmHWM) is its own;
 times are the best of three further calls (warm: compiled; persistent
 cache off) and the first call (cold). Memory per grid element is the slope of a straight line
@@ -17,7 +17,7 @@ measured sizes (stated as such in the output).
 
 devices: the same concrete "auto" and "exact" batch of overlapping pairs
 (and a sweep) with XLA_FLAGS=--xla_force_host_platform_device_count=N,
-N = 1, 2, 4: the frames are sharded over the N devices (jaxppo._plan._shard).
+N = 1, 2, 4: the frames are sharded over the N devices (jaxppo.model._plan._shard).
 On a machine with fewer cores than devices the devices share the cores.
 """
 
@@ -39,7 +39,7 @@ CHILD = textwrap.dedent(r"""
     jax.config.update("jax_enable_x64", True)
     import numpy as np
     import jaxppo as jp
-    from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+    from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
     spec = json.loads(sys.argv[1])
     system = kepler20_system()
     t = np.concatenate([np.arange(e.start - 0.05, e.end + 0.05, 1 / 1440) for e in paper_multi_transits(system)])
@@ -47,7 +47,7 @@ CHILD = textwrap.dedent(r"""
     alpha = np.linspace(0.0, 360.0, spec["alphas"], endpoint=False)
     cases = ("same", "opposite")[: spec["cases"]]
     if spec["draws"]:
-        from jaxppo._marginal import marginal_chi2
+        from jaxppo.obliquity._marginal import marginal_chi2
         rng = np.random.default_rng(0)
         systems = []
         for _ in range(spec["draws"]):
@@ -74,8 +74,8 @@ DEVICE_CHILD = textwrap.dedent(r"""
     jax.config.update("jax_enable_x64", True)
     import numpy as np
     import jaxppo as jp
-    import jaxppo._plan
-    from jaxppo._kepler20 import kepler20_system, paper_multi_transits
+    import jaxppo.model._plan
+    from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
     n = int(sys.argv[1])
     rng = np.random.default_rng(0)
     x1, y1 = rng.uniform(-0.9, 0.9, n), rng.uniform(-0.4, 0.4, n)

@@ -86,9 +86,9 @@ def _demo_events(system):
     of the bundled real data gives them (1, 2, ... over the multi-transits
     with data, summary.json ``multi_transits``), so that "transit 4" is the
     same event in the demo and in the scan's figures."""
-    from jaxppo._config import load_config
-    from jaxppo._kepler20 import paper_multi_transits
-    from jaxppo._scan import scan_windows
+    from jaxppo.obliquity._config import load_config
+    from jaxppo.model._kepler20 import paper_multi_transits
+    from jaxppo.obliquity._scan import scan_windows
 
     events = paper_multi_transits(system)
     by_mid = {round(w.event.mid, 2): w.number for w in scan_windows(load_config())}
@@ -109,7 +109,7 @@ def cmd_demo(args) -> int:
 
     out = _out_folder(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    from jaxppo._kepler20 import kepler20_system
+    from jaxppo.model._kepler20 import kepler20_system
 
     system = kepler20_system()
     events, number = _demo_events(system)
@@ -161,8 +161,8 @@ def _print_summary(result) -> None:
 def cmd_scan(args) -> int:
     """Run the obliquity scan; no config runs the bundled default."""
     _enable_x64()
-    from jaxppo._config import alpha_grid, load_config
-    from jaxppo._scan import run_scan
+    from jaxppo.obliquity._config import alpha_grid, load_config
+    from jaxppo.obliquity._scan import run_scan
 
     if args.alpha is not None:
         alpha_grid(args.alpha, "--alpha")  # named after the option, before any loading
@@ -190,14 +190,14 @@ def cmd_scan(args) -> int:
         print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
               f"{sum(m.get('clipped', 0) for m in result['multi_transits'])} outliers clipped; errors {det['flux_err']}")
     _print_summary(result)
-    from jaxppo._tables import table5_text
+    from jaxppo.obliquity._tables import table5_text
 
     print(table5_text(result["table5"], cfg.cases), end="")
     verb = "results in" if res.get("finished_before") else "wrote"
     print(f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
     draws = args.marginalize if args.marginalize is not None else cfg.marginalize
     if draws:
-        from jaxppo._marginal import marginal_scan
+        from jaxppo.obliquity._marginal import marginal_scan
 
         m = marginal_scan(cfg, draws=draws, out=out, fixed=result, free=cfg.fit_free, restart=args.restart,
                           progress=not args.quiet)
@@ -208,7 +208,7 @@ def cmd_scan(args) -> int:
 
 def cmd_init(args) -> int:
     """Write a commented config template (every key, units, defaults)."""
-    from jaxppo._config import config_template
+    from jaxppo.obliquity._config import config_template
 
     path = _out_file(args.path, "PATH")
     if path.exists() and not args.force:
@@ -223,8 +223,8 @@ def cmd_plot(args) -> int:
     config saved beside it (DIR/config.json, data paths resolved against the
     config's absolute folder): works from any working directory."""
     _enable_x64()
-    from jaxppo._config import config_from_dict, load_config
-    from jaxppo._figures import scan_figures
+    from jaxppo.obliquity._config import config_from_dict, load_config
+    from jaxppo.obliquity._figures import scan_figures
 
     out = Path(args.dir)
     if not out.exists():
@@ -249,8 +249,8 @@ def cmd_plot(args) -> int:
     if cfg.digest != summary.get("config_digest"):
         raise ValueError(f"the data or config of the scan in {out} changed since it ran ({summary['config']}); "
                          "rerun the scan")
-    from jaxppo._figures import read_scan_csv
-    from jaxppo._scan import scan_windows
+    from jaxppo.obliquity._figures import read_scan_csv
+    from jaxppo.obliquity._scan import scan_windows
 
     files = scan_figures(out, summary, read_scan_csv(out / "scan.csv"), cfg.system, scan_windows(cfg), cfg.cases)
     print("wrote " + ", ".join(files))
@@ -280,13 +280,13 @@ def _fit_inputs(args):
     points (``scan_windows``: each multi-transit divided by its
     out-of-transit polynomial), so that real data with stellar variability
     are fitted as the scan sees them."""
-    from jaxppo._config import load_config
+    from jaxppo.obliquity._config import load_config
 
     cfg = load_config(args.config)
     lc = cfg.lightcurve
     if args.windows:
         from jaxppo import LightCurve
-        from jaxppo._scan import scan_windows
+        from jaxppo.obliquity._scan import scan_windows
 
         wins = scan_windows(cfg)
         t = np.concatenate([w.time for w in wins])
@@ -389,7 +389,7 @@ def cmd_activity(args) -> int:
     period, per-quarter variability, brightness map, optional spot inversion."""
     _enable_x64()
     from jaxppo import activity
-    from jaxppo._config import load_config
+    from jaxppo.obliquity._config import load_config
 
     if args.data is not None:
         data = Path(args.data)
@@ -441,7 +441,7 @@ def _draws(text: str) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``jaxppo`` (every option documented with its
     unit and default; docs/cli.md)."""
-    from jaxppo import __version__
+    from jaxppo._version import __version__
 
     parser = _Parser(prog="jaxppo", description="Planet-planet occultations in JAX: the orbital obliquity scan of "
                      "Mueller, Ioannidis & Schmitt (2021), fits and sampling. Times [d] are on the data's scale "
@@ -566,7 +566,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from jaxppo import __version__
+    from jaxppo._version import __version__
 
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)

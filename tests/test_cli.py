@@ -114,8 +114,8 @@ def test_fit_windows_are_the_scans_detrended_windows(monkeypatch, capsys):
     windows (flux divided by each window's out-of-transit polynomial), not
     the raw PDCSAP flux with its stellar variability."""
     import jaxppo as jp
-    from jaxppo._config import default_config_path, load_config
-    from jaxppo._scan import scan_windows
+    from jaxppo.obliquity._config import default_config_path, load_config
+    from jaxppo.obliquity._scan import scan_windows
 
     seen = {}
 
@@ -138,7 +138,7 @@ def test_write_failure_is_one_line(tmp_path, capsys):
     blocker = tmp_path / "taken"
     blocker.write_text("a file where the output folder should be")
     cfg = tmp_path / "s.toml"
-    from jaxppo._phoenix import data_path
+    from jaxppo.model._phoenix import data_path
 
     text = data_path("kepler20_synthetic.toml").read_text().replace('path = "', f'path = "{data_path("")}/')
     cfg.write_text(text.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 30.0]"))
@@ -179,7 +179,7 @@ def test_every_option_has_help_with_its_default():
 
 def _synthetic_copy(folder):
     """The bundled synthetic config and data, copied (relative data path)."""
-    from jaxppo._phoenix import data_path
+    from jaxppo.model._phoenix import data_path
 
     folder.mkdir()
     for name in ("kepler20_synthetic.toml", "kepler20_synthetic_bc.csv"):
@@ -192,8 +192,8 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
     works from another folder with a config given by a relative path (the
     old plot re-read the relative path from the current folder and failed);
     a rerun of a finished scan says so and recomputes and redraws nothing."""
-    import jaxppo._figures
-    import jaxppo._scan
+    import jaxppo.obliquity._figures
+    import jaxppo.obliquity._scan
 
     cfg = _synthetic_copy(tmp_path / "cfg")
     monkeypatch.chdir(tmp_path / "cfg")
@@ -211,8 +211,8 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
         raise AssertionError("recomputed or redrawn")
 
     with monkeypatch.context() as m:
-        m.setattr(jaxppo._scan, "sweep", boom)
-        m.setattr(jaxppo._figures, "scan_figures", boom)
+        m.setattr(jaxppo.obliquity._scan, "sweep", boom)
+        m.setattr(jaxppo.obliquity._figures, "scan_figures", boom)
         assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "45", "--quiet"]) == 0
     again = capsys.readouterr().out
     assert "resumed: the scan in ../run had already finished with this config (16 alphas" in again
@@ -264,12 +264,12 @@ def test_errors_are_one_line(argv, needle, tmp_path, monkeypatch, capsys):
 
 
 def test_unexpected_errors_are_one_line(tmp_path, monkeypatch, capsys):
-    import jaxppo._config
+    import jaxppo.obliquity._config
 
     def broken(*a, **k):
         raise KeyError("x")
 
-    monkeypatch.setattr(jaxppo._config, "load_config", broken)
+    monkeypatch.setattr(jaxppo.obliquity._config, "load_config", broken)
     assert main(["scan", "--out", str(tmp_path / "o")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("jaxppo scan: internal error: KeyError") and "report" in err
@@ -297,7 +297,7 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
     """--marginalize N runs jp.marginal_scan after the plain scan with the
     config's [fit] free and the fixed scan's result (the marginal scan itself
     is tested in tests/test_marginal.py); a negative N is one error line."""
-    import jaxppo._marginal as marginal
+    import jaxppo.obliquity._marginal as marginal
     from jaxppo.cli import main
 
     seen = {}

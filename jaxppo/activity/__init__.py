@@ -19,7 +19,7 @@ from ._spots import spot_flux as spot_flux
 from ._report import activity_report as activity_report
 from ._ppo_or_spot import plot_ppo_or_spot as plot_ppo_or_spot
 from ._ppo_or_spot import ppo_or_spot as ppo_or_spot
-from .._star import Spots as Spots
+from ..model._star import Spots as Spots
 from ._rotation import PAPER_ROTATION_PERIOD as PAPER_ROTATION_PERIOD
 from ._rotation import PreparedLightCurve as PreparedLightCurve
 from ._rotation import RotationResult as RotationResult

@@ -60,8 +60,8 @@ def bump_model(t, amplitude, centre, width):
 def _window_models(system, window, alpha, case):
     """Supersampled times and the no-PPO and PPO models (exposure-averaged)
     on one scan window."""
-    from .._lightcurve import LightCurve
-    from .._sweep import sweep
+    from ..model._lightcurve import LightCurve
+    from ..model._sweep import sweep
 
     lc = LightCurve(window.time, window.flux, window.flux_err, window.exposure)
     tm, nsub = lc.supersampled_times()
@@ -87,7 +87,7 @@ def _planet_transits(system, window):
         p = float(pl.radius)
         speed = 2 * math.pi * float(pl.a) / period  # [R* / d]
         # the planet's own depth at mid-transit, limb-darkened: an upper bound of A
-        from .._system import System
+        from ..model._system import System
 
         depth = 1.0 - float(np.asarray(System(system.star, [pl]).flux(np.array([mid]), method="exact"))[0])
         out.append((pl.name or "?", mid - half, mid + half, depth, 2 * p / speed))

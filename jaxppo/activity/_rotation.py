@@ -124,7 +124,7 @@ def transit_mask(time, system, margin: float = 0.1) -> np.ndarray:
     within half the first-to-last-contact duration plus ``margin`` [d] of a
     mid-transit time are False. The margin covers a long-cadence exposure
     (0.02 d) and the ephemeris drift over the Kepler mission."""
-    from .._system import System
+    from ..model._system import System
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System, got {type(system).__name__}")
@@ -218,7 +218,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
             raise ValueError(f"flux of quarter {qv:g} has median {med}; fluxes must be positive")
         rel[m] = f[m] / med - 1.0
     if system is None and mask_transits:
-        from .._kepler20 import kepler20_system
+        from ..model._kepler20 import kepler20_system
 
         system = kepler20_system()
     keep = good & (transit_mask(t, system, margin) if mask_transits else True)

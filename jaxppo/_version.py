@@ -1,0 +1,3 @@
+"""The package version (its own module: no module imports the package root)."""
+
+__version__ = "0.3.0"

@@ -1,0 +1,388 @@
+"""The posterior of the transit parameters that the marginalised obliquity
+scan draws from, and alpha sampled jointly with them.
+
+NUTS over t0, P, p and b / (1 + p) of every planet and ONE stellar density
+rho* for all planets (see :class:`TransitPosterior`), started at the mode
+with the Laplace covariance there as the mass matrix.
+"""
+
+from __future__ import annotations
+
+import time
+
+import jax
+import numpy as np
+
+from ..model._lightcurve import LightCurve
+from ..model._system import System
+
+__all__ = ["PLANET_PARAMS", "TransitPosterior", "a_from_density", "density_from_a", "check_density",
+           "default_density", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
+
+PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
+"""The planet parameters the transit posterior samples."""
+
+
+# ---- the transit posterior the draws come from ------------------------------
+#
+# NUTS over t0, P, p and b / (1 + p) of every planet and ONE stellar density
+# rho* for all planets: a/R* follows from Kepler's third law for a circular
+# orbit and M_p << M* (Seager & Mallen-Ornelas 2003, eq. 30),
+#     a / R* = (G rho* P^2 / (3 pi))^(1/3),
+# so the a/R* of all planets move together and a literature density bounds
+# them. Sampling a/R* of each planet with a flat prior lets long-cadence
+# transits (which barely separate a/R* from b) drift to grazing orbits.
+
+G_CGS = 6.67430e-8  # [cm^3 g^-1 s^-2] (CODATA 2018)
+DAY_S = 86400.0
+
+
+def a_from_density(rho, period, xp=np):
+    """a/R* [stellar radii] from the stellar density rho [g/cm^3] and the
+    period [d]: Kepler's third law, circular orbit, M_p << M*
+    (Seager & Mallen-Ornelas 2003, eq. 30)."""
+    return (G_CGS * rho * (period * DAY_S) ** 2 / (3.0 * xp.pi)) ** (1.0 / 3.0)
+
+
+def density_from_a(a, period) -> float:
+    """The stellar density [g/cm^3] that puts a planet of period [d] at a/R*
+    ``a`` (the inverse of :func:`a_from_density`)."""
+    return float(3.0 * np.pi * a**3 / (G_CGS * (period * DAY_S) ** 2))
+
+
+def check_density(density, where="stellar_density"):
+    try:
+        m, s = (float(v) for v in density)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where} must be (mean, sd) in g/cm^3, got {density!r}") from None
+    if not (np.isfinite(m) and np.isfinite(s) and m > 0 and s > 0):
+        raise ValueError(f"{where} must be (mean, sd) with mean > 0 and sd > 0 [g/cm^3], got {density!r}")
+    return m, s
+
+
+def default_density(system: System, tied) -> tuple[float, float, str]:
+    """With no literature value: the density the configuration's own a/R*
+    imply (geometric mean over the tied planets), 10 % wide."""
+    rho = np.exp(np.mean([np.log(density_from_a(float(system.planets[i].a), float(system.planets[i].period)))
+                          for i in tied]))
+    return float(rho), 0.1 * float(rho), "the configuration's a/R* (Kepler's third law), 10 % (no stellar_density given)"
+
+
+class TransitPosterior:
+    """The log-posterior of the transit parameters in coordinates u (one per
+    sampled quantity): t0 - t0_start [d], P - P_start [d], log p, v with
+    b / (1 + p) = |tanh v|, and log rho* when any a/R* is free. Priors: t0
+    uniform within +-0.05 d, P within +-0.1 %, p log-uniform in [1e-4, 0.5],
+    b / (1 + p) uniform in [0, 1), rho* Gaussian (mean, sd) truncated at 0.
+    b >= 0 loses nothing: the scan's cases enumerate the hemispheres of the
+    untilted planets (case "opposite" mirrors them) and alpha turns the
+    tilted one through 360 deg. v is signed and the model uses |tanh v|:
+    the density is symmetric in v, so a chain may stay on either side, and
+    a posterior piled up at b = 0 (planet c) is one smooth mode through
+    v = 0 (a logit map would stretch it into an exponential tail). The
+    likelihood is :class:`jaxppo.inference._fit.Model`'s (the windows' Gaussian chi^2)
+    at the tilt ``alpha``."""
+
+    def __init__(self, system, data, free, density, alpha, case):
+        from ._fit import Model
+
+        labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
+        slots = []
+        for name in free:
+            owner, _, par = name.partition(".")
+            if owner not in labels or par not in PLANET_PARAMS:
+                raise ValueError(f"free: {name!r} is not a planet parameter the marginal scan samples; names look "
+                                 f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS})")
+            slots.append((labels.index(owner), par))
+        if len(set(slots)) != len(slots):
+            raise ValueError(f"free parameters repeat: {list(free)}")
+        self.system, self.free, self.slots = system, tuple(free), slots
+        self.tied = sorted({i for i, p in slots if p == "a"})
+        self.coords = [s for s in slots if s[1] != "a"] + ([("star", "density")] if self.tied else [])
+        self.density = density
+        self.model = Model(system, data, free, alpha, case)
+        # a posterior spreads further than a fit moves: compute every frame
+        # within 1 R* of the limb at the start
+        self.model.active_idx = np.union1d(self.model.active_idx,
+                                           self.model._active_frames(system, np.asarray(self.model.t_model), 1.0))
+        pl = system.planets
+        lo, hi, start = [], [], []
+        for (i, p) in self.coords:
+            if i == "star":
+                lo.append(np.log(1e-6)), hi.append(np.inf), start.append(np.log(density[0]))
+            elif p == "t0":
+                lo.append(-0.05), hi.append(0.05), start.append(0.0)
+            elif p == "period":
+                lo.append(-1e-3 * float(pl[i].period)), hi.append(1e-3 * float(pl[i].period)), start.append(0.0)
+            elif p == "radius":
+                lo.append(np.log(1e-4)), hi.append(np.log(0.5)), start.append(np.log(float(pl[i].radius)))
+            else:
+                x = abs(float(pl[i].a * np.cos(np.deg2rad(pl[i].inc)))) / (1.0 + float(pl[i].radius))
+                if not x < 1:
+                    raise ValueError(f"planet {labels[i]} does not transit at the start (b / (1 + p) = {x:.3g})")
+                lo.append(-np.inf), hi.append(np.inf), start.append(np.arctanh(min(x, 0.95)))
+        self.lo, self.hi, self.u_start = np.array(lo), np.array(hi), np.array(start)
+        # rough prior widths in u (the Laplace matrix's prior curvature, so
+        # that a parameter the data do not constrain keeps a finite width)
+        w = []
+        for (i, p), a, b in zip(self.coords, self.lo, self.hi):
+            w.append(density[1] / density[0] if i == "star" else 1.0 if p == "inc" else (b - a) / np.sqrt(12.0))
+        self.prior_sd = np.array(w)
+
+    def physical(self, u):
+        """u -> the values of ``free`` (physical units: d, d, R*, deg, R*) and rho*."""
+        import jax.numpy as jnp
+
+        pl = self.system.planets
+        val = {s: u[k] for k, s in enumerate(self.coords)}
+        rho = jnp.exp(val[("star", "density")]) if self.tied else None
+
+        def get(i, p):
+            if (i, p) in val:
+                v = val[(i, p)]
+                return {"t0": float(pl[i].t0) + v, "period": float(pl[i].period) + v,
+                        "radius": jnp.exp(v), "inc": jnp.abs(jnp.tanh(v))}[p]
+            return float(getattr(pl[i], p))
+
+        out, x_of = [], []
+        for (i, p) in self.slots:
+            if p == "a":
+                out.append(a_from_density(rho, get(i, "period"), jnp))
+            elif p == "inc":
+                a = a_from_density(rho, get(i, "period"), jnp) if i in self.tied else float(pl[i].a)
+                b = get(i, "inc") * (1.0 + get(i, "radius"))
+                out.append(jnp.rad2deg(jnp.arccos(b / a)))
+            else:
+                out.append(get(i, p))
+        return jnp.stack([jnp.asarray(v, float) for v in out]), rho
+
+    def model_q(self, u):
+        """u -> the Model's values (physical, but inc as b / (1 + p))."""
+        import jax.numpy as jnp
+
+        phys, _ = self.physical(u)
+        val = {s: u[k] for k, s in enumerate(self.coords)}
+        return jnp.stack([jnp.abs(jnp.tanh(val[s])) if s[1] == "inc" else phys[k] for k, s in enumerate(self.slots)])
+
+    def residuals(self, u, alpha=None):
+        """Data residuals (at the tilt ``alpha`` [deg] when given, else the
+        Model's), and (rho* - mean) / sd appended (the Gaussian prior as one
+        more residual) when rho* is sampled."""
+        import equinox as eqx
+        import jax.numpy as jnp
+
+        from ._fit import _residuals
+
+        theta = self.model.theta_from(self.model_q(u))
+        if alpha is None:
+            r = self.model.residuals(theta)
+        else:
+            r = _residuals(theta, eqx.tree_at(lambda d: d.alpha, self.model.data(), jnp.asarray(alpha, float)))
+        if self.tied:
+            r = jnp.concatenate([r, ((jnp.exp(u[-1]) - self.density[0]) / self.density[1])[None]])
+        return r
+
+    def exact_overlaps_anywhere(self):
+        """Compute every frame with two disks within 0.05 R* of the star's
+        limb by the exact union integral: the tilt turns an orbit about the
+        star's centre, so these frames (from the untilted geometry) hold
+        every overlap at any alpha; for sampling alpha (:func:`joint_alpha`)."""
+        t = np.asarray(self.model.t_model)
+        x, y, r = self.system.positions(t, 0.0, "same", xp=np)
+        near = np.hypot(x, y) - r < 1.05
+        idx = np.nonzero(near.sum(-1) >= 2)[0]
+        self.model.union_idx = np.union1d(self.model.union_idx, idx)
+        self.model.active_idx = np.union1d(self.model.active_idx, self.model.union_idx)
+
+    def log_density(self, u, alpha=None):
+        """log posterior in u (up to a constant): -chi^2 / 2, the rho* prior
+        and the Jacobians of the maps (exp for rho*, tanh for b / (1 + p);
+        log p is flat in u for a log-uniform prior)."""
+        import jax.numpy as jnp
+
+        lp = -0.5 * jnp.sum(self.residuals(u, alpha) ** 2)
+        for k, (i, p) in enumerate(self.coords):
+            if i == "star":
+                lp = lp + u[k]
+            elif p == "inc":
+                lp = lp + jnp.log1p(-jnp.tanh(u[k]) ** 2)
+        inside = jnp.all((u > jnp.asarray(self.lo)) & (u < jnp.asarray(self.hi)))
+        return jnp.where(inside, lp, -jnp.inf)
+
+
+def mode_and_cov(post: TransitPosterior, iters: int = 30):
+    """Levenberg-Marquardt on the residuals (data and rho* prior) from the
+    start, then the Laplace covariance there (with the prior widths as
+    curvature): NUTS moves in w with u = u_mode + L w, L L^T = that
+    covariance, so its mass matrix starts close to the identity."""
+    import jax
+    import jax.numpy as jnp
+
+    jac = jax.jit(lambda v: (post.residuals(v), jax.jacfwd(post.residuals)(v)))
+    u = post.u_start.copy()
+    r, J = (np.asarray(x) for x in jac(jnp.asarray(u)))
+    cost, lam = float(r @ r), 1e-3
+    if not np.isfinite(cost):
+        raise ValueError(f"the transit model is not finite at the start (chi^2 = {cost})")
+    for _ in range(iters):
+        A, g = J.T @ J, J.T @ r
+        step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
+        trial = np.clip(u + step, post.lo + 1e-9, post.hi - 1e-9)
+        r2, J2 = (np.asarray(x) for x in jac(jnp.asarray(trial)))
+        c2 = float(r2 @ r2)
+        if np.isfinite(c2) and c2 < cost:
+            small = cost - c2 < 1e-6 * max(cost, 1.0)
+            u, r, J, cost, lam = trial, r2, J2, c2, max(lam / 3, 1e-9)
+            if small:
+                break
+        else:
+            lam *= 10
+            if lam > 1e8:
+                break
+    info = J.T @ J + np.diag(1.0 / post.prior_sd**2)
+    cov = np.linalg.inv(info)
+    cov = 0.5 * (cov + cov.T)
+    return u, np.linalg.cholesky(cov), cost
+
+
+def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, case: str, draws: int,
+               num_warmup: int = 300, thin: int = 1, seed: int = 0, chains: int = 4, progress: bool = False):
+    """Draws of the transit parameters ``free`` from their posterior at tilt
+    ``alpha`` [deg] (numpyro NUTS, ``chains`` chains vectorised; the mass
+    matrix is the Laplace covariance at the posterior mode, found first by
+    Levenberg-Marquardt; :class:`TransitPosterior` for coordinates and priors). a/R* of every
+    planet with "P.a" in ``free`` is tied to one stellar density with the
+    Gaussian prior ``density`` = (mean, sd) [g/cm^3].
+
+    Returns (samples: name -> array [draws] in physical units (d, R*, deg),
+    with "star.density" [g/cm^3] when sampled; info: settings, R-hat and
+    ESS per parameter, divergences, tree depths, seconds)."""
+    import jax
+    import jax.numpy as jnp
+    from numpyro.infer import MCMC, NUTS
+
+    from ._sample import rank_diagnostics
+
+    post = TransitPosterior(system, data, free, density, alpha, case)
+    t0 = time.perf_counter()
+    u_mode, L, chi2_mode = mode_and_cov(post)
+    uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
+
+    @jax.jit
+    def potential(w):
+        v = -post.log_density(uj + Lj @ w)
+        return jnp.where(jnp.isnan(v), jnp.inf, v)
+
+    k = len(post.coords)
+    per_chain = -(-draws * thin // chains)
+    # The Laplace map u = u_mode + L w is the dense mass matrix (the
+    # posterior in w has Hessian eigenvalues ~0.5-2 on the bundled data), so
+    # warmup adapts the step size only: a dense matrix estimated per chain
+    # from a few dozen correlated warmup draws can be near-singular, and
+    # then every tree runs to its maximum depth (1023 steps).
+    mcmc = MCMC(NUTS(potential_fn=potential, adapt_mass_matrix=False), num_warmup=num_warmup, num_samples=per_chain,
+                num_chains=chains, chain_method="vectorized", progress_bar=progress)
+    init = 0.3 * np.random.default_rng(seed).standard_normal((chains, k))
+    mcmc.run(jax.random.PRNGKey(seed), init_params=jnp.asarray(init),
+             extra_fields=("diverging", "num_steps"))
+    w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(chains, per_chain, k)[:, ::thin]
+    u = u_mode + w @ L.T
+    phys, rho = jax.jit(jax.vmap(post.physical))(jnp.asarray(u.reshape(-1, k)))
+    n_kept = u.shape[1]
+    chains_of = {n: np.asarray(phys)[:, j].reshape(chains, n_kept) for j, n in enumerate(post.free)}
+    if post.tied:
+        chains_of["star.density"] = np.asarray(rho).reshape(chains, n_kept)
+    # every chain contributes equally: take draws round-robin over chains
+    samples = {n: v.T.reshape(-1)[:draws] for n, v in chains_of.items()}
+    extra = mcmc.get_extra_fields(group_by_chain=True)
+    steps = np.asarray(extra["num_steps"])
+    info = {"method": "numpyro NUTS (jaxppo.inference._posterior.nuts_draws): t0, P, p, b/(1+p) per planet"
+                      + (", one stellar density for all a/R*" if post.tied else ""),
+            "chains": chains, "num_warmup": num_warmup, "num_samples_per_chain": per_chain, "thin": thin,
+            "seed": seed, "start_chi2": float(chi2_mode),
+            "divergences": int(np.sum(np.asarray(extra["diverging"]))),
+            "mean_steps_per_draw": float(np.mean(steps)), "max_steps_per_draw": int(np.max(steps)),
+            "diagnostics": {n: {kk: (float(vv) if np.isfinite(vv) else None) for kk, vv in rank_diagnostics(v).items()}
+                            for n, v in chains_of.items()},
+            "seconds": time.perf_counter() - t0}
+    return samples, info
+
+
+def alpha_windows(alpha, posterior, floor: float = 1e-3):
+    """The modes of a grid posterior p(alpha) [1/deg] on a uniform circular
+    grid: each run of grid points above ``floor`` x the maximum, split at
+    the local minima inside it. Returns [(lo, hi, alpha_peak, mass)] with
+    lo, hi [deg] half a grid step outside the run (hi may exceed 360), mass
+    the posterior mass of the run (sums to ~1)."""
+    alpha, post = np.asarray(alpha, float), np.asarray(posterior, float)
+    n, step = alpha.size, float(alpha[1] - alpha[0])
+    above = post > floor * post.max()
+    # local minima split a run into modes
+    prev, nxt = np.roll(post, 1), np.roll(post, -1)
+    cut = above & (post <= prev) & (post <= nxt) & ~((post == prev) & (post == nxt))
+    start = int(np.argmin(above)) if not above.all() else int(np.argmin(post))
+    out, run = [], []
+    for k in range(n + 1):
+        i = (start + k) % n
+        if k < n and above[i] and not (cut[i] and run):
+            run.append(i)
+            continue
+        if run:
+            idx = np.array(run)
+            lo = alpha[idx[0]] - 0.5 * step
+            peak = alpha[idx[np.argmax(post[idx])]]
+            hi = lo + idx.size * step
+            out.append((float(lo), float(hi), float(peak if peak >= lo else peak + 360.0),
+                        float(post[idx].sum() * step)))
+        run = [i] if (k < n and above[i]) else []
+    return out
+
+
+def joint_alpha(system: System, data: LightCurve, free, density, case: str, windows, draws: int = 200,
+                num_warmup: int = 200, seed: int = 0, chains: int = 2, progress: bool = False):
+    """alpha sampled jointly with the transit parameters (numpyro NUTS):
+    one run per alpha window (a mode of the grid marginal, from
+    :func:`alpha_windows`), alpha uniform in the window and chains started
+    at its grid peak, the transit parameters in the coordinates of
+    :func:`nuts_draws` (whitened at the no-PPO mode). The alpha posterior is
+    multi-modal with narrow modes separated by plateaus of zero PPO signal
+    the chains cannot cross in finite time, so the modes are sampled one at
+    a time and combined with the grid's marginal mass of each window as
+    weights: within a window the shape is the joint sampler's own, between
+    windows the weights are the importance average's (parallel tempering
+    would estimate them too, at several times the cost).
+
+    Returns a list per window: {"lo", "hi", "mass", "alpha" [draws, deg],
+    "r_hat", "ess", "divergences"}."""
+    import jax.numpy as jnp
+    from numpyro.infer import MCMC, NUTS
+
+    from ._sample import rank_diagnostics
+
+    post = TransitPosterior(system, data, free, density, 0.0, case)
+    u_mode, L, _ = mode_and_cov(post)
+    post.exact_overlaps_anywhere()
+    uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
+    out = []
+    for wi, (lo, hi, peak, mass) in enumerate(windows):
+        def potential(z, lo=lo, hi=hi):
+            a = lo + (hi - lo) * jax.nn.sigmoid(z[-1])
+            v = -(post.log_density(uj + Lj @ z[:-1], a) + jax.nn.log_sigmoid(z[-1]) + jax.nn.log_sigmoid(-z[-1]))
+            return jnp.where(jnp.isnan(v), jnp.inf, v)
+
+        s0 = float(np.log((peak - lo) / (hi - peak)))
+        per = -(-draws // chains)
+        mc = MCMC(NUTS(potential_fn=jax.jit(potential), adapt_mass_matrix=False), num_warmup=num_warmup,
+                  num_samples=per, num_chains=chains, chain_method="vectorized", progress_bar=progress)
+        init = 0.3 * np.random.default_rng(seed + wi).standard_normal((chains, L.shape[0] + 1))
+        init[:, -1] = s0 + 0.1 * init[:, -1]
+        mc.run(jax.random.PRNGKey(seed + wi), init_params=jnp.asarray(init), extra_fields=("diverging",))
+        z = np.asarray(mc.get_samples(group_by_chain=True))[..., -1]
+        a = (lo + (hi - lo) / (1.0 + np.exp(-z))) % 360.0
+        diag = rank_diagnostics(np.unwrap(np.deg2rad(a), axis=1))
+        out.append({"lo": lo, "hi": hi, "peak": peak, "mass": mass, "alpha": a.T.reshape(-1)[:draws],
+                    "r_hat": diag["r_hat"], "ess": diag["ess_bulk"],
+                    "divergences": int(np.sum(np.asarray(mc.get_extra_fields()["diverging"])))})
+    return out
+
+

@@ -1,0 +1,557 @@
+"""MCMC with numpyro NUTS over the same model and free parameters as ``fit``.
+
+The priors are stated on the physical parameters (``_priors``), but NUTS
+moves in coordinates in which transit posteriors are close to Gaussian and
+of unit width, so that its dense mass matrix only has to learn what is left:
+
+1. per planet: each prior parameter (t0, P, p, b / (1 + p), limb darkening)
+   through numpyro's bijection onto its prior's support, and, when both a
+   and i are free, the total duration T14 [d] in place of a (a and i follow
+   from P, T14, b and p for a circular orbit, Winn 2010, eq. 14): transit
+   data constrain T14 and b nearly independently where a and i form a
+   curved ridge;
+2. then shifted by the start and divided by the 1-sigma widths of the
+   Laplace approximation there (numpyro regularises its mass matrix towards
+   1e-3 x identity, which is far too wide for a mid-time known to 1e-4 d).
+
+The log-density in these coordinates is the likelihood plus the prior plus
+log |det d(prior parameters)/d(coordinates)|, so the posterior is the one
+the physical priors define.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._fit import Model
+from ..model._lightcurve import LightCurve
+from ..model._system import System
+
+__all__ = ["sample", "SampleResult", "rank_diagnostics"]
+
+
+@dataclasses.dataclass
+class SampleResult:
+    """``samples``: name -> array [draw] (physical units: days, degrees, R*;
+    chains concatenated; with Kipping's q1 or q2 free also the implied
+    "star.u1", "star.u2"); ``names``: the free parameters;
+    ``chains``: name -> array [chain, draw];
+    ``log_likelihood``: [chain, draw] (Gaussian, with its normalisation);
+    ``stats``: sample statistics, name -> [chain, draw] (diverging,
+    step_size, tree_depth, n_steps, energy, lp, acceptance_rate);
+    ``best``: the lowest-deviance System; ``intervals``: name -> (median,
+    lower, upper) of the central 68.3 %; ``diagnostics``: name -> {"r_hat",
+    "ess_bulk", "ess_tail", "n_eff"} (rank-normalised split R-hat and
+    effective sample sizes, Vehtari et al. 2021; n_eff = ess_bulk);
+    ``mcmc``: the numpyro MCMC object (its samples are the internal
+    coordinates, see the module docstring); ``union_frames``: the model
+    frames integrated exactly as overlaps (from the start with a margin,
+    widened and sampled again when the posterior brings disks together
+    elsewhere); ``time``, ``flux``, ``flux_err``: the data [d, relative]."""
+
+    samples: dict
+    best: System
+    intervals: dict
+    diagnostics: dict
+    deviance_min: float
+    mcmc: object
+    union_frames: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    chains: dict = dataclasses.field(default_factory=dict)
+    log_likelihood: np.ndarray | None = None
+    stats: dict = dataclasses.field(default_factory=dict)
+    time: np.ndarray | None = None
+    flux: np.ndarray | None = None
+    flux_err: np.ndarray | None = None
+    pointwise: object = None  # callable: [draw, k] physical -> [draw, time] log-likelihood
+    names: tuple = ()  # the free parameters (``chains`` also holds derived u1, u2)
+
+    def save(self, path) -> str:
+        """Write the draws, log-likelihood, sample stats, data, intervals,
+        diagnostics and the best system to a numpy ``.npz`` file (no pickle)
+        that :meth:`load` reads back exactly; returns the path. (The MCMC
+        object and the pointwise log-likelihood function are not saved:
+        ``to_arviz`` of a loaded result gives the total log-likelihood.)"""
+        from .._version import __version__
+        from ._fit import to_jsonable, system_to_dict
+
+        meta = {"format": "jaxppo.SampleResult", "version": __version__, "names": list(self.names or self.chains),
+                "chains": list(self.chains), "stats": list(self.stats), "deviance_min": to_jsonable(self.deviance_min),
+                "intervals": {k: to_jsonable(list(v)) for k, v in self.intervals.items()},
+                "diagnostics": {k: {m: to_jsonable(x) for m, x in v.items()} for k, v in self.diagnostics.items()},
+                "best": system_to_dict(self.best)}
+        arrays = {f"chain_{i}": np.asarray(v) for i, v in enumerate(self.chains.values())}
+        arrays.update({f"stat_{i}": np.asarray(v) for i, v in enumerate(self.stats.values())})
+        for k in ("log_likelihood", "time", "flux", "flux_err", "union_frames"):
+            if getattr(self, k) is not None:
+                arrays[k] = np.asarray(getattr(self, k))
+        path = str(path)
+        with open(path, "wb") as fh:  # a file object: numpy appends no ".npz" to the name
+            np.savez(fh, meta=np.array(json.dumps(meta, allow_nan=False)), **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path) -> "SampleResult":
+        """Read a result written by :meth:`save` (or ``jaxppo sample --out``)."""
+        from ._fit import from_jsonable, system_from_dict
+
+        try:
+            z = np.load(path, allow_pickle=False)
+            meta = json.loads(str(z["meta"]))
+        except (ValueError, KeyError, OSError) as err:
+            raise ValueError(f"{path}: not a file written by SampleResult.save ({err})") from None
+        if meta.get("format") != "jaxppo.SampleResult":
+            raise ValueError(f"{path}: not a SampleResult file (format {meta.get('format')!r})")
+        chains = {n: z[f"chain_{i}"] for i, n in enumerate(meta["chains"])}
+        opt = {k: (z[k] if k in z.files else None) for k in ("log_likelihood", "time", "flux", "flux_err")}
+        return cls({n: v.reshape(-1) for n, v in chains.items()}, system_from_dict(meta["best"]),
+                   {k: tuple(from_jsonable(v)) for k, v in meta["intervals"].items()},
+                   {k: {m: from_jsonable(x) for m, x in v.items()} for k, v in meta["diagnostics"].items()},
+                   from_jsonable(meta["deviance_min"]), None,
+                   union_frames=z["union_frames"] if "union_frames" in z.files else np.zeros(0, int), chains=chains,
+                   stats={n: z[f"stat_{i}"] for i, n in enumerate(meta["stats"])}, names=tuple(meta["names"]), **opt)
+
+    def to_arviz(self, pointwise: bool = True):
+        """An arviz InferenceData: ``posterior`` (the free parameters in
+        physical units under their public names, e.g. "b.inc" [deg]),
+        ``log_likelihood`` ("obs", per data point when ``pointwise``, else
+        the total), ``sample_stats``, ``observed_data`` ("obs" at "time")
+        and ``constant_data`` (time, flux_err). Needs arviz (``pip install
+        jaxppo[arviz]``)."""
+        try:
+            import arviz as az
+        except ImportError as err:  # pragma: no cover - depends on the environment
+            raise ImportError("to_arviz needs arviz: pip install 'jaxppo[arviz]'") from err
+        names = list(self.names or self.chains)
+        nc, nd = self.chains[names[0]].shape
+        if pointwise and self.pointwise is not None:
+            vals = np.stack([self.chains[n].reshape(-1) for n in names], axis=1)
+            ll = {"obs": np.asarray(self.pointwise(vals)).reshape(nc, nd, -1)}
+            ll_dims = {"obs": ["time"]}
+        else:
+            ll = {"obs": self.log_likelihood}
+            ll_dims = {}
+        coords = {"time": np.asarray(self.time)}
+        return az.from_dict(
+            posterior={n: np.asarray(v) for n, v in self.chains.items()},
+            log_likelihood=ll,
+            sample_stats={k: np.asarray(v) for k, v in self.stats.items()},
+            observed_data={"obs": np.asarray(self.flux)},
+            constant_data={"flux_err": np.asarray(self.flux_err)},
+            coords=coords,
+            dims={"obs": ["time"], "flux_err": ["time"], **ll_dims},
+            attrs={"inference_library": "numpyro", "creator": "jaxppo.sample"},
+        )
+
+    def to_netcdf(self, path) -> str:
+        """Write ``to_arviz()`` to a netCDF file that ``arviz.from_netcdf``
+        reads back; returns the path."""
+        return self.to_arviz().to_netcdf(str(path))
+
+
+def _priors(model: Model, user=None):
+    """Physical priors, one per free parameter (inclinations through
+    b / (1 + p)): the defaults around the starting system (see
+    :func:`sample`), replaced by ``user[name]`` where given (a numpyro
+    distribution on the parameter in its public units)."""
+    import numpyro.distributions as dist
+
+    user = dict(user or {})
+    unknown = sorted(set(user) - set(model.free))
+    if unknown:
+        raise ValueError(f"priors: {unknown} are not free parameters; free: {list(model.free)}")
+    for name, pr in user.items():
+        if not isinstance(pr, dist.Distribution) or pr.batch_shape or pr.event_shape:
+            raise ValueError(f"priors[{name!r}] must be a scalar numpyro distribution, got {pr!r}")
+        if name.endswith(".inc"):
+            raise ValueError(f"priors[{name!r}]: a prior on the inclination is not supported (the default is uniform "
+                             "in the impact parameter b / (1 + p), |b| < 1 + p); put priors on the other parameters")
+    sigma = float(np.median(np.asarray(model.sigma)))
+    out = []
+    for name, (owner, par) in zip(model.free, model.slots):
+        if name in user:
+            out.append(user[name])
+        elif par in ("q1", "q2"):
+            out.append(dist.Uniform(0.0, 1.0))  # Kipping (2013): uniform q samples every physical profile
+        elif par == "jitter":
+            out.append(dist.LogUniform(1e-3 * sigma, 10.0 * sigma))
+        elif owner == "lc":  # offset and baseline coefficients: relative flux
+            out.append(dist.Uniform(-0.05, 0.05))
+        elif owner == "star":
+            v = float(model.system.star.params[par])
+            out.append(dist.Uniform(v - 1.0, v + 1.0))
+        else:
+            out.append(_planet_prior(model.system.planets[owner], par))
+    return out
+
+
+def _planet_prior(pl, par):
+    """The default prior of a planet parameter (see :func:`sample`)."""
+    import numpyro.distributions as dist
+
+    if par == "t0":
+        return dist.Uniform(float(pl.t0) - 0.05, float(pl.t0) + 0.05)
+    if par == "period":
+        p = float(pl.period)
+        return dist.Uniform(p * (1 - 1e-3), p * (1 + 1e-3))
+    if par == "a":
+        return dist.Uniform(1.0, 4.0 * float(pl.a))
+    if par == "radius":
+        return dist.LogUniform(1e-4, 0.5)
+    return dist.Uniform(-1.0, 1.0)  # inc through the impact parameter in units of (1 + p)
+
+
+class _Coords:
+    """Maps NUTS coordinates u to the prior parameters q (t0, P, a,
+    b / (1 + p), p, star coefficients in ``model.slots`` order) and back:
+    each q through numpyro's bijection onto its prior's support (a logistic
+    map for a bounded interval, so that a posterior that fills its prior,
+    like P from one transit, meets no wall), except a when the planet's
+    inclination is free too: then u places log T14 [d] between its values
+    at a = 4 a_start and a = 1 + p by the logistic function (so the prior
+    on a is kept on (1 + p, 4 a_start): orbits that graze the star at every
+    phase are left out)."""
+
+    def __init__(self, model: Model, priors, user=()):
+        from numpyro.distributions.transforms import biject_to
+
+        self.model = model
+        self.slots = model.slots
+        self.index = {s: k for k, s in enumerate(self.slots)}
+        self.user = {k for k, n in enumerate(model.free) if n in user}
+        # the T14 coordinate replaces a only under the default prior on a
+        # (its map covers the default's support); a user prior on a keeps
+        # plain coordinates for that planet
+        self.duration = {o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index
+                         and self.index[(o, par)] not in self.user}
+        self.plain = sorted({o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index} - self.duration)
+        self.maps = [biject_to(pr.support) for pr in priors]
+        self.priors = list(priors)
+        self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
+                      if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}
+
+    @staticmethod
+    def _log_t14_range(p, b, period, a_max, xp):
+        """log T14 [d] at a = a_max and at a = 1 + p (T14 = P / 2): the
+        logistic map between them covers a in (1 + p, a_max) without walls."""
+        lo = xp.log(period / np.pi * xp.arcsin(xp.sqrt(((1.0 + p) ** 2 - b**2) / (a_max**2 - b**2))))
+        return lo, xp.log(0.5 * period)
+
+    def _is_duration(self, k) -> bool:
+        owner, par = self.slots[k]
+        return par == "a" and owner in self.duration
+
+    def _other(self, q, owner, par):
+        k = self.index.get((owner, par))
+        return q[k] if k is not None else float(getattr(self.model.system.planets[owner], par))
+
+    def to_q(self, u):
+        q = [None if self._is_duration(k) else self.maps[k](u[k]) for k in range(len(self.slots))]
+        for owner in self.duration:
+            ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
+            p, period = self._other(q, owner, "radius"), self._other(q, owner, "period")
+            b = q[kb] * (1.0 + p)
+            lo, hi = self._log_t14_range(p, b, period, self.a_max[ka], jnp)
+            x = jnp.pi * jnp.exp(lo + (hi - lo) * jax.nn.sigmoid(u[ka])) / period
+            # a sin i = sqrt((1 + p)^2 - b^2) / sin(pi T14 / P) (Winn 2010, eq. 14)
+            q[ka] = jnp.sqrt(((1.0 + p) ** 2 - b**2) / jnp.sin(x) ** 2 + b**2)
+        return jnp.stack(q)
+
+    def from_q(self, q) -> np.ndarray:
+        q = np.asarray(q, float)
+        u = np.array([0.0 if self._is_duration(k) else float(self.maps[k].inv(q[k])) for k in range(len(self.slots))])
+        for owner in self.duration:
+            ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
+            p, period = self._other(q, owner, "radius"), self._other(q, owner, "period")
+            a, b = q[ka], q[kb] * (1.0 + p)
+            lo, hi = self._log_t14_range(p, b, period, self.a_max[ka], np)
+            s = (np.log(period / np.pi * np.arcsin(np.sqrt(((1.0 + p) ** 2 - b**2) / (a**2 - b**2)))) - lo) / (hi - lo)
+            u[ka] = np.log(s / (1.0 - s))
+        return u
+
+    def prior_widths(self, u0) -> np.ndarray:
+        """Rough prior standard deviations in u: a uniform prior mapped by
+        the logistic function has sd pi / sqrt(3); a user prior with a
+        finite variance, its sd divided by |dq/du| at the start (so that an
+        informative prior sets the Laplace widths)."""
+        out = np.full(len(self.slots), np.pi / np.sqrt(3.0))
+        for k in self.user:
+            try:
+                var = float(np.asarray(self.priors[k].variance))
+            except (NotImplementedError, AttributeError, TypeError):
+                continue
+            slope = abs(float(jax.grad(lambda x: self.maps[k](x))(float(u0[k]))))
+            if np.isfinite(var) and var > 0 and slope > 0:
+                out[k] = np.sqrt(var) / slope
+        return out
+
+
+def _start_q(model: Model, system: System) -> np.ndarray:
+    q = []
+    phys = np.asarray(model.physical(model.to_theta(system)), float)  # q1, q2, lc.* at the start
+    for k, (owner, par) in enumerate(model.slots):
+        if owner == "lc" or par in ("q1", "q2"):
+            q.append(phys[k])
+        elif owner == "star":
+            q.append(float(system.star.params[par]))
+        elif par == "inc":
+            pl = system.planets[owner]
+            b = float(pl.a * np.cos(np.deg2rad(pl.inc)))
+            if not abs(b) < 1.0 + float(pl.radius) or not float(pl.a) > 1.0 + float(pl.radius):
+                raise ValueError(f"sample: planet {pl.name or owner} does not transit at the start (impact parameter "
+                                 f"{b:.3g}, a {float(pl.a):.3g} R*, radius {float(pl.radius):.3g} R*)")
+            q.append(b / (1.0 + float(pl.radius)))
+        else:
+            q.append(float(getattr(system.planets[owner], par)))
+    return np.asarray(q)
+
+
+def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), num_warmup: int = 1000,
+           num_samples: int = 1000, seed: int = 0, num_chains: int = 4, alpha: float = 0.0, case: str = "same",
+           progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None) -> SampleResult:
+    """NUTS over the named free parameters with physical priors: t0 within
+    +-0.05 d and P within +-0.1 % of the start, a in [1, 4 a], p log-uniform in
+    [1e-4, 0.5], the impact parameter uniform in |b| < 1 + p, limb-darkening
+    coefficients within +-1 of the start, Kipping's q1, q2 uniform in [0, 1],
+    "lc.offset" and baseline coefficients uniform in [-0.05, 0.05], the
+    jitter log-uniform in [1e-3, 10] x the median error. ``priors``: name ->
+    numpyro distribution replacing the default of that parameter, in its
+    public units (e.g. ``{"b.t0": dist.Normal(131.5, 1e-4)}``; not for
+    inclinations; a prior on a keeps plain coordinates for that planet, a
+    UserWarning says so). ``lightcurve``: a :class:`LightCurve` or a
+    lightkurve LightCurve. ``num_chains`` chains run vectorised (one
+    program), with a dense mass matrix (``dense_mass``) in the coordinates
+    of the module docstring. Returns samples (and the implied u1, u2 when
+    q1 or q2 is free), the lowest-deviance solution (as the paper reports),
+    68.3 % intervals and rank-normalised R-hat and bulk / tail ESS."""
+    for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
+        if int(v) < 1:
+            raise ValueError(f"{name} must be >= 1, got {v}")
+    model = Model(system, lightcurve, free, alpha, case)
+    _check_priors(model, system, priors)
+    # A posterior spreads further than a fit moves (grazing draws keep a
+    # disk near the limb for long): compute the frames within 1 R* of the
+    # star at the start, so that sampling again (below) is rarely needed.
+    model.active_idx = np.union1d(model.active_idx, model._active_frames(system, np.asarray(model.t_model), 1.0))
+    for _ in range(3):
+        result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, priors)
+        result.union_frames = model.union_idx
+        # The union-integral frames were fixed from the start (with a margin);
+        # if the posterior brings disks together elsewhere, sample again with
+        # those frames exact.
+        thin = np.unique(np.linspace(0, len(result.samples[model.free[0]]) - 1, 200).astype(int))
+        ref = model.to_theta(system)
+        draws = np.stack([result.samples[n][thin] for n in model.free], axis=1)  # physical units
+        thetas = np.asarray(jax.jit(jax.vmap(lambda v: model.theta_from(v, ref)))(jnp.asarray(draws)))
+        wider = model.widened([model.to_system(np.asarray(th)) for th in thetas])
+        if wider is None:
+            break
+        model = wider
+    return result
+
+
+def _check_priors(model: Model, system: System, user) -> None:
+    """User priors: known names, scalar distributions, a start inside each
+    support; says when a planet leaves the T14 coordinates."""
+    priors = _priors(model, user)
+    q0 = _start_q(model, system)
+    for name, pr, v in zip(model.free, priors, q0):
+        if user and name in user and not bool(pr.support(jnp.asarray(v))):
+            raise ValueError(f"priors[{name!r}]: the start {v:.10g} is outside the prior's support {pr.support}")
+    coords = _Coords(model, priors, user or ())
+    for owner in coords.plain:
+        label = model.system.planets[owner].name or str(owner)
+        warnings.warn(f"sample: a user prior on {label}.a: planet {label} is sampled in plain coordinates (a, b) "
+                      "instead of (T14, b), which mixes more slowly along the a-b ridge", UserWarning, stacklevel=3)
+
+
+def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
+              user=None) -> SampleResult:
+    from numpyro.infer import MCMC, NUTS
+
+    priors = _priors(model, user)
+    coords = _Coords(model, priors, user or ())
+    names = model.free
+    k = len(names)
+    q0 = _start_q(model, system)
+    u0 = coords.from_q(q0)
+    log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
+
+    def loglike_u(u):
+        # with a free jitter the residuals carry ln(1 + s^2 / sigma^2) terms:
+        # the sum of squares is -2 ln L - sum ln(2 pi sigma^2) (fit's objective)
+        return -0.5 * jnp.sum(model.residuals(model.theta_from(coords.to_q(u))) ** 2) + log_norm
+
+    def logprior_u(u):
+        q = coords.to_q(u)
+        # numpyro does not check supports unless asked: outside it is -inf
+        inside = jnp.all(jnp.stack([pr.support(q[i]) for i, pr in enumerate(priors)]))
+        lp = sum(pr.log_prob(q[i]) for i, pr in enumerate(priors))
+        lp = lp + jnp.linalg.slogdet(jax.jacfwd(coords.to_q)(u))[1]
+        return jnp.where(inside, lp, -jnp.inf)
+
+    # eager JAX would compile every primitive on its own (hundreds of small
+    # compilations): the start and the post-processing run as one program each
+    def start_info(u):
+        res = lambda v: model.residuals(model.theta_from(coords.to_q(v)))  # noqa: E731
+        return loglike_u(u), jax.jacfwd(res)(u)
+
+    ll0, jac = (np.asarray(v) for v in jax.jit(start_info)(jnp.asarray(u0)))
+    ll0 = float(ll0)
+    if not np.isfinite(ll0):
+        raise ValueError(f"sample: the log-likelihood at the start is {ll0} (flux_err as small as "
+                         f"{float(np.min(np.asarray(model.sigma))):.3g} overflows float64, or the model is not finite)")
+    # Laplace widths at the start (Fisher information of the data plus the
+    # prior's widths as Gaussian curvature, so that a parameter the data do
+    # not constrain, like P from one transit, keeps its prior's width): NUTS
+    # moves in w = (u - u0) / scale.
+    prior_sd = coords.prior_widths(u0)
+    info = jac.T @ jac + np.diag(1.0 / prior_sd**2)
+    c = np.sqrt(np.diag(info))
+    cov = np.linalg.pinv(info / np.outer(c, c), rcond=1e-12) / np.outer(c, c)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    scale = np.where(np.isfinite(sd) & (sd > 0), np.minimum(sd, prior_sd), prior_sd)
+    u0j, scj = jnp.asarray(u0), jnp.asarray(scale)
+
+    @jax.jit  # numpyro evaluates it eagerly while it initialises: one program, not hundreds
+    def potential(w):
+        u = u0j + w * scj
+        v = -(loglike_u(u) + logprior_u(u))
+        return jnp.where(jnp.isnan(v), jnp.inf, v)
+
+    kernel = NUTS(potential_fn=potential, dense_mass=dense_mass)
+    mcmc = MCMC(kernel, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
+                chain_method="vectorized", progress_bar=progress_bar)
+    # chains start around the given system, 0.3 Laplace widths apart
+    init = 0.3 * np.random.default_rng(seed).standard_normal((num_chains, k)) if num_chains > 1 else np.zeros((1, k))
+    mcmc.run(jax.random.PRNGKey(seed), init_params=jnp.asarray(init if num_chains > 1 else init[0]),
+             extra_fields=("diverging", "num_steps", "energy", "potential_energy", "accept_prob", "adapt_state.step_size"))
+    w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(num_chains, num_samples, k)
+    u = u0[None, None] + w * scale[None, None]
+    flat_u = jnp.asarray(u.reshape(-1, k))
+
+    @jax.jit
+    def post(uu):
+        def one(v):
+            q = coords.to_q(v)
+            th = model.theta_from(q)
+            return q, jnp.concatenate([model.physical(th), model.derived(th)]), loglike_u(v)
+
+        return jax.lax.map(one, uu, batch_size=256)
+
+    q, phys, loglike = (np.asarray(v) for v in post(flat_u))
+    # free parameters, then the derived u1, u2 of Kipping's q1, q2
+    all_names = tuple(names) + model.derived_names()
+    samples = {n: phys[:, i] for i, n in enumerate(all_names)}
+    chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(all_names)}
+    best_i = int(np.argmax(loglike))
+    best = model.to_system(model.theta_from(jnp.asarray(q[best_i])))
+    intervals = {n: tuple(float(x) for x in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
+    diagnostics = {n: rank_diagnostics(chains[n]) for n in all_names}
+    extra = mcmc.get_extra_fields(group_by_chain=True)
+
+    def shaped(v):
+        return np.asarray(v).reshape(num_chains, num_samples)
+
+    n_steps = shaped(extra["num_steps"])
+    stats = {"diverging": shaped(extra["diverging"]).astype(bool), "step_size": shaped(extra["adapt_state.step_size"]),
+             "n_steps": n_steps, "tree_depth": np.floor(np.log2(np.maximum(n_steps, 1))).astype(int) + 1,
+             "energy": shaped(extra["energy"]), "lp": -shaped(extra["potential_energy"]),
+             "acceptance_rate": shaped(extra["accept_prob"])}
+
+    def pointwise(vals):
+        """[draw, k] physical free parameters -> [draw, time] log-likelihood."""
+        ref = model.to_theta(system)
+        return np.asarray(jax.lax.map(lambda v: model.pointwise_loglike(model.theta_from(v, ref)),
+                                      jnp.asarray(vals), batch_size=64))
+
+    return SampleResult(samples, best, intervals, diagnostics, float(-2 * (loglike[best_i] - log_norm)), mcmc,
+                        chains=chains, log_likelihood=loglike.reshape(num_chains, num_samples), stats=stats,
+                        time=np.asarray(model.lc.time), flux=np.asarray(model.lc.flux),
+                        flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise, names=tuple(names))
+
+
+def rank_diagnostics(x) -> dict:
+    """Rank-normalised split R-hat and bulk / tail effective sample sizes of
+    draws ``x`` [chain, draw] (Vehtari, Gelman, Simpson, Carpenter & Buerkner
+    2021, the definitions arviz uses; equal to arviz's to rounding). Returns {"r_hat", "ess_bulk", "ess_tail", "n_eff"}."""
+    from jax.scipy.special import ndtri
+    x = np.asarray(x, float)
+    n = x.shape[1] // 2
+    if n < 2:
+        nan = float("nan")
+        return {"r_hat": nan, "ess_bulk": nan, "ess_tail": nan, "n_eff": nan}
+    split = np.concatenate([x[:, :n], x[:, -n:]], axis=0)  # [2 chain, n]
+
+    def z(v):
+        # average ranks for ties (a chain repeats its draw when NUTS stays put)
+        flat = v.reshape(-1)
+        order = np.argsort(flat, kind="stable")
+        srt = flat[order]
+        first = np.r_[True, srt[1:] != srt[:-1]]
+        group = np.cumsum(first) - 1
+        starts = np.r_[np.nonzero(first)[0], flat.size]
+        ranks = np.empty(flat.size)
+        ranks[order] = 0.5 * (starts[group] + starts[group + 1] + 1)
+        return np.asarray(ndtri((ranks.reshape(v.shape) - 0.375) / (v.size + 0.25)))
+
+    def rhat(v):
+        m, nn = v.shape
+        w = np.mean(np.var(v, axis=1, ddof=1))
+        b = nn * np.var(np.mean(v, axis=1), ddof=1)
+        return float(np.sqrt(((nn - 1) / nn * w + b / nn) / w)) if w > 0 else float("nan")
+
+    def ess(v):
+        if np.ptp(v) == 0:
+            return float("nan")
+        return _geyer_ess(v)
+
+    zs = z(split)
+    folded = z(np.abs(split - np.median(split)))
+    r_hat = max(rhat(zs), rhat(folded))
+    bulk = ess(zs)
+    # quantiles of every draw (a split drops the middle draw of an odd chain)
+    q05, q95 = np.quantile(x, [0.05, 0.95])
+    halves = lambda v: np.concatenate([v[:, :n], v[:, -n:]], axis=0)
+    tail = min(ess(halves((x <= q05).astype(float))), ess(halves((x <= q95).astype(float))))
+    return {"r_hat": r_hat, "ess_bulk": bulk, "ess_tail": tail, "n_eff": bulk}
+
+
+def _geyer_ess(v: np.ndarray) -> float:
+    """ESS of draws v [chain, draw] (Vehtari et al. 2021, Sect. 3.2; Stan's
+    and arviz's estimator): autocorrelations pooled over chains with the
+    between-chain variance, summed over Geyer's initial positive pairs made
+    monotone, the last positive pair's first term added, and
+    tau >= 1 / log10(N) (an unclamped sum turns negative on short
+    anticorrelated chains)."""
+    m, n = v.shape
+    c = v - v.mean(axis=1, keepdims=True)
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    spec = np.fft.rfft(c, size, axis=1)
+    acov = np.fft.irfft(spec * np.conj(spec), size, axis=1)[:, :n] / n
+    w = np.mean(acov[:, 0]) * n / (n - 1.0)
+    var_plus = w * (n - 1.0) / n + (np.var(v.mean(axis=1), ddof=1) if m > 1 else 0.0)
+    rho = 1.0 - (w - acov.mean(axis=0)) / var_plus
+    rho[0] = 1.0
+    kept = np.zeros(n)
+    kept[:2] = rho[:2]
+    t = 1
+    even, odd = rho[0], rho[1]
+    while t < n - 3 and even + odd > 0.0:
+        even, odd = rho[t + 1], rho[t + 2]
+        if even + odd >= 0.0:
+            kept[t + 1], kept[t + 2] = even, odd
+        t += 2
+    last = t - 2
+    if even > 0.0:
+        kept[last + 1] = even
+    for t in range(1, last - 1, 2):  # monotone pairs
+        if kept[t + 1] + kept[t + 2] > kept[t - 1] + kept[t]:
+            kept[t + 1] = kept[t + 2] = 0.5 * (kept[t - 1] + kept[t])
+    tau = -1.0 + 2.0 * np.sum(kept[: last + 1]) + np.sum(kept[last + 1: last + 2])
+    return float(m * n / max(tau, 1.0 / np.log10(m * n)))

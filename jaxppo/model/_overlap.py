@@ -1,0 +1,137 @@
+"""Which frames put two disks in contact on the star, and which times are in
+transit: ONE home for the contact test and the in-transit mask.
+
+Every workflow that needs to know where a planet-planet occultation can
+happen asks here: the sweep (which frames run the union integral), the
+marginal scan (the same, for every draw), the scan's PPO tables, the fit
+model and the transit posterior (which frames take the exact union
+integral). The geometry comes from :meth:`System.positions`, the one place
+the tilt convention lives.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._system import System, case_signs
+
+__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "contact_frames", "ppo_table", "may_touch",
+           "in_transit_mask"]
+
+
+def on_star(x, y, r, margin: float = 0.0) -> np.ndarray:
+    """[..., disk]: the disk (radius r > 0; r = 0 marks a planet behind the
+    star) reaches within ``margin`` [R*] of the stellar disk."""
+    return (np.asarray(r) > 0) & (np.hypot(x, y) - r < 1.0 + margin)
+
+
+def pairs_in_contact(x, y, r, margin: float = 0.0, only: int | None = None) -> np.ndarray:
+    """[...]: some pair of disks (positions [..., disk]), both on the star,
+    whose centres are closer than the sum of their radii plus ``margin``
+    [R*]; with ``only``, the pairs that include disk ``only``."""
+    x, y, r = (np.asarray(v, float) for v in (x, y, r))
+    on = on_star(x, y, r, margin)
+    k = x.shape[-1]
+    hit = np.zeros(np.broadcast_shapes(x.shape, y.shape, r.shape)[:-1], bool)
+    for i in range(k):
+        for j in range(i + 1, k):
+            if only is not None and only not in (i, j):
+                continue
+            d = np.hypot(x[..., i] - x[..., j], y[..., i] - y[..., j])
+            hit |= on[..., i] & on[..., j] & (d < r[..., i] + r[..., j] + margin)
+    return hit
+
+
+def untilted_geometry(system: System, t, alpha):
+    """The positions a [case, alpha, time] grid is built from: the untilted
+    planets at ``t`` (case "same"; x0, y0, r0 [time, disk], r = 0 behind the
+    star) and the tilted planet at every alpha (xt, yt [alpha, time])."""
+    t = np.asarray(t, float)
+    x0, y0, r0 = system.positions(t, 0.0, "same", xp=np)
+    xa, ya, _ = system.positions(t[None, :], np.asarray(alpha, float)[:, None], "same", xp=np)
+    return x0, y0, r0, xa[..., system.tilted], ya[..., system.tilted]
+
+
+def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_only: bool = False,
+                   geometry=None) -> np.ndarray:
+    """[case, alpha, time]: the frames in which two disks overlap on the star
+    (centres closer than the sum of the radii plus ``margin`` [R*], both
+    disks within ``margin`` of the stellar disk). The tilted planet turns
+    with alpha; the untilted ones are mirrored per hemisphere case, so a
+    pair of untilted planets may touch in one case and not the other.
+
+    Args:
+        tilted_only: only pairs with the tilted planet (a PPO of the tilted
+            planet, as the scan's tables count them).
+        geometry: :func:`untilted_geometry` of the same arguments, when
+            already computed.
+    """
+    alpha = np.atleast_1d(np.asarray(alpha, float))
+    x0, y0, r0, xt, yt = untilted_geometry(system, t, alpha) if geometry is None else geometry
+    k, i = x0.shape[-1], system.tilted
+    on = on_star(x0, y0, r0, margin)
+    out = np.zeros((len(cases), alpha.size, x0.shape[0]), bool)
+    for ci, case in enumerate(cases):
+        signs = case_signs(k, i, case)
+        hit = out[ci]
+        for j in range(k):
+            if j == i:
+                continue
+            both = on[:, i] & on[:, j]
+            dist2 = (xt - x0[:, j]) ** 2 + (yt - signs[j] * y0[:, j]) ** 2
+            hit |= both[None, :] & (dist2 < (r0[:, i] + r0[:, j] + margin)[None, :] ** 2)
+            if tilted_only:
+                continue
+            for m in range(j + 1, k):
+                if m == i:
+                    continue
+                dd = np.hypot(x0[:, j] - x0[:, m], signs[j] * y0[:, j] - signs[m] * y0[:, m])
+                hit |= (on[:, j] & on[:, m] & (dd < r0[:, j] + r0[:, m] + margin))[None, :]
+    return out
+
+
+def ppo_table(system: System, times_per_event, alpha, case) -> np.ndarray:
+    """[alpha, event]: does the tilted planet overlap another planet on the
+    star in any of the event's frames?"""
+    alpha = np.atleast_1d(np.asarray(alpha, float))
+    out = np.zeros((alpha.size, len(times_per_event)), bool)
+    for ei, t in enumerate(times_per_event):
+        out[:, ei] = contact_frames(system, t, alpha, (case,), tilted_only=True)[0].any(-1)
+    return out
+
+
+def may_touch(x, y, r, margin: float = 0.0) -> np.ndarray:
+    """[time]: frames (untilted positions [time, disk]) in which two disks on
+    the star could touch at SOME tilt: turning an orbit about the star's
+    centre keeps each disk's distance from the centre, so two disks can meet
+    only if those distances differ by less than the sum of their radii (plus
+    ``margin`` [R*]). A superset of :func:`contact_frames` over all alphas
+    and cases."""
+    x, y, r = (np.asarray(v, float) for v in (x, y, r))
+    d, on = np.hypot(x, y), on_star(x, y, r, margin)
+    k = x.shape[-1]
+    hit = np.zeros(x.shape[:-1], bool)
+    for i in range(k):
+        for j in range(i + 1, k):
+            hit |= on[..., i] & on[..., j] & (np.abs(d[..., i] - d[..., j]) < r[..., i] + r[..., j] + margin)
+    return hit
+
+
+def in_transit_mask(system: System, t, pad: float = 0.0) -> np.ndarray:
+    """True where any planet of ``system`` is between its first and last
+    contact, widened by ``pad`` [d] on both sides (e.g. half an exposure,
+    which smears a transit by that much). Alpha rotates the tilted orbit
+    about the star's centre, which keeps every contact time: the mask holds
+    for all alpha and both cases."""
+    t = np.asarray(t, float)
+    mask = np.zeros(t.shape, bool)
+    if t.size == 0:
+        return mask
+    for pl in system.planets:
+        half = float(pl.half_duration())
+        if half <= 0:  # never transits: nothing to mask
+            continue
+        period, t0 = float(pl.period), float(pl.t0)
+        n = np.round((t - t0) / period)
+        mask |= np.abs(t - (t0 + n * period)) < half + pad
+    return mask

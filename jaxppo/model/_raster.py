@@ -1,0 +1,191 @@
+"""raster_flux: the pixel-grid method, vmapped over frames in bounded chunks."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._star import Star
+from ..core import raster as _R
+
+__all__ = ["raster_flux", "RasterSettings", "DEFAULT_RASTER"]
+
+# Samples held in memory at once (per chunk of frames): ~ 8 bytes x a few
+# arrays x this number, i.e. a few hundred MB at most.
+_SAMPLE_BUDGET = 8_000_000
+
+
+class RasterSettings:
+    """Raster options.
+
+    mode: "window" (pixels around each disk, exact unocculted flux; default)
+        or "full" (an n x n grid over the whole star, like a Blender frame).
+    n: full-disk grid size.
+    scale: window pixel size [R*] (default: the smallest disk radius / 16).
+    aa: anti-aliasing of disk edges: "exact" (window mode: closed-form area of
+        each pixel inside the disk; default), "supersample" (ss x ss points per
+        pixel; default in full mode), or "edge" (full mode: coverage linear in
+        the distance to the edge).
+    ss: samples per pixel per axis (coverage with "supersample", intensity
+        with "exact").
+    times: the time [d] of each frame (broadcast against the frames), needed
+        by a star with rotating spots (``Star.with_spots``) when the call has no
+        ``times`` of its own (``System.flux`` passes its t).
+    """
+
+    def __init__(self, mode="window", n=500, scale=None, ss=None, aa=None, times=None):
+        if mode not in ("window", "full"):
+            raise ValueError(f"raster mode must be 'window' or 'full', got {mode!r}")
+        aa = aa or ("exact" if mode == "window" else "supersample")
+        allowed = ("exact", "supersample") if mode == "window" else ("supersample", "edge")
+        if aa not in allowed:
+            raise ValueError(f"aa must be one of {allowed} in {mode} mode, got {aa!r}")
+        ss = ss if ss is not None else (1 if aa != "supersample" or mode == "full" else 4)
+        if int(n) < 8:
+            raise ValueError(f"raster size n must be >= 8, got {n}")
+        if int(ss) < 1:
+            raise ValueError(f"supersampling ss must be >= 1, got {ss}")
+        if scale is not None and not scale > 0:
+            raise ValueError(f"raster pixel scale must be > 0, got {scale}")
+        self.mode, self.n, self.scale, self.ss, self.aa = mode, int(n), scale, int(ss), aa
+        self.times = times
+
+    def __repr__(self) -> str:
+        tail = "" if self.times is None else f", times=<{np.shape(self.times)}>"
+        return f"RasterSettings(mode={self.mode!r}, n={self.n}, scale={self.scale}, ss={self.ss}, aa={self.aa!r}{tail})"
+
+
+DEFAULT_RASTER = RasterSettings()
+
+
+def _surface_at(star: Star, t):
+    """The star's surface map in the frame at time t: the static map, or the
+    rotating spots' map at t, or None."""
+    if star.spots is not None:
+        return _R.spot_surface(star.spots, t)
+    return star.surface
+
+
+@functools.partial(jax.jit, static_argnames=("n", "ss", "analytic", "batch"))
+def _full(star, x, y, r, t, n, ss, analytic, batch):  # noqa: PLR0913
+    spotted = star.spots is not None
+
+    def f(a):
+        surface = _surface_at(star, a[3])
+        return _R.full_disk_flux(a[0], a[1], a[2], star.intensity, n, ss, surface, analytic, spotted)
+
+    return jax.lax.map(f, (x, y, r, t), batch_size=batch)
+
+
+@functools.partial(jax.jit, static_argnames=("scale", "window", "ss", "exact", "batch"))
+def _window(star, x, y, r, t, f0, scale, window, ss, exact, batch):  # noqa: PLR0913
+    kernel = _R.windowed_deficit_exact_coverage if exact else _R.windowed_deficit
+
+    def f(a):
+        deficit = kernel(a[0], a[1], a[2], star.intensity, scale, window, ss, _surface_at(star, a[3]))
+        if star.spots is not None:
+            # what the spots take from the whole visible disk at this time
+            deficit = deficit + _R.spot_deficit(star.spots, a[3], star.intensity)
+        return deficit
+
+    return 1.0 - jax.lax.map(f, (x, y, r, t), batch_size=batch) / f0
+
+
+def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None, times=None):
+    """Relative flux by rasterizing; x, y, r as in ``occultation_flux``.
+
+    A star with a surface map (``Star.with_surface``) can only be modelled
+    this way; its unocculted flux then comes from a 4000 x 4000 full-disk
+    raster (computed once), and the flux is relative to it.
+
+    A star with rotating spots (``Star.with_spots``) needs ``times`` [d]
+    (or ``settings.times``), broadcast against the frames (x.shape[:-1]).
+    Its flux is relative to the unspotted star's total flux F0 (exact):
+    (F0 - spots' deficit on the visible disk(t) - what the disks hide of the
+    spotted surface) / F0, so the rotational modulation and a planet
+    crossing a spot are both in it. The spots' deficit is a quadrature over
+    each spot's cap (``core.raster.spot_deficit``); the window pixels are no
+    larger than a quarter of the spot edge width.
+    """
+    s = settings or DEFAULT_RASTER
+    lead, k = x.shape[:-1], x.shape[-1]
+    xf, yf, rf = (v.reshape(-1, k) for v in (x, y, r))
+    times = s.times if times is None else times
+    if star.spots is not None:
+        if star.surface is not None:
+            raise ValueError("a star takes a static surface map or rotating spots, not both")
+        if times is None:
+            raise ValueError(
+                "a star with rotating spots needs the time of each frame: System.flux(t) passes it; "
+                "occultation_flux(..., times=t) or raster_flux(..., times=t)"
+            )
+        try:
+            tf = jnp.broadcast_to(jnp.asarray(times, xf.dtype), lead).reshape(-1)
+        except ValueError:
+            raise ValueError(f"times of shape {np.shape(times)} do not broadcast against the frames {lead}") from None
+    else:
+        tf = jnp.zeros(xf.shape[0], xf.dtype)
+    if s.mode == "full":
+        analytic = s.aa == "edge"
+        per_frame = s.n * s.n * (1 if analytic else s.ss * s.ss) * max(k + (star.spots.n if star.spots is not None else 0), 1)
+        batch = max(1, _SAMPLE_BUDGET // per_frame)
+        return _full(star, xf, yf, rf, tf, s.n, s.ss, analytic, batch).reshape(lead)
+    if star.spots is not None:
+        # frames with no disk on the star cost only the spots' quadrature
+        xn, yn, rn = (np.asarray(v) for v in (xf, yf, rf))
+        on = np.any((rn > 0) & (np.hypot(xn, yn) - rn < 1.0), axis=-1)
+        out = _spots_only(star, tf)
+        idx = np.nonzero(on)[0]
+        if idx.size:
+            sub = (xf[idx], yf[idx], rf[idx])
+            out = out.at[idx].set(_window_frames(star, *sub, tf[idx], s))
+        return out.reshape(lead)
+    return _window_frames(star, xf, yf, rf, tf, s).reshape(lead)
+
+
+@jax.jit
+def _spots_only(star, t):
+    """Unocculted flux of a spotted star at times t, relative to F0."""
+    deficit = jax.vmap(lambda tt: _R.spot_deficit(star.spots, tt, star.intensity))(t)
+    return 1.0 - deficit / star.total_flux
+
+
+def _window_frames(star: Star, xf, yf, rf, tf, s: RasterSettings):
+    """Window-mode raster of [frame, disk] arrays (concrete x, y, r)."""
+    k = xf.shape[-1]
+    rmax = float(np.max(np.asarray(rf))) if rf.size else 0.0
+    rpos = np.asarray(rf)[np.asarray(rf) > 0]
+    scale = s.scale if s.scale is not None else (float(rpos.min()) / 16.0 if rpos.size else 0.01)
+    if star.spots is not None and s.scale is None:
+        # a pixel no larger than a quarter of the spot edge: the map is
+        # resolved and the flux is smooth in the spot parameters
+        scale = min(scale, float(np.deg2rad(star.spots.edge)) / 4.0)
+    window = int(math.ceil(2.0 * rmax / scale)) + 2
+    per_frame = (window * window * s.ss * s.ss + (4 * window * 256 if s.aa == "exact" else 0)) * max(k, 1)
+    if star.spots is not None:
+        per_frame *= 1 + star.spots.n
+    batch = max(1, _SAMPLE_BUDGET // per_frame)
+    if star.surface is None:
+        f0 = star.total_flux
+    else:
+        f0 = _surface_total(star)
+    return _window(star, xf, yf, rf, tf, f0, float(scale), window, s.ss, s.aa == "exact", batch)
+
+
+def _surface_total(star: Star):
+    """Unocculted flux of a star with a surface map, from a fine raster."""
+    n = 4000
+    pix = 2.0 / n
+    c = -1.0 + (jnp.arange(n) + 0.5) * pix
+
+    def row(yv):
+        r2 = c * c + yv * yv
+        inside = r2 < 1.0
+        mu = jnp.sqrt(jnp.where(inside, 1.0 - r2, 1.0))
+        return jnp.sum(jnp.where(inside, star.intensity(mu) * star.surface(c, yv), 0.0))
+
+    return jnp.sum(jax.lax.map(row, c, batch_size=256)) * pix * pix

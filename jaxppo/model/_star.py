@@ -1,0 +1,451 @@
+"""Star: a radially symmetric intensity profile I(mu) with exact totals."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike
+
+from ..core import intensity as _I
+
+__all__ = ["Star", "Spots", "LAWS"]
+
+LAWS = ("uniform", "quadratic", "nonlinear", "power2", "tabulated")
+_INTERPOLATIONS = ("sqrt-poly", "linear", "cubic")
+
+
+def _check_finite(name: str, value) -> None:
+    if isinstance(value, jax.core.Tracer):
+        return
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+
+
+def _is_traced(*values) -> bool:
+    return any(isinstance(v, jax.core.Tracer) for v in values)
+
+
+def _check_profile(star: "Star", coefficients: str) -> "Star":
+    """Refuse a law whose total flux F0 is not positive (the normalisation
+    would flip or blow up every light curve) and warn when its intensity is
+    negative somewhere on mu in [0, 1] (not a star's, though the engine
+    integrates it exactly). Traced coefficients are not checked."""
+    if _is_traced(star.params):
+        return star
+    f0 = float(star.total_flux)
+    if not f0 > 0:
+        raise ValueError(
+            f"Star.{star.law}({coefficients}) has total flux F0 = {f0:.6g} <= 0: no physical star; "
+            "check the coefficients"
+        )
+    mu = np.concatenate([np.linspace(0.0, 1.0, 2001), np.geomspace(1e-12, 1e-3, 61)])
+    inten = np.asarray(star.intensity(mu))
+    if np.min(inten) < 0:
+        j = int(np.argmin(inten))
+        warnings.warn(
+            f"Star.{star.law}({coefficients}) has negative intensity I(mu={mu[j]:.3g}) = {inten[j]:.3g} "
+            "(relative to the centre): not a physical profile",
+            UserWarning,
+            stacklevel=3,
+        )
+    return star
+
+
+def _sqrt_poly_design(mu: np.ndarray, degree: int) -> np.ndarray:
+    """Chebyshev design matrix in x = 2 sqrt(mu) - 1 (well conditioned)."""
+    from numpy.polynomial import chebyshev as C
+
+    return C.chebvander(2.0 * np.sqrt(mu) - 1.0, degree)
+
+
+def _choose_degree(mu: np.ndarray, inten: np.ndarray, max_degree: int, rtol: float) -> int:
+    """Smallest degree of the sqrt(mu) polynomial whose max residual at the
+    table points is below rtol * max(I) (or ``max_degree``)."""
+    scale = np.max(np.abs(inten))
+    limit = min(max_degree, len(mu) - 1)
+    for deg in range(2, limit + 1):
+        design = _sqrt_poly_design(mu, deg)
+        coef, *_ = np.linalg.lstsq(design, inten, rcond=None)
+        if np.max(np.abs(design @ coef - inten)) <= rtol * scale:
+            return deg
+    design = _sqrt_poly_design(mu, limit)
+    coef, *_ = np.linalg.lstsq(design, inten, rcond=None)
+    resid = float(np.max(np.abs(design @ coef - inten)) / scale)
+    warnings.warn(
+        f"Star.tabulated: no sqrt(mu) polynomial of degree <= {limit} meets rtol = {rtol:g} (max residual "
+        f"{resid:.2g} of max(I) at degree {limit}); the table is smoothed. Use interpolation='linear' or 'cubic' "
+        "for a profile with kinks, or raise max_degree",
+        stacklevel=3,
+    )
+    return limit
+
+
+def _deg_array(name: str, value, ndim: int) -> Array:
+    _check_finite(name, value)
+    arr = jnp.asarray(value, float)
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must be {'a 1D array (one value per spot)' if ndim else 'a scalar'}, got shape {arr.shape}")
+    return arr
+
+
+class Spots(eqx.Module):
+    """Circular spots on a rotating star (Mueller et al. 2021, Sect. 2.4).
+
+    Every field but ``edge`` is an array, so ``jax.grad``/``jit`` see them
+    (spot sizes, positions, contrasts and the rotation are fit parameters).
+
+    * ``lat``, ``lon``, ``radius``: latitude, longitude and angular radius
+      of each spot [deg], 1D over spots. The longitude is the rotational
+      phase (x 360 deg) at which the spot crosses the central meridian, as in
+      ``jaxppo.activity.spot_flux``.
+    * ``contrast``: 1 - I_spot / I_phot per spot (1: black; < 0: a facula).
+    * ``period`` [d], ``t_ref`` [d]: rotation period and time of phase 0.
+    * ``inc`` [deg]: angle between the rotation axis and the line of sight
+      (90: equator-on). The axis points to +y on the sky, rotated by
+      ``obliquity`` [deg] the way ``System``'s ``alpha`` rotates the tilted
+      planet's orbit, so a star with obliquity = alpha spins with that orbit;
+      spots near the central meridian move to +x, like a transiting planet.
+    * ``edge`` [deg] (static): width of the smooth (C1, cubic smoothstep)
+      edge; the contrast falls from c to 0 over radius +- edge/2 in angular
+      distance. The edge keeps the raster's flux smooth in the spot
+      parameters (finite, useful gradients); a hard edge is the limit
+      edge -> 0 (the raster's pixels must stay several times smaller).
+
+    Spots must not overlap: contrasts add (1 - sum_k c_k S_k).
+    """
+
+    lat: Array
+    lon: Array
+    radius: Array
+    contrast: Array
+    period: Array
+    inc: Array
+    t_ref: Array
+    obliquity: Array
+    edge: float = eqx.field(static=True, default=0.5)
+
+    def __init__(self, lat, lon, radius, contrast, period, inc=90.0, t_ref=0.0, obliquity=0.0, edge=0.5):
+        for name, v in (("lat", lat), ("lon", lon), ("radius", radius), ("contrast", contrast)):
+            _check_finite(name, v)
+        lat, lon, radius, contrast = (jnp.atleast_1d(jnp.asarray(v, float)) for v in (lat, lon, radius, contrast))
+        for name, v in (("lat", lat), ("lon", lon), ("radius", radius), ("contrast", contrast)):
+            if v.ndim != 1:
+                raise ValueError(f"{name} must be a scalar or a 1D array over spots, got shape {v.shape}")
+        try:
+            n = np.broadcast_shapes(lat.shape, lon.shape, radius.shape, contrast.shape)
+        except ValueError:
+            raise ValueError(
+                f"lat, lon, radius, contrast must have one value per spot, got shapes "
+                f"{lat.shape}, {lon.shape}, {radius.shape}, {contrast.shape}"
+            ) from None
+        self.lat, self.lon, self.radius, self.contrast = (jnp.broadcast_to(v, n) for v in (lat, lon, radius, contrast))
+        self.period = _deg_array("period", period, 0)
+        self.inc = _deg_array("inc", inc, 0)
+        self.t_ref = _deg_array("t_ref", t_ref, 0)
+        self.obliquity = _deg_array("obliquity", obliquity, 0)
+        if not (isinstance(edge, (int, float, np.floating, np.integer)) and 0 < float(edge) < 30):
+            raise ValueError(f"edge must be a number of degrees in (0, 30), got {edge!r}")
+        self.edge = float(edge)
+        checks = (
+            ("lat", self.lat, lambda v: np.all(np.abs(v) <= 90), "in [-90, 90] deg"),
+            ("radius", self.radius, lambda v: np.all((v > 0) & (v < 90)), "in (0, 90) deg"),
+            ("contrast", self.contrast, lambda v: np.all(v <= 1), "<= 1 (1: a black spot)"),
+            ("period", self.period, lambda v: v > 0, "> 0 [d]"),
+            ("inc", self.inc, lambda v: 0 <= v <= 180, "in [0, 180] deg"),
+        )
+        for name, v, ok, what in checks:
+            if not _is_traced(v) and not ok(np.asarray(v)):
+                raise ValueError(f"spot {name} must be {what}, got {np.asarray(v)!r}")
+
+    @property
+    def n(self) -> int:
+        """Number of spots."""
+        return self.lat.shape[0]
+
+
+class Star(eqx.Module):
+    """A radially symmetric star of unit radius.
+
+    Build it with one of the constructors; every profile is normalised by its
+    exact total flux F0 = 2 pi int_0^1 I(mu) mu dmu (a 1D closed form, never a
+    pixel sum).
+
+    Laws (intensity relative to the centre, mu = sqrt(1 - r^2)):
+
+    * ``Star.uniform()``: I = 1.
+    * ``Star.quadratic(u1, u2)``: I = 1 - u1 (1 - mu) - u2 (1 - mu)^2.
+    * ``Star.nonlinear(c1, c2, c3, c4)``: I = 1 - sum_k c_k (1 - mu^(k/2))
+      (Claret 2000).
+    * ``Star.power2(c, alpha)``: I = 1 - c (1 - mu^alpha) (Hestroffer 1997;
+      Claret & Southworth 2023 tabulate c as ``g`` and alpha as ``h``).
+    * ``Star.tabulated(mu, intensity, interpolation=...)``: any (mu, I) table.
+
+    Tables: ``interpolation="sqrt-poly"`` (default) represents the table by the
+    least-squares polynomial in sqrt(mu) of the smallest degree (<= 12) whose
+    largest residual at the table points is below ``rtol`` times max(I); it is
+    exact for any Claret non-linear profile, smooth (so the exact engine
+    converges spectrally), and the residual is kept in ``table_residual``.
+    ``"linear"`` (the paper's scheme) and ``"cubic"`` (natural spline) pass
+    through every point; they have kinks at the nodes, so the exact engine's
+    error for them is larger (measured in docs/accuracy.md).
+    """
+
+    law: str = eqx.field(static=True)
+    params: Array
+    mu_nodes: Array | None = None
+    interpolation: str = eqx.field(static=True, default="")
+    degree: int = eqx.field(static=True, default=0)
+    fit_matrix: Array | None = None
+    q_matrix: Array | None = None
+    table_residual: float = eqx.field(static=True, default=0.0)
+    surface: object = eqx.field(static=True, default=None)
+    spots: Spots | None = None
+
+    # ---- constructors --------------------------------------------------------
+    @classmethod
+    def uniform(cls) -> "Star":
+        return cls(law="uniform", params=jnp.zeros(0))
+
+    @classmethod
+    def quadratic(cls, u1: ArrayLike, u2: ArrayLike) -> "Star":
+        _check_finite("u1", u1)
+        _check_finite("u2", u2)
+        star = cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
+        return _check_profile(star, f"u1={u1!r}, u2={u2!r}")
+
+    @classmethod
+    def nonlinear(cls, c1: ArrayLike, c2: ArrayLike, c3: ArrayLike, c4: ArrayLike) -> "Star":
+        for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
+            _check_finite(name, v)
+        star = cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
+        return _check_profile(star, f"c1={c1!r}, c2={c2!r}, c3={c3!r}, c4={c4!r}")
+
+    @classmethod
+    def power2(cls, c: ArrayLike, alpha: ArrayLike) -> "Star":
+        _check_finite("c", c)
+        _check_finite("alpha", alpha)
+        # any concrete value (Python or numpy scalar, 0-d array) is checked
+        if not _is_traced(alpha) and np.any(np.asarray(alpha, dtype=float) <= 0):
+            raise ValueError(f"power-2 exponent alpha must be > 0, got {alpha!r}")
+        star = cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
+        return _check_profile(star, f"c={c!r}, alpha={alpha!r}")
+
+    @classmethod
+    def tabulated(
+        cls,
+        mu: ArrayLike,
+        intensity: ArrayLike,
+        interpolation: str = "sqrt-poly",
+        max_degree: int = 12,
+        rtol: float = 1e-6,
+        degree: int | None = None,
+    ) -> "Star":
+        """A star from a table of specific intensities I(mu).
+
+        ``mu`` must be strictly increasing in [0, 1] (at least 3 points) and the
+        intensities finite and >= 0. A table that stops short of mu = 0 or 1 is
+        held flat to the ends (documented; PHOENIX tables cover both).
+
+        ``degree`` fixes the degree of the "sqrt-poly" fit (default: the
+        smallest that meets ``rtol``, chosen from the values). The
+        intensities may be traced (``jax.grad`` with respect to the table,
+        ``jit``): then ``mu`` must be concrete, the values are not checked,
+        "sqrt-poly" needs ``degree`` (the adaptive choice needs the values;
+        take it from the concrete table, ``Star.tabulated(mu, I0).degree``)
+        and ``table_residual`` is -1 (unknown).
+        """
+        if interpolation not in _INTERPOLATIONS:
+            raise ValueError(
+                f"interpolation must be one of {_INTERPOLATIONS}, got {interpolation!r}"
+            )
+        if _is_traced(mu):
+            raise ValueError("mu (the table's nodes) must be concrete; only the intensities may be traced")
+        traced = _is_traced(intensity)
+        mu_np = np.asarray(mu, dtype=float)
+        i_in = jnp.asarray(intensity) if traced else np.asarray(intensity, dtype=float)
+        if mu_np.ndim != 1 or i_in.shape != mu_np.shape:
+            raise ValueError(
+                f"mu and intensity must be 1D of equal length, got shapes {mu_np.shape} and {i_in.shape}"
+            )
+        if mu_np.size < 3:
+            raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
+        _check_finite("mu", mu_np)
+        if np.any(mu_np < 0) or np.any(mu_np > 1):
+            raise ValueError(f"mu must lie in [0, 1], got values from {mu_np.min()} to {mu_np.max()}")
+        if np.any(np.diff(mu_np) <= 0):
+            raise ValueError("mu must be strictly increasing (sort the table and drop repeats)")
+        if degree is not None and (
+            isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 1 <= degree < mu_np.size
+        ):
+            raise ValueError(f"degree must be an integer from 1 to {mu_np.size - 1} (points - 1), got {degree!r}")
+        if not traced:
+            _check_finite("intensity", i_in)
+            if np.any(i_in < 0):
+                raise ValueError(f"intensity must be >= 0, got minimum {i_in.min()}")
+            if np.max(i_in) <= 0:
+                raise ValueError("intensity must not be zero everywhere")
+        xp = jnp if traced else np
+        if mu_np[0] > 0:
+            mu_np, i_in = np.concatenate([[0.0], mu_np]), xp.concatenate([i_in[:1], i_in])
+        if mu_np[-1] < 1:
+            mu_np, i_in = np.concatenate([mu_np, [1.0]]), xp.concatenate([i_in, i_in[-1:]])
+        if interpolation == "sqrt-poly":
+            if degree is None:
+                if traced:
+                    raise ValueError(
+                        "interpolation='sqrt-poly' with traced intensities needs degree= (the adaptive "
+                        "choice needs concrete values; use Star.tabulated(mu, I0).degree of your table)"
+                    )
+                degree = _choose_degree(mu_np, i_in, max_degree, rtol)
+            fit, qmap = _I.sqrt_cheb_operators(mu_np, degree)
+            resid = -1.0 if traced else float(np.max(np.abs(_sqrt_poly_design(mu_np, degree) @ (fit @ i_in) - i_in)))
+            return cls(
+                law="tabulated", params=jnp.asarray(i_in), mu_nodes=jnp.asarray(mu_np),
+                interpolation=interpolation, degree=degree, fit_matrix=jnp.asarray(fit),
+                q_matrix=jnp.asarray(qmap), table_residual=resid,
+            )
+        return cls(
+            law="tabulated", params=jnp.asarray(i_in), mu_nodes=jnp.asarray(mu_np),
+            interpolation=interpolation,
+        )
+
+    @classmethod
+    def from_law(cls, law: str, coefficients=()) -> "Star":
+        """Build a star from a law name and its coefficients (used by configs)."""
+        law = str(law).lower()
+        coefficients = list(np.atleast_1d(np.asarray(coefficients, dtype=float))) if len(np.atleast_1d(coefficients)) else []
+        need = {"uniform": 0, "quadratic": 2, "nonlinear": 4, "power2": 2}
+        if law not in need:
+            raise ValueError(f"unknown limb-darkening law {law!r}; expected one of {tuple(need)} (tables: Star.tabulated)")
+        if len(coefficients) != need[law]:
+            raise ValueError(f"law {law!r} needs {need[law]} coefficients, got {len(coefficients)}: {coefficients}")
+        return getattr(cls, law)(*coefficients)
+
+    # ---- the profile in power-basis / table form ------------------------------
+    def _halfint(self) -> tuple[Array, tuple[int, ...]] | None:
+        """(a_k, 2 e_k) when I = sum_k a_k mu**e_k with half-integer e_k."""
+        p = self.params
+        if self.law == "uniform":
+            return jnp.ones(1, self.params.dtype), (0,)
+        if self.law == "quadratic":
+            u1, u2 = p[0], p[1]
+            return jnp.stack([1.0 - u1 - u2, u1 + 2.0 * u2, -u2]), (0, 2, 4)
+        if self.law == "nonlinear":
+            return jnp.concatenate([jnp.reshape(1.0 - jnp.sum(p), (1,)), p]), (0, 1, 2, 3, 4)
+        return None
+
+    def _power(self) -> tuple[Array, Array]:
+        c, alpha = self.params[0], self.params[1]
+        return jnp.stack([1.0 - c, c]), jnp.stack([jnp.zeros_like(alpha), alpha])
+
+    def _table(self) -> tuple[Array, Array, Array]:
+        b = _I.spline_coefficients(self.mu_nodes, self.params, self.interpolation)
+        return self.mu_nodes, b, _I.table_cumulative(self.mu_nodes, b)
+
+    # ---- what the kernels need ----------------------------------------------
+    def intensity(self, mu: ArrayLike) -> Array:
+        """Specific intensity I(mu) (not normalised; divide by ``total_flux``)."""
+        half = self._halfint()
+        if half is not None:
+            a, twice_e = half
+            return _I.power_basis_intensity(mu, a, jnp.asarray(twice_e, float) / 2.0)
+        if self.law == "power2":
+            return _I.power_basis_intensity(mu, *self._power())
+        if self.interpolation == "sqrt-poly":
+            m = jnp.clip(jnp.asarray(mu), 0.0, 1.0)
+            return _I.cheb_eval(2.0 * jnp.sqrt(m) - 1.0, self.fit_matrix @ self.params)
+        mu_nodes, b, _ = self._table()
+        return _I.table_intensity(mu, mu_nodes, b)
+
+    def radial_kernel(self):
+        """(g, Phi(1)) with g(s) = Phi(sqrt(s)) / s, for ``jaxppo.core.occult``."""
+        half = self._halfint()
+        if half is not None:
+            a, twice_e = half
+            coef = _I.halfint_coefficients(a, twice_e)
+            phi1 = jnp.sum(a * jnp.asarray([2.0 / (te + 4.0) for te in twice_e], dtype=a.dtype))
+            return (lambda s: _I.halfint_g(s, coef)), phi1
+        if self.law == "power2":
+            a, e = self._power()
+            return (lambda s: _I.power_basis_g(s, a, e)), _I.power_basis_total(a, e) / (2 * jnp.pi)
+        if self.interpolation == "sqrt-poly":
+            qc = self.q_matrix @ self.params
+            return (lambda s: _I.cheb_g(s, qc)), _I.cheb_g(jnp.ones((), qc.dtype), qc)
+        mu_nodes, b, phin = self._table()
+        return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
+
+    def radial_intensity(self):
+        """s -> I(mu) at s = r^2 = 1 - mu^2 (s clipped to [0, 1]): what the
+        exact engine's derivatives integrate along the disks' arcs."""
+
+        half = self._halfint()
+        if half is not None:
+            # a polynomial in v = mu^(1/2): no power per term and node
+            a, twice_e = half
+            coef = [0.0] * (max(twice_e) + 1)
+            for ak, te in zip(a, twice_e):
+                coef[te] = coef[te] + ak
+
+            return lambda s: _I.halfint_poly(s, coef)
+
+        def intensity(s):
+            m2 = 1.0 - jnp.asarray(s)
+            inside = m2 > 0
+            return self.intensity(jnp.where(inside, jnp.sqrt(jnp.where(inside, m2, 1.0)), 0.0))
+
+        return intensity
+
+    @property
+    def total_flux(self) -> Array:
+        """F0 = 2 pi int_0^1 I(mu) mu dmu, exact."""
+        return 2.0 * jnp.pi * self.radial_kernel()[1]
+
+    @property
+    def smooth(self) -> bool:
+        """I(mu) analytic on the open disk (every law, and sqrt-poly tables);
+        False for piecewise "linear" and "cubic" tables, whose kinks the fast
+        quadrature rules of ``"auto"`` would not resolve."""
+        return not (self.law == "tabulated" and self.interpolation in ("linear", "cubic"))
+
+    @property
+    def symmetric(self) -> bool:
+        """Radially symmetric (no surface map, no spots)."""
+        return self.surface is None and self.spots is None
+
+    def with_surface(self, surface) -> "Star":
+        """This star times a surface map ``surface(x, y)`` in sky coordinates
+        [R*] (spots, faculae; a jnp-traceable function). Such a star is not
+        radially symmetric: only ``method="raster"`` can model it, and
+        ``"auto"`` uses the raster for it."""
+        if not callable(surface):
+            raise ValueError(f"surface must be a function surface(x, y), got {type(surface).__name__}")
+        return dataclasses.replace(self, surface=surface)
+
+    def with_spots(self, spots: Spots | None = None, **kwargs) -> "Star":
+        """This star with rotating circular spots: a :class:`Spots`, or its
+        arguments (``lat``, ``lon``, ``radius``, ``contrast``, ``period``,
+        ``inc``, ``t_ref``, ``obliquity``, ``edge``). The surface depends on
+        time, so the flux needs the time of every frame: ``System.flux``
+        passes its t (``occultation_flux`` and ``raster_flux`` take
+        ``times=``). Only the raster models it; the flux
+        is relative to the unspotted star's total flux F0 (docs/activity.md).
+        """
+        if spots is None:
+            spots = Spots(**kwargs)
+        elif kwargs:
+            raise ValueError(f"pass either a Spots or its arguments, not both (got {sorted(kwargs)})")
+        if not isinstance(spots, Spots):
+            raise ValueError(f"spots must be a jaxppo Spots, got {type(spots).__name__}")
+        return dataclasses.replace(self, spots=spots)
+
+    def __repr__(self) -> str:
+        if self.law == "tabulated":
+            extra = f", degree={self.degree}, residual={self.table_residual:.2e}" if self.interpolation == "sqrt-poly" else ""
+            return f"Star.tabulated({len(self.mu_nodes)} points, interpolation={self.interpolation!r}{extra})"
+        return f"Star.{self.law}({', '.join(f'{float(v):.6g}' for v in np.asarray(self.params))})"

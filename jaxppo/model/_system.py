@@ -1,0 +1,690 @@
+"""Planets on circular or eccentric orbits, the tilt alpha of one orbit, and
+multi-transits.
+
+Frame and equations: docs/conventions.md (sky frame x right, y up, z to the
+observer; Mueller et al. 2021, Sect. 2.5 and Eqs. 2-6; eccentric orbits as
+in Winn 2010).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike
+
+from ._flux import occultation_flux
+from ..core.geometry import conjunction_mean_anomaly, orbit_position
+from ._star import Star
+
+__all__ = ["scan_cases", 
+    "Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES",
+    "hemisphere_cases", "case_label", "case_signs", "multi_transit_counts",
+]
+
+# Named hemisphere cases: every untilted planet in the tilted planet's
+# hemisphere ("same", paper case 1) or every one in the other ("opposite",
+# paper case 4). Systems of k planets have 2^(k-1) distinct configurations,
+# given as a tuple of +-1 signs (one per untilted planet, in planet order).
+CASES = ("same", "opposite")
+
+
+def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
+    """Hemisphere sign of every planet [n_planets] for ``case``: +1 for the
+    tilted planet and for untilted planets on its side of the stellar equator,
+    -1 for the mirrored ones.
+
+    ``case``: "same" (all +1), "opposite" (all -1), a tuple of +-1 (one per
+    untilted planet, in planet order), or a string of "+"/"-" of that length
+    (as written by :func:`case_label`).
+    """
+    k = n_planets - 1
+    if isinstance(case, str):
+        if case == "same":
+            rel = (1,) * k
+        elif case == "opposite":
+            rel = (-1,) * k
+        elif case and set(case) <= {"+", "-"}:
+            rel = tuple(1 if ch == "+" else -1 for ch in case)
+        else:
+            raise ValueError(
+                f"unknown case {case!r}: case must be one of {CASES}, a tuple of +-1 or a '+'/'-' string "
+                "(one per untilted planet)"
+            )
+    else:
+        try:
+            rel = tuple(case)
+        except TypeError:
+            raise ValueError(f"case must be one of {CASES} or a tuple of +-1, got {case!r}") from None
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_)) and v in (1, -1) for v in rel):
+            raise ValueError(f"case signs must each be +1 or -1, got {case!r}")
+    if len(rel) != k:
+        raise ValueError(f"case must give {k} sign(s) (one per untilted planet), got {case!r}")
+    signs = list(rel)
+    signs.insert(tilted, 1)
+    return np.asarray(signs, float)
+
+
+def case_label(case) -> str:
+    """Text name of a case: "same", "opposite", or a "+"/"-" string for mixed
+    sign tuples (safe in CSV files; :func:`case_signs` reads it back)."""
+    if isinstance(case, str):
+        return case
+    rel = tuple(int(v) for v in case)
+    if all(v == 1 for v in rel):
+        return "same"
+    if all(v == -1 for v in rel):
+        return "opposite"
+    return "".join("+" if v == 1 else "-" for v in rel)
+
+
+def scan_cases(system: "System", cases) -> tuple[str, ...]:
+    """The hemisphere cases of a scan as text labels (:func:`case_label`):
+    ``"all"`` gives every configuration that differs (:func:`hemisphere_cases`),
+    otherwise a non-empty list of "same", "opposite" or "+"/"-" strings (one
+    sign per untilted planet). Raises ValueError naming the bad entry."""
+    if isinstance(cases, str):
+        if cases != "all":
+            cases = [cases]
+        else:
+            return tuple(case_label(c) for c in hemisphere_cases(system))
+    cases = list(cases)
+    if not cases:
+        raise ValueError("cases must not be empty")
+    out = []
+    for c in cases:
+        if not isinstance(c, str):
+            raise ValueError(f"each case must be a string ('same', 'opposite', or '+'/'-' signs), got {c!r}")
+        signs = case_signs(len(system.planets), system.tilted, c)  # raises with the reason
+        # canonical label: "+" of a two-planet system is "same", "-+" stays "-+"
+        label = case_label(tuple(int(v) for i, v in enumerate(signs) if i != system.tilted))
+        if label in out:
+            raise ValueError(f"case {c!r} is listed twice")
+        out.append(label)
+    return tuple(out)
+
+
+def hemisphere_cases(system: "System") -> tuple:
+    """The 2^(k-1) hemisphere configurations of a k-planet system that give
+    different light curves, "same" first and "opposite" last; mixed ones as
+    tuples of +-1 (one per untilted planet, in planet order).
+
+    Only the untilted planets' signs relative to the tilted planet matter: a
+    mirror y -> -y of the whole sky maps any configuration at alpha to its
+    mirror image at 360 - alpha, and a radially symmetric star gives both the
+    same flux, so a full alpha scan covers both signs of the tilted planet.
+    """
+    k = len(system.planets) - 1
+    if k == 0:
+        return ("same",)
+    out = []
+    for bits in range(2**k):
+        rel = tuple(-1 if (bits >> (k - 1 - j)) & 1 else 1 for j in range(k))
+        out.append(case_label(rel) if len(set(rel)) == 1 else rel)
+    return tuple(out)
+
+
+def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
+    if isinstance(value, jax.core.Tracer):
+        return
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    bad = arr <= lower if strict else arr < lower
+    if np.any(bad):
+        op = ">" if strict else ">="
+        raise ValueError(f"{name} must be {op} {lower}, got {value!r}")
+
+
+def _is_quantity(value) -> bool:
+    # astropy Quantities (and Time) carry a unit; plain numbers and jax arrays do not
+    return hasattr(value, "unit") and hasattr(value, "to")
+
+
+def _from_quantity(name: str, value, unit: str):
+    """Convert an astropy Quantity to the plain number the API expects:
+    ``unit`` "deg" (angles), "d" (times) or "" (dimensionless ratios).
+    Plain numbers pass unchanged (their units are the documented ones)."""
+    if type(value).__name__ == "Time":
+        raise ValueError(
+            f"{name} must be a number of days or a time Quantity, got an astropy Time ({value!r}); "
+            "subtract your zero point first, e.g. (time - Time(2454833, format='jd')).to(u.day) for BKJD"
+        )
+    if not _is_quantity(value):
+        return value
+    import astropy.units as u
+
+    target = {"deg": u.deg, "d": u.day, "": u.dimensionless_unscaled}[unit]
+    try:
+        return np.asarray(value.to_value(target), float)
+    except u.UnitConversionError:
+        pass
+    if unit == "" and value.unit.physical_type == "length":
+        raise ValueError(
+            f"{name} must be in stellar radii (a plain number or a dimensionless Quantity), got {value!r}: "
+            f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
+        )
+    want = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}[unit]
+    raise ValueError(f"{name} must be {want}, got the Quantity {value!r}")
+
+
+class Planet(eqx.Module):
+    """A planet on a Keplerian orbit (circular by default).
+
+    Args:
+        period: orbital period P [d], > 0.
+        t0: a time of conjunction = mid-transit [d] (any consistent zero
+            point, e.g. BKJD), also for eccentric orbits.
+        a: semi-major axis [R*], > 1.
+        inc: inclination i [deg] in [0, 180]; b = a cos(i) (1 - e^2) /
+            (1 + e sin omega).
+        radius: radius ratio p = R_p / R*, > 0.
+        name: optional label used in free-parameter names ("b.t0").
+        e: eccentricity, 0 <= e < 1; the periastron distance a (1 - e)
+            must exceed 1 + radius (the planet would hit the star).
+        omega: argument of periastron [deg], as in Winn (2010), batman
+            (``w``) and jaxoplanet: omega = 90 deg puts periastron at
+            transit, 270 deg apoastron.
+
+    astropy Quantities are converted (inc, omega: any angle unit; period,
+    t0: any time unit; a, radius, e: dimensionless, e.g.
+    ``(a / R_star).decompose()``; a bare length is refused as ambiguous).
+    Plain numbers mean deg and days. A planet whose |b| >= 1 + radius can
+    never transit: that warns (``inc=1.53`` in radians by habit means
+    1.53 deg, b ~ a).
+    """
+
+    period: Array
+    t0: Array
+    a: Array
+    inc: Array
+    radius: Array
+    e: Array
+    omega: Array
+    name: str = eqx.field(static=True, default="")
+
+    def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0):
+        period = _from_quantity("period", period, "d")
+        t0 = _from_quantity("t0", t0, "d")
+        a = _from_quantity("a", a, "")
+        inc = _from_quantity("inc", inc, "deg")
+        radius = _from_quantity("radius", radius, "")
+        e = _from_quantity("e", e, "")
+        omega = _from_quantity("omega", omega, "deg")
+        _positive("period", period)
+        _positive("t0", t0, strict=False, lower=-np.inf)
+        _positive("a", a, lower=1.0)
+        _positive("radius", radius)
+        _positive("omega", omega, strict=False, lower=-np.inf)
+        if not isinstance(inc, jax.core.Tracer):
+            inc_arr = np.asarray(inc, dtype=float)
+            if not np.all(np.isfinite(inc_arr)) or np.any((inc_arr < 0) | (inc_arr > 180)):
+                raise ValueError(f"inc must be in [0, 180] degrees, got {inc!r}")
+        if not isinstance(e, jax.core.Tracer):
+            e_arr = np.asarray(e, dtype=float)
+            if not np.all(np.isfinite(e_arr)) or np.any((e_arr < 0) | (e_arr >= 1)):
+                raise ValueError(f"e (eccentricity) must be in [0, 1), got {e!r}")
+            if not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
+                peri = np.asarray(a, float) * (1.0 - e_arr)
+                if np.any(peri <= 1.0 + np.asarray(radius, float)):
+                    raise ValueError(
+                        f"planet {str(name)!r}: e = {e!r} puts periastron at a (1 - e) = {np.min(peri):.4g} R* <= "
+                        f"1 + radius = {1.0 + np.max(np.asarray(radius, float)):.4g} R*, so the planet would hit the star"
+                    )
+        self.period = jnp.asarray(period, float)
+        self.t0 = jnp.asarray(t0, float)
+        self.a = jnp.asarray(a, float)
+        self.inc = jnp.asarray(inc, float)
+        self.radius = jnp.asarray(radius, float)
+        self.e = jnp.asarray(e, float)
+        self.omega = jnp.asarray(omega, float)
+        self.name = str(name)
+        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
+            e_, w_ = np.asarray(e, float), np.deg2rad(np.asarray(omega, float))
+            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
+            # an eccentric orbit's sky distance is smallest off conjunction,
+            # so a b just above 1 + radius may still graze: ask the contacts
+            never = b >= 1.0 + np.asarray(radius, float)
+            if np.any(never) and not self.circular:
+                never = never & (np.asarray(self.contacts()[1]) == 0)
+            if np.any(never):
+                warnings.warn(
+                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {'a |cos i|' if self.circular else 'a |cos i| (1 - e^2) / (1 + e sin omega)'} = {np.max(b):.4g} >= 1 + radius, "
+                    "so it never transits (inc is in degrees; a Quantity in radians is converted)",
+                    UserWarning, stacklevel=2,
+                )
+
+    @property
+    def circular(self) -> bool:
+        """True when e is a concrete 0: the circular code path (exactly the
+        equations of a circular orbit) serves the planet. A traced e (being
+        fitted or differentiated) takes the Keplerian path, whose gradient
+        in e is right also at e = 0."""
+        return not isinstance(self.e, jax.core.Tracer) and not np.any(np.asarray(self.e))
+
+    @property
+    def impact(self) -> Array:
+        """Impact parameter b = a cos(i) (1 - e^2) / (1 + e sin omega) [R*]
+        (the sky distance at conjunction), signed as the inclination gives
+        it. Transits measure only |b|: :meth:`System.positions` places the
+        planets by |b| and the hemisphere case (docs/conventions.md)."""
+        b = self.a * jnp.cos(jnp.deg2rad(self.inc))
+        if self.circular:
+            return b
+        return b * (1.0 - self.e**2) / (1.0 + self.e * jnp.sin(jnp.deg2rad(self.omega)))
+
+    def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
+        """Sky position (x, y, z) [R*] at times t [d] (docs/conventions.md:
+        circular or Keplerian orbit). ``xp=numpy`` evaluates eagerly in numpy
+        (geometry on the host)."""
+        inc = xp.deg2rad(xp.asarray(self.inc))
+        a = xp.asarray(self.a)
+        if not self.circular:
+            return orbit_position(t, xp.asarray(self.period), xp.asarray(self.t0), a, inc,
+                                  xp.asarray(self.e), xp.deg2rad(xp.asarray(self.omega)), xp)
+        phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
+        cphi = xp.cos(phi)
+        return a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc)
+
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """First and last contact relative to conjunction t0 + n P [d]:
+        ``(t1 - t0, t4 - t0)`` (t1 < 0 < t4; both 0 if it never transits).
+        Circular orbits: -+ :meth:`half_duration`. Eccentric ones are solved
+        on the host (concrete parameters only) on the exact orbit, where the
+        transit is not symmetric about conjunction."""
+        if self.circular:
+            half = np.asarray(self.half_duration(), float)
+            return -half, half
+        if any(isinstance(getattr(self, f), jax.core.Tracer) for f in ("period", "a", "inc", "radius", "e", "omega")):
+            raise ValueError(f"planet {self.name!r}: contact times of an eccentric orbit need concrete parameters, got traced ones")
+        f = np.vectorize(_eccentric_contacts, otypes=[float, float])
+        return f(*(np.asarray(getattr(self, k), float) for k in ("period", "a", "inc", "radius", "e", "omega")))
+
+    def half_duration(self) -> Array:
+        """Half-width [d] of the window about conjunction t0 + n P that holds
+        the whole transit (0 if it never transits): half the time from first
+        to last contact for circular orbits; for eccentric ones, whose
+        transits are not symmetric about conjunction, the larger of the two
+        contact offsets (see :meth:`contacts`)."""
+        if not self.circular:
+            t1, t4 = self.contacts()
+            return jnp.asarray(np.maximum(-t1, t4))
+        sin_i = jnp.sin(jnp.deg2rad(self.inc))
+        c2 = (1.0 - ((1.0 + self.radius) / self.a) ** 2) / jnp.maximum(sin_i**2, 1e-300)
+        transits = (jnp.abs(self.impact) < 1.0 + self.radius) & (c2 < 1.0)
+        phase = jnp.arccos(jnp.sqrt(jnp.clip(c2, 0.0, 1.0)))
+        return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
+
+    def __repr__(self) -> str:
+        """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805);
+        eccentric orbits add e and omega [deg]."""
+        fields = (("period", " d"), ("t0", " d"), ("a", " R*"), ("inc", " deg"), ("radius", ""))
+        if not self.circular:
+            fields += (("e", ""), ("omega", " deg"))
+        parts = [f"name={self.name!r}"] if self.name else []
+        for f, unit in fields:
+            v = getattr(self, f)
+            if isinstance(v, jax.core.Tracer):
+                parts.append(f"{f}={v}")
+                continue
+            arr = np.asarray(v)
+            parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
+        return "Planet(" + ", ".join(parts) + ")"
+
+    def replace(self, **changes) -> "Planet":
+        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega")}
+        fields.update(changes)
+        return Planet(**fields)
+
+
+def _bisect(g, lo, hi, steps=200):
+    """Root of g in [lo, hi] (g(lo), g(hi) of opposite signs) to rounding."""
+    glo = g(lo)
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        gm = g(mid)
+        if (gm < 0) == (glo < 0):
+            lo, glo = mid, gm
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _eccentric_contacts(period, a, inc, radius, e, omega) -> tuple[float, float]:
+    """(t1 - t0, t4 - t0) [d] of an eccentric orbit: the outermost times
+    about conjunction at which the sky distance equals 1 + radius, on the
+    near side (z > 0). Works in theta = f + omega - pi/2 (0 at conjunction),
+    where r = a (1 - e^2) / (1 + e cos f) and the sky distance is
+    r sqrt(sin^2 theta + cos^2 theta cos^2 i)."""
+    w = math.radians(omega) - 0.5 * math.pi
+    ci = math.cos(math.radians(inc))
+    lim = 1.0 + radius
+
+    def dist(th):
+        r = a * (1.0 - e * e) / (1.0 + e * np.cos(th - w))
+        return r * np.sqrt(np.sin(th) ** 2 + (np.cos(th) * ci) ** 2) - lim
+
+    grid = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 4097)
+    d = dist(grid)
+    k = int(np.argmin(d))
+    if d[k] >= 0:
+        # refine the minimum (a grazing transit may dip below 1 + radius
+        # between grid points): golden-section search on the two cells
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        g = (math.sqrt(5.0) - 1.0) / 2.0
+        for _ in range(100):
+            m1, m2 = hi - g * (hi - lo), lo + g * (hi - lo)
+            if dist(m1) < dist(m2):
+                hi = m2
+            else:
+                lo = m1
+        tmin = 0.5 * (lo + hi)
+        if dist(tmin) >= 0:
+            return 0.0, 0.0
+        grid = np.insert(grid, k + 1 if tmin > grid[k] else k, tmin)
+        d = dist(grid)
+    inside = np.nonzero(d < 0)[0]
+    # the ends of the half orbit are at distance r >= a (1 - e) > 1 + radius
+    j0, j1 = inside[0], inside[-1]
+    th1 = _bisect(lambda th: float(dist(th)), grid[j0 - 1], grid[j0])
+    th4 = _bisect(lambda th: float(dist(th)), grid[j1], grid[j1 + 1])
+    mc = float(conjunction_mean_anomaly(e, math.radians(omega), np))
+
+    def dt(th):
+        f = th - w
+        E = 2.0 * math.atan2(math.sqrt(1.0 - e) * math.sin(0.5 * f), math.sqrt(1.0 + e) * math.cos(0.5 * f))
+        dm = (E - e * math.sin(E)) - mc
+        return period * math.remainder(dm, 2.0 * math.pi) / (2.0 * math.pi)
+
+    return dt(th1), dt(th4)
+
+
+class System(eqx.Module):
+    """A star and its planets; planet ``tilted`` is the one whose orbit is
+    rotated by alpha about the line of sight.
+
+    ``System(star, planets, tilted=0)``; ``.star``, ``.planets`` (in order),
+    ``.tilted`` (index).
+    """
+
+    star: Star
+    planets: tuple[Planet, ...]
+    tilted: int = eqx.field(static=True, default=0)
+
+    def __init__(self, star: Star, planets, tilted: int = 0):
+        if not isinstance(star, Star):
+            raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
+        planets = tuple(planets)
+        if not planets:
+            raise ValueError("planets must hold at least one Planet")
+        for i, pl in enumerate(planets):
+            if not isinstance(pl, Planet):
+                raise ValueError(f"planets[{i}] must be a jaxppo.Planet, got {type(pl).__name__}")
+        names = [pl.name for pl in planets if pl.name]
+        if len(names) != len(set(names)):
+            raise ValueError(f"planet names must be unique, got {names}")
+        if not (0 <= int(tilted) < len(planets)):
+            raise ValueError(f"tilted must index a planet (0..{len(planets) - 1}), got {tilted!r}")
+        self.star = star
+        self.planets = planets
+        self.tilted = int(tilted)
+
+    def index(self, name: str) -> int:
+        for i, pl in enumerate(self.planets):
+            if pl.name == name:
+                return i
+        raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
+
+    def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", xp=jnp):
+        """Sky positions (x, y, r) with the disks on the last axis; planets
+        behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
+        ``xp=numpy`` computes on the host without tracing (fast geometry for
+        concrete inputs).
+
+        Hemispheres come from |b| only (transits cannot measure the sign of
+        cos i): before the tilt every planet crosses y > 0 (y uses |cos i|);
+        then ``case`` mirrors untilted planets (y -> -y) into the other
+        hemisphere ("same": none, "opposite": all, or a tuple of +-1 signs,
+        see :func:`case_signs`), and the tilted planet is rotated by alpha.
+        So i -> 180 - i of any planet changes nothing.
+        """
+        signs = case_signs(len(self.planets), self.tilted, case)
+        t = xp.asarray(t, dtype=float)
+        alpha_rad = xp.deg2rad(xp.asarray(alpha, dtype=float))
+        shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
+        xs, ys, rs = [], [], []
+        for i, pl in enumerate(self.planets):
+            x, y, z = pl.position(t, xp)
+            # |cos i| instead of cos i: the sign of b is not observable
+            y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
+            if i == self.tilted:
+                ca, sa = xp.cos(alpha_rad), xp.sin(alpha_rad)
+                x, y = x * ca + y * sa, -x * sa + y * ca
+            elif signs[i] < 0:
+                y = -y
+            xs.append(xp.broadcast_to(x, shape))
+            ys.append(xp.broadcast_to(y, shape))
+            rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
+        return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
+
+    def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
+        """Relative flux at times t [d].
+
+        ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
+        [alpha, time]. ``case``: "same", "opposite" or a tuple of +-1 signs
+        of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
+        """
+        t = jnp.asarray(t, float)
+        if not isinstance(t, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(t))
+            if bad.any():
+                raise ValueError(f"t must be finite, got {float(np.asarray(t)[bad][0])} at index {np.argwhere(bad)[0].tolist()}")
+        alpha = _from_quantity("alpha", alpha, "deg")
+        alpha = jnp.asarray(alpha, float)
+        if not isinstance(alpha, jax.core.Tracer):
+            bad = ~np.isfinite(np.asarray(alpha))
+            if bad.any():
+                raise ValueError(f"alpha must be finite [deg], got {float(np.asarray(alpha)[bad][0])}")
+        if alpha.ndim > 1:
+            raise ValueError(f"alpha must be a scalar or 1D array, got shape {alpha.shape}")
+        if alpha.ndim == 1:
+            a_grid = alpha.reshape((-1,) + (1,) * t.ndim)
+            x, y, r = self.positions(t[None], a_grid, case)
+        else:
+            x, y, r = self.positions(t, alpha, case)
+        if getattr(self.star, "spots", None) is not None and "times" not in kwargs:
+            # a rotating spotted star's surface depends on time
+            kwargs["times"] = jnp.broadcast_to(t, x.shape[:-1])
+        return occultation_flux(self.star, x, y, r, method=method, **kwargs)
+
+    def __repr__(self) -> str:
+        tilted = self.planets[self.tilted].name or self.tilted
+        inner = ",\n".join("    " + repr(p) for p in self.planets)
+        return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r})"
+
+    def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
+        return System(
+            star if star is not None else self.star,
+            planets if planets is not None else self.planets,
+            self.tilted if tilted is None else tilted,
+        )
+
+
+def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
+    """(alpha_a, alpha_b, alpha_c, alpha_d) [deg]: the tilt angles between which
+    planet-planet occultations can occur (Mueller et al. 2021, Eqs. 3-6).
+
+    ``other``: the second planet (index or name); default the first planet that
+    is not tilted.
+    """
+    tb = system.planets[system.tilted]
+    if other is None:
+        candidates = [i for i in range(len(system.planets)) if i != system.tilted]
+        if not candidates:
+            raise ValueError("alpha_limits needs a second planet")
+        other = candidates[0]
+    if isinstance(other, str):
+        other = system.index(other)
+    pc = system.planets[other]
+    bb, bc = float(abs(tb.impact)), float(abs(pc.impact))
+    pb, pcr = float(tb.radius), float(pc.radius)
+
+    def asin_deg(v: float) -> float:
+        return math.degrees(math.asin(min(max(v, -1.0), 1.0)))
+
+    alpha_a = abs(asin_deg(bc + pcr) - asin_deg(bb - pb)) - 1.0
+    alpha_b = 180.0 - abs(asin_deg(bc - pcr) + asin_deg(bb - pb)) + 1.0
+    return alpha_a, alpha_b, 360.0 - alpha_b, 360.0 - alpha_a
+
+
+@dataclasses.dataclass(frozen=True)
+class MultiTransit:
+    """Two or more planets on the star at once.
+
+    ``start``/``end``: first contact of the earliest and last contact of the
+    latest of the overlapping transits [d]; ``mid`` their midpoint;
+    ``overlap_start``/``overlap_end``: when all of ``planets`` are on the star;
+    ``transit_mid``: each planet's mid-transit time.
+    """
+
+    number: int
+    planets: tuple[str, ...]
+    start: float
+    end: float
+    mid: float
+    overlap_start: float
+    overlap_end: float
+    transit_mid: tuple[float, ...]
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def _label(system: System, i: int) -> str:
+    return system.planets[i].name or str(i)
+
+
+def _transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
+    """(first contact, last contact, planet index, mid-transit) [d] of every
+    transit that touches [t_start, t_end], sorted by first contact."""
+    windows = []
+    for i in idx:
+        pl = system.planets[i]
+        # first and last contact about conjunction (asymmetric for e > 0)
+        t1, t4 = (float(v) for v in pl.contacts())
+        if t4 <= t1:
+            continue
+        half = max(-t1, t4)
+        period, t0 = float(pl.period), float(pl.t0)
+        n0 = math.floor((t_start - half - t0) / period)
+        n1 = math.ceil((t_end + half - t0) / period)
+        for n in range(n0, n1 + 1):
+            mid = t0 + n * period
+            if mid + t4 >= t_start and mid + t1 <= t_end:
+                windows.append((mid + t1, mid + t4, i, mid))
+    windows.sort()
+    return windows
+
+
+def _simultaneous_sets(windows: list) -> list[list]:
+    """Maximal sets of transit windows that share a common time (all those
+    planets on the stellar disk at once): the maximal cliques of the interval
+    overlap graph, found by sweeping the contact times. Windows that only
+    touch (last contact = first contact) do not overlap."""
+    points = [(w[0], 1, k) for k, w in enumerate(windows)] + [(w[1], 0, k) for k, w in enumerate(windows)]
+    points.sort()  # at equal times, ends (0) before starts (1)
+    active: set[int] = set()
+    grew = False
+    out = []
+    for _, is_start, k in points:
+        if is_start:
+            active.add(k)
+            grew = True
+        else:
+            if grew and len(active) >= 2:
+                out.append([windows[j] for j in sorted(active)])
+            grew = False
+            active.discard(k)
+    return out
+
+
+def multi_transits(
+    system: System, t_start: float, t_end: float, planets: tuple | None = None
+) -> list[MultiTransit]:
+    """Events in [t_start, t_end] in which two or more planets are on the
+    stellar disk at the same time (their first-to-last-contact windows share
+    a common time).
+
+    An event lists exactly the planets that are all on the disk at once: a
+    triple needs a moment with all three in transit; a chain b-c then c-d
+    with no common time is two double transits, not a triple.
+
+    ``planets``: restrict to these planets (names or indices); default all.
+    Windows come from the orbits' contact times (:meth:`Planet.contacts`), so events that fall in
+    data gaps are listed too (see :func:`multi_transit_counts` for observed ones).
+    """
+    for name, v in (("t_start", t_start), ("t_end", t_end)):
+        if not np.isfinite(v):
+            raise ValueError(f"{name} must be finite, got {v!r}")
+    if t_end <= t_start:
+        raise ValueError(f"t_end must be after t_start, got {t_start} .. {t_end}")
+    idx = range(len(system.planets)) if planets is None else [
+        system.index(p) if isinstance(p, str) else int(p) for p in planets
+    ]
+    events: list[MultiTransit] = []
+    for group in _simultaneous_sets(_transit_windows(system, idx, t_start, t_end)):
+        group = sorted(group, key=lambda w: w[2])
+        start = min(w[0] for w in group)
+        end = max(w[1] for w in group)
+        events.append(MultiTransit(
+            number=len(events) + 1,
+            planets=tuple(_label(system, w[2]) for w in group),
+            start=start, end=end, mid=0.5 * (start + end),
+            overlap_start=max(w[0] for w in group), overlap_end=min(w[1] for w in group),
+            transit_mid=tuple(w[3] for w in group),
+        ))
+    return events
+
+
+def multi_transit_counts(
+    system: System, times, exposure: float | None = None, planets: tuple | None = None
+) -> dict[tuple[str, ...], int]:
+    """Number of observed multi-transits for each set of planets (paper
+    Table 2: each event counted once, under all the planets on the disk at
+    once, so a triple is not also counted as three doubles).
+
+    Args:
+        system: the planets.
+        times: observation time stamps [d] (e.g. the cadence mid-times of
+            the light curve), 1D.
+        exposure: cadence length [d]; a cadence covers t +- exposure / 2.
+            None: the time stamps are instants.
+        planets: restrict to these planets (names or indices).
+
+    An event counts as observed when some cadence covers part of the time
+    during which all its planets are on the disk (``overlap_start`` ..
+    ``overlap_end``); events in data gaps do not count.
+    """
+    t = np.sort(np.asarray(times, float).ravel())
+    if t.size == 0:
+        raise ValueError("times must hold at least one time stamp")
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"times must be finite, got {float(t[~np.isfinite(t)][0])}")
+    half = 0.0 if exposure is None else 0.5 * float(exposure)
+    if not half >= 0:
+        raise ValueError(f"exposure must be >= 0 days, got {exposure!r}")
+    counts: dict[tuple[str, ...], int] = {}
+    # one day of padding: a single time stamp is a valid (empty-width) span
+    for e in multi_transits(system, float(t[0]) - half - 1.0, float(t[-1]) + half + 1.0, planets):
+        # first cadence ending after the overlap starts: does it begin before the overlap ends?
+        j = np.searchsorted(t, e.overlap_start - half, side="right")
+        if j < t.size and t[j] - half < e.overlap_end:
+            counts[e.planets] = counts.get(e.planets, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (len(kv[0]), kv[0])))

@@ -1,0 +1,456 @@
+"""Scan configuration (TOML, CONVENTIONS.md): parsed and checked before any
+work starts, so a bad config fails in milliseconds with the field named."""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ..model._lightcurve import COLUMN_ROLES, LightCurve, quality_bitmask
+from ..model._phoenix import data_path, phoenix_star
+from ..model._star import Star
+from ..model._system import CASES, Planet, System, scan_cases
+
+__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "config_from_dict", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
+
+_PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
+_PLANET_OPTIONAL = {"e": 0.0, "omega": 90.0}  # circular unless given
+
+
+def default_config_path() -> Path:
+    """The bundled default scan: real Kepler-20 long-cadence data."""
+    return data_path("kepler20_real_llc.toml")
+
+
+def synthetic_config_path() -> Path:
+    """The bundled synthetic example (1-minute cadence, white noise)."""
+    return data_path("kepler20_synthetic.toml")
+
+
+@dataclasses.dataclass
+class ScanConfig:
+    system: System
+    lightcurve: LightCurve
+    alpha: np.ndarray
+    cases: tuple[str, ...]
+    margin: float
+    block: int
+    raw: dict
+    source: str
+    detrend: int | None = 2
+    baseline: float = 0.3
+    clip: float | None = 5.0
+    events: tuple | None = None
+    base: str | None = None  # the absolute folder of the config file (relative paths start there)
+    marginalize: int = 0  # [scan] marginalize: draws of the marginalised scan (0: off)
+    fit_free: tuple | None = None  # [fit] free: the parameters the marginalised scan samples
+
+    @property
+    def digest(self) -> str:
+        """Hash of everything that determines the results (not the path):
+        the config, the data, the jaxppo version (a release that changes the
+        numerics must not resume an older release's progress) and the
+        exposure supersampling."""
+        from .._version import __version__
+
+        nsub = self.lightcurve.supersampled_times()[1] if self.lightcurve.time.size else 1
+        # what only the marginalised scan uses stays out: changing the number
+        # of draws must not discard the plain scan's progress
+        raw = {k: v for k, v in self.raw.items() if k != "fit"}
+        if isinstance(raw.get("scan"), dict):
+            raw["scan"] = {k: v for k, v in raw["scan"].items() if k != "marginalize"}
+        payload = json.dumps({"config": raw, "jaxppo": __version__, "supersampling": nsub},
+                             sort_keys=True, default=str).encode()
+        data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
+        return hashlib.sha256(payload + data).hexdigest()[:16]
+
+
+def _err(source, msg):
+    return ValueError(f"{source}: {msg}")
+
+
+# Every key a config may hold (docs/config.md documents each). A key not
+# listed is an error naming it, its section and the closest valid key: a
+# typo must never run with a default (``tilded = true`` tilting planet 1).
+SECTIONS = ("star", "planet", "data", "scan", "fit")
+STAR_KEYS = {
+    "uniform": ("law",), "quadratic": ("law", "coefficients"), "nonlinear": ("law", "coefficients"),
+    "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
+    "phoenix": ("law", "path", "limb"),
+}
+PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted",)
+DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
+COLUMN_KEYS = tuple(COLUMN_ROLES)
+SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
+FIT_KEYS = ("free", "stellar_density", "stellar_density_source")
+
+
+def _check_keys(table: dict, valid, where: str, source: str) -> None:
+    valid = tuple(valid)
+    for key in table:
+        if key not in valid:
+            close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.5)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise _err(source, f"{where}: unknown key {key!r}{hint} (valid keys: {', '.join(valid)})")
+
+
+def _star_from(section: dict, base: Path, source: str) -> Star:
+    if "law" not in section:
+        raise _err(source, "[star] needs law = quadratic | nonlinear | power2 | uniform | tabulated | phoenix")
+    law = str(section["law"]).lower()
+    if law in STAR_KEYS:
+        _check_keys(section, STAR_KEYS[law], f"[star] (law = {law!r})", source)
+    if law == "phoenix":
+        if "path" not in section:
+            raise _err(source, "[star] law = 'phoenix' needs path = a PHOENIX SPECINT FITS file")
+        return phoenix_star(base / section["path"], limb=section.get("limb", "rescale"))
+    if law == "tabulated":
+        if "mu" in section and "intensity" in section:
+            return Star.tabulated(section["mu"], section["intensity"], interpolation=section.get("interpolation", "sqrt-poly"))
+        if "path" in section:
+            p = base / section["path"]
+            if not p.exists():
+                raise _err(source, f"[star] table file not found: {p}")
+            tab = np.loadtxt(p, delimiter=",", comments="#", ndmin=2)
+            return Star.tabulated(tab[:, 0], tab[:, 1], interpolation=section.get("interpolation", "sqrt-poly"))
+        raise _err(source, "[star] law = 'tabulated' needs mu = [...] and intensity = [...], or path = 'table.csv'")
+    try:
+        return Star.from_law(law, section.get("coefficients", []))
+    except ValueError as e:
+        raise _err(source, f"[star] {e}") from e
+
+
+def check_alpha_grid(alpha) -> float:
+    """The step [deg] of a valid tilt grid, or ValueError naming ``alpha``.
+
+    The posterior is normalised over the whole circle (uniform prior on
+    [0, 360)) and the geometry probabilities integrate it over fixed ranges:
+    a partial grid would silently drop the prior mass of the angles it leaves
+    out (e.g. "retrograde 100 %"), so the grid must be evenly spaced, span
+    360 deg, and have a step that divides 360."""
+    a = np.asarray(alpha, float)
+    if a.ndim != 1 or a.size < 2 or not np.all(np.isfinite(a)):
+        raise ValueError(f"alpha must be a 1D grid of at least 2 finite angles [deg], got shape {a.shape}")
+    step = float(a[1] - a[0])
+    n = 360.0 / step if step > 0 else 0.0
+    if not (step > 0 and np.allclose(np.diff(a), step, rtol=0, atol=1e-9) and abs(n - round(n)) < 1e-9
+            and round(n) == a.size):
+        raise ValueError(
+            f"alpha covers {a[0]:g} .. {a[-1]:g} deg ({a.size} angles): the posterior and the geometry probabilities "
+            "need the whole circle, so alpha must be evenly spaced, span 360 deg and have a step that divides 360 "
+            "(e.g. [0, 360, 1])")
+    return step
+
+
+def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
+    """The tilt grid [deg] of ``[start, stop, step]`` (stop exclusive),
+    checked by :func:`check_alpha_grid`; errors name ``name`` (the config key
+    or the command-line option)."""
+    if isinstance(grid, (str, bytes)) or not hasattr(grid, "__len__") or len(grid) != 3:
+        raise ValueError(f"{name} must be [start, stop, step] in degrees, got {grid!r}")
+    try:
+        if any(isinstance(v, bool) for v in grid):
+            raise TypeError
+        start, stop, step = (float(v) for v in grid)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers [start, stop, step] in degrees, got {list(grid)!r}") from None
+    if not all(np.isfinite(v) for v in (start, stop, step)):
+        raise ValueError(f"{name} must be finite, got {list(grid)!r}")
+    if not step > 0:
+        raise ValueError(f"{name} step must be > 0, got {step:g}")
+    alpha = np.arange(start, stop, step)
+    if alpha.size == 0:
+        raise ValueError(f"{name} grid [{start:g}, {stop:g}) with step {step:g} is empty")
+    try:
+        check_alpha_grid(alpha)
+    except ValueError as e:
+        raise ValueError(f"{name} = [{start:g}, {stop:g}, {step:g}]: {e}") from None
+    return alpha
+
+
+def _is_fits(p: Path) -> bool:
+    name = p.name.lower()
+    return p.suffix.lower() in (".fits", ".fit", ".fz") or name.endswith((".fits.gz", ".fit.gz"))
+
+
+def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
+    """[data]: path (one file or a list, e.g. one per quarter), columns,
+    exposure [d]."""
+    _check_keys(data, DATA_KEYS, "[data]", source)
+    if isinstance(data.get("columns"), dict):
+        _check_keys(data["columns"], COLUMN_KEYS, "[data] columns", source)
+    if "path" not in data:
+        raise _err(source, "[data] needs path = a CSV (time,flux[,flux_err]) or Kepler light-curve FITS file, or a list of them")
+    paths = data["path"] if isinstance(data["path"], list) else [data["path"]]
+    if not paths or not all(isinstance(p, str) for p in paths):
+        raise _err(source, f"[data] path must be a file name or a non-empty list of file names, got {data['path']!r}")
+    columns = data.get("columns", {})
+    if not isinstance(columns, dict) or not all(isinstance(v, str) for v in columns.values()):
+        raise _err(source, f"[data] columns must be a table of column names, e.g. {{time = 'bjd', flux_err = 'error'}}, got {columns!r}")
+    exposure = data.get("exposure")
+    if exposure is not None:
+        try:
+            exposure = float(exposure)
+        except (TypeError, ValueError):
+            raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}") from None
+    bitmask = data.get("quality_bitmask", "default")
+    mission = data.get("mission")
+    try:
+        quality_bitmask(bitmask, mission)
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from None
+    parts = []
+    for p in paths:
+        dpath = Path(p)
+        if not dpath.is_absolute():
+            dpath = base / dpath
+        if not dpath.exists():
+            raise _err(source, f"[data] file not found: {dpath}")
+        if dpath.is_dir():
+            raise _err(source, f"[data] path is a folder, not a file: {dpath}")
+        try:
+            if _is_fits(dpath):
+                bad = sorted(set(columns) - {"flux"})
+                if bad:
+                    raise ValueError(f"columns.{bad[0]} is not used for Kepler / TESS FITS files (only columns.flux, "
+                                     "e.g. 'SAP_FLUX')")
+                lc = LightCurve.from_fits(dpath, flux_column=columns.get("flux", "PDCSAP_FLUX").upper(),
+                                          quality_bitmask=bitmask, mission=mission)
+            else:
+                lc = LightCurve.from_csv(dpath, exposure=exposure, columns=columns, quality_bitmask=bitmask,
+                                         mission=mission)
+        except ValueError as e:
+            raise _err(source, f"[data] {e}") from e
+        parts.append(lc)
+    try:
+        lc = parts[0] if len(parts) == 1 else LightCurve.concatenate(parts, exposure)
+        if exposure is not None and lc.exposure != exposure:
+            lc = dataclasses.replace(lc, exposure=exposure)
+    except ValueError as e:
+        raise _err(source, f"[data] {e}") from e
+    return lc
+
+
+def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
+    """Read and check a scan config; ``None`` gives the bundled default.
+
+    ``alpha``: ``[start, stop, step]`` [deg] replacing ``[scan] alpha`` (the
+    command line's ``--alpha``); checked the same way, and part of the digest."""
+    path = Path(path) if path is not None else default_config_path()
+    source = str(path)
+    if not path.exists():
+        raise ValueError(f"config file not found: {path}")
+    if path.is_dir():
+        raise ValueError(f"config {path} is a folder, not a TOML file")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{source}: not valid TOML: {e}") from e
+    if alpha is not None:
+        new = [float(v) for v in alpha]
+        try:
+            same = [float(v) for v in raw["scan"]["alpha"]] == new
+        except (KeyError, TypeError, ValueError):
+            same = False
+        # the same grid written differently (ints) keeps the digest, so a
+        # finished scan is still recognised
+        if isinstance(raw.get("scan"), dict) and not same:
+            raw["scan"] = dict(raw["scan"], alpha=new)
+    # absolute: the saved config.json (jaxppo plot) works from any folder
+    return config_from_dict(raw, path.resolve().parent, source)
+
+
+def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
+    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
+    paths are relative to the folder ``base``."""
+    base = Path(base)
+    _check_keys(raw, SECTIONS, "top level (sections)", source)
+    for sec in ("star", "data", "scan"):
+        if sec in raw and not isinstance(raw[sec], dict):
+            raise _err(source, f"[{sec}] must be a table (a [{sec}] section)")
+    raw = dict(raw)
+    raw.setdefault("scan", {})  # every [scan] key has a default (docs/config.md)
+    for sec in ("star", "planet", "data"):
+        if sec not in raw:
+            raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
+    star = _star_from(raw["star"], base, source)
+
+    planets, tilted = [], []
+    entries = raw["planet"] if isinstance(raw["planet"], list) else [raw["planet"]]
+    if len(entries) < 2:
+        raise _err(source, f"the scan needs at least two [[planet]] entries, got {len(entries)}")
+    for i, p in enumerate(entries):
+        if not isinstance(p, dict):
+            raise _err(source, "[[planet]] entries must be tables ([[planet]] sections)")
+        _check_keys(p, PLANET_KEYS, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')})", source)
+        if not isinstance(p.get("tilted", False), bool):
+            raise _err(source, f"[[planet]] #{i + 1}: tilted must be true or false, got {p['tilted']!r}")
+        missing = [f for f in _PLANET_FIELDS if f not in p]
+        if missing:
+            raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
+        for f in _PLANET_FIELDS + tuple(k for k in _PLANET_OPTIONAL if k in p):
+            # a quoted number ("0.018") is a typo, not a value
+            if isinstance(p[f], bool) or not isinstance(p[f], (int, float)):
+                raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}): {f} must be a number, "
+                           f"got {p[f]!r}")
+        try:
+            values = {f: float(p[f]) for f in _PLANET_FIELDS}
+            values.update({k: float(p.get(k, v)) for k, v in _PLANET_OPTIONAL.items()})
+            planets.append(Planet(**values, name=str(p.get("name", f"p{i + 1}"))))
+        except (TypeError, ValueError) as e:
+            raise _err(source, f"[[planet]] #{i + 1}: {e}") from e
+        if p.get("tilted", False):
+            tilted.append(i)
+    if len(tilted) > 1:
+        raise _err(source, f"only one planet may have tilted = true, got {len(tilted)}")
+    system = System(star, planets, tilted=tilted[0] if tilted else 0)
+
+    lc = _lightcurve_from(raw["data"], base, source)
+
+    scan = raw["scan"]
+    _check_keys(scan, SCAN_KEYS, "[scan]", source)
+    try:
+        alpha = alpha_grid(scan.get("alpha", [0.0, 360.0, 1.0]), "[scan] alpha")
+    except ValueError as e:
+        raise _err(source, str(e)) from None
+    cases = scan.get("cases", list(CASES))
+    try:
+        cases = scan_cases(system, cases)
+    except ValueError as e:
+        raise _err(source, f"[scan] cases = {cases!r}: {e}") from None
+    margin = float(scan.get("margin", 0.05))
+    if margin < 0:
+        raise _err(source, f"[scan] margin must be >= 0 days, got {margin}")
+    block = int(scan.get("block", 60))
+    if block < 1:
+        raise _err(source, f"[scan] block must be >= 1, got {block}")
+    detrend = scan.get("detrend", 2)
+    if isinstance(detrend, str) and detrend.lower() == "none":
+        detrend = None
+    elif isinstance(detrend, bool) or not isinstance(detrend, int) or not 0 <= detrend <= 5:
+        raise _err(source, f"[scan] detrend must be a polynomial order 0..5 or \"none\", got {detrend!r}")
+    baseline = scan.get("baseline", 0.3)
+    if isinstance(baseline, bool) or not isinstance(baseline, (int, float)) or not baseline > margin:
+        raise _err(source, f"[scan] baseline must be a number of days > margin ({margin}), got {baseline!r}")
+    clip = scan.get("clip", 5.0)
+    if isinstance(clip, str) and clip.lower() == "none":
+        clip = None
+    elif isinstance(clip, bool) or not isinstance(clip, (int, float)) or not clip >= 2:
+        raise _err(source, f"[scan] clip must be a threshold >= 2 (robust sigmas) or \"none\", got {clip!r}")
+    events = scan.get("multi_transits")
+    if events is not None:
+        if not (isinstance(events, list) and events and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in events)):
+            raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
+        events = tuple(float(v) for v in events)
+    marginalize = scan.get("marginalize", 0)
+    if isinstance(marginalize, bool) or not isinstance(marginalize, int) or marginalize < 0:
+        raise _err(source, f"[scan] marginalize must be a number of draws >= 0 (0: off), got {marginalize!r}")
+    fit = raw.get("fit", {})
+    if not isinstance(fit, dict):
+        raise _err(source, "[fit] must be a table (a [fit] section)")
+    _check_keys(fit, FIT_KEYS, "[fit]", source)
+    free = fit.get("free")
+    if free is not None:
+        if not (isinstance(free, list) and free and all(isinstance(v, str) for v in free)):
+            raise _err(source, f"[fit] free must be a list of parameter names such as \"b.t0\", got {free!r}")
+        from ..inference._fit import parameter_names
+
+        valid = parameter_names(system)
+        bad = [v for v in free if v not in valid]
+        if bad:
+            raise _err(source, f"[fit] free: unknown parameter(s) {bad}; valid: {list(valid)}")
+        free = tuple(free)
+    rho = fit.get("stellar_density")
+    if rho is not None and not (isinstance(rho, list) and len(rho) == 2
+                                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in rho)
+                                and all(np.isfinite(v) and v > 0 for v in rho)):
+        raise _err(source, f"[fit] stellar_density must be [mean, sd] in g/cm^3, both > 0, got {rho!r}")
+    if not isinstance(fit.get("stellar_density_source", ""), str):
+        raise _err(source, f"[fit] stellar_density_source must be a string, got {fit['stellar_density_source']!r}")
+    return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
+                      None if clip is None else float(clip), events, str(base), marginalize, free)
+
+
+def config_template() -> str:
+    """A commented config with every key (``jaxppo init``): the default scan
+    of the real Kepler-20 long-cadence data, the data path absolute so that
+    the file loads wherever it is written."""
+    data = data_path("kepler20_kic6850504_llc_q1-q17_pdcsap.csv.gz")
+    return f"""# jaxppo scan config; every key with units and defaults: docs/config.md.
+# Run it:  jaxppo scan THIS_FILE.toml --out scan_out
+# Unknown keys are errors (a typo never runs with a default).
+# As written: Kepler-20 b + c (Mueller et al. 2021, Table 3 "This work") on
+# the bundled real Kepler long-cadence data.
+
+[star]
+# law: quadratic | nonlinear | power2 | uniform | tabulated | phoenix
+law = "nonlinear"
+# coefficients of the law: quadratic u1, u2; nonlinear c1..c4; power2 c, alpha
+# (here: fit to PHOENIX-ACES intensities, Teff 5500 K, log g 4.5)
+coefficients = [1.0984732924, -1.74332475724, 2.46865245453, -0.995093958392]
+# law = "tabulated": mu = [...] and intensity = [...], or path = "table.csv"
+#   (columns mu, intensity); interpolation = "sqrt-poly" (default)
+# law = "phoenix": path = "lte...PHOENIX-ACES-AGSS-COND-SPECINT-2011.fits";
+#   limb = "rescale" (default)
+
+[[planet]]
+name = "b"            # label, used in free-parameter names ("b.t0")
+period = 3.69611590   # [d] orbital period
+t0 = 134.501962       # [d] a mid-transit time, on the data's time scale (BKJD here)
+a = 10.60             # [stellar radii] semi-major axis, > 1
+inc = 87.687          # [deg] inclination, 0..180
+radius = 0.01805      # planet-to-star radius ratio
+e = 0.0               # eccentricity (optional, default 0: circular)
+omega = 90.0          # [deg] argument of periastron (optional, default 90: periastron at transit)
+tilted = true         # this orbit is rotated by alpha (at most one planet; default: the first)
+
+[[planet]]
+name = "c"
+period = 10.85408479
+t0 = 138.608470
+a = 22.764
+inc = 89.967
+radius = 0.02878
+
+[data]
+# one file or a list (e.g. one per quarter): CSV, gzip CSV or Kepler FITS
+path = "{data}"
+# [d] integration time of each point: the model is averaged over it
+# (Kepler long cadence 29.4 min = 0.0204335982 d; FITS files: from TIMEDEL;
+# omit for instantaneous points)
+exposure = 0.0204335982
+# CSV column names, when they are not the usual ones (quarter: each quarter
+# divided by its own median; no flux_err column: errors from the scatter)
+# columns = {{time = "time_bkjd", flux = "pdcsap_flux", flux_err = "pdcsap_flux_err", quality = "sap_quality", quarter = "quarter"}}
+# quality flags: a point is dropped when quality & bitmask != 0; "default"
+# (the mission's recommended set: only cadences it calls unusable), "hard",
+# "hardest" (every flag), "none" or an integer bitmask (docs/config.md lists the bits)
+quality_bitmask = "default"
+# mission = "kepler"   # "kepler" or "tess": the meaning of a CSV file's quality bits
+#                      # (FITS files: from TELESCOP; a CSV without it: every flag drops the point)
+
+[scan]
+alpha = [0.0, 360.0, 1.0]      # [deg] start, stop, step; must span 360 deg, step dividing 360
+cases = ["same", "opposite"]   # hemisphere cases (paper cases 1 and 4)
+margin = 0.05                  # [d] out-of-transit data in the chi^2 on each side of an event
+detrend = 2                    # order of each event's out-of-transit polynomial, or "none"
+baseline = 0.3                 # [d] baseline fitted on each side of an event (> margin)
+clip = 5.0                     # drop out-of-transit points beyond this many robust sigmas, or "none"
+block = 60                     # alphas per progress record (resume granularity)
+# multi_transits = [334.02, 670.45]   # [d] only the events with these mid-times (within 0.1 d)
+marginalize = 0                # draws of the scan marginalised over the transit posterior (0: off)
+
+[fit]
+# free = ["b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius"]
+#   parameters the marginalised scan samples with NUTS (default: these five of every planet;
+#   the a/R* named here are tied to one stellar density by Kepler's third law)
+# stellar_density = [1.53, 0.15]   # [g/cm^3] mean, sd: Gaussian prior on rho* (default: the
+#                                  # density the planets' a/R* imply, 10 % wide)
+# stellar_density_source = "..."   # where the value comes from (copied to marginal.json)
+"""

@@ -1,0 +1,677 @@
+"""The obliquity scan marginalised over the transit-parameter posterior.
+
+Mueller et al. (2021) hold every transit parameter fixed while they scan the
+tilt alpha and name the improvement "beyond the scope of this paper" (end of
+Sect. 4.2): repeat the scan for models drawn from the transit-parameter
+posterior and average the chi^2 curves by their likelihoods. This module does
+that (docs/marginal.md):
+
+    p(alpha | D) = integral p(alpha, theta | D) dtheta
+                 ~ integral L(D | alpha, theta) pi(theta) dtheta
+                 ~ E_{theta ~ p0(theta | D)} [ L(D | alpha, theta) / L0(D | theta) ]
+                 = E_{theta ~ p0} [ exp(-(chi^2(alpha, theta) - chi^2_0(theta)) / 2) ]
+
+with p0 the posterior of the transit parameters under the no-PPO model (each
+planet's own transit only: the model of every alpha without a PPO) and
+chi^2_0(theta) its chi^2, so the weight of a draw at alpha is exp(-Delta
+chi^2 / 2) with that draw's own no-PPO model as reference. The NUTS draws are
+taken at an alpha where no planet-planet occultation occurs in any frame
+(``alpha_ref``), so the sampled posterior is p0 exactly (checked per draw).
+
+The draws x alphas x cases x frames work is one batched computation per chunk
+of draws: the one-disk terms of every draw's frames (which hold for every
+alpha and case) in one call, and the frames in which the tilted planet's disk
+overlaps another disk (found from the geometry) of all draws, alphas and
+cases in one call of the same overlap kernel the plain scan uses
+(:func:`jaxppo.model._sweep.overlap_flux`). chi^2 is then updated sparsely: only
+the points containing an overlapping sub-exposure change.
+
+Results are written as they go (one checksummed JSON line per draw and case,
+the progress format of :mod:`jaxppo.obliquity._scan`, fsynced per chunk of draws); an
+interrupted run resumes without recomputing finished draws.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from ._config import ScanConfig
+from ..inference._posterior import PLANET_PARAMS, check_density, default_density, nuts_draws
+from ..model._lightcurve import LightCurve
+from ._progress import atomic_write, read_progress, record_line
+from ..model._overlap import contact_frames, on_star, ppo_table, untilted_geometry
+from ._scan import windows_and_events, geometry_probabilities, run_scan
+from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
+from ..model._plan import one_disk_sum, overlap_flux
+from ..model._system import System, case_signs
+
+__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free"]
+
+PROGRESS = "marginal_progress.jsonl"
+DRAWS = "marginal_draws.json"
+_ORDER, _KCHUNK = 24, 65536
+
+
+def default_free(system: System) -> tuple[str, ...]:
+    """t0, period, a, inc and radius of every planet (the issue's default)."""
+    return tuple(f"{pl.name or i}.{p}" for i, pl in enumerate(system.planets) for p in PLANET_PARAMS)
+
+
+def _logmeanexp(v: np.ndarray, axis: int) -> np.ndarray:
+    m = np.max(v, axis=axis, keepdims=True)
+    return np.squeeze(m, axis) + np.log(np.mean(np.exp(v - m), axis=axis))
+
+
+class MarginalResult(dict):
+    """The marginal scan: this dict is marginal.json (per case: the
+    geometry probabilities from the marginal posterior, their spread over
+    draws, the Bayes factor and Jeffreys rating, the importance-sampling
+    effective sample size); ``table`` holds the rows of marginal.csv;
+    ``delta_chi2`` [draw, case, alpha] the per-draw curves; ``fixed`` the
+    fixed-parameter :class:`ScanResult`."""
+
+    def summary_lines(self) -> list[str]:
+        """What ``jaxppo scan --marginalize N`` prints: per case, each
+        geometry's marginal probability (16-84 % over draws) beside the fixed
+        scan's, the Bayes factor and rating, the posterior peak, the
+        importance ESS; then the timings."""
+        lines = [f"marginalised over {self['draws']} draws ({self['sampler'].get('method', '')})"]
+        for case, c in self["cases"].items():
+            geo, fx = c["geometries"], self.fixed["probabilities"][case]
+            imp = c["importance"]
+            if not c["reliable"]:
+                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
+                             f"(--marginalize N, now {self['draws']}) or sample alpha jointly")
+                continue
+            for name, g in geo.items():
+                if isinstance(g, dict):
+                    sp = c["probability_spread_over_draws"][name]
+                    lines.append(f"  case {case}: {name}: {100 * g['probability']:.2f} % "
+                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
+                                 f"{100 * fx[name]['probability']:.2f} %)")
+            k = geo["bayes_factor"]
+            kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
+            ess = min(g["ess"] for g in imp["groups"].values())
+            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
+                         f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
+                         f"of the geometry masses min {ess:.1f} of {self['draws']} (per alpha min "
+                         f"{c['importance_ess']['min']:.1f})")
+        sec = self.get("seconds") or {}
+        if sec:
+            lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
+                         f"{sec['draws_computed']} draws {sec['chi2_s']:.1f} s); load average "
+                         + " ".join(f"{v:.2f}" for v in self["cpu"]["load_average"]))
+        return lines
+
+
+def _systems_from(system: System, samples: dict, names) -> list[System]:
+    """One System per draw: the given system with the sampled parameters."""
+    n = len(np.asarray(samples[names[0]]))
+    out = []
+    for i in range(n):
+        planets = list(system.planets)
+        for name in names:
+            owner, par = name.split(".", 1)
+            idx = next(j for j, pl in enumerate(planets) if (pl.name or str(j)) == owner)
+            planets[idx] = planets[idx].replace(**{par: float(np.asarray(samples[name])[i])})
+        out.append(system.replace(planets=planets))
+    return out
+
+
+def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
+    if not isinstance(samples, dict) or not samples:
+        raise ValueError(f"samples must be a non-empty dict name -> array of draws, got {type(samples).__name__}")
+    names = list(samples)
+    lengths = {n: np.asarray(samples[n]).shape for n in names}
+    n = lengths[names[0]]
+    if any(s != n for s in lengths.values()) or len(n) != 1 or n[0] < 1:
+        raise ValueError(f"samples: every entry must be a 1D array of the same length >= 1, got shapes {lengths}")
+    labels = {pl.name or str(i) for i, pl in enumerate(system.planets)}
+    for name in names:
+        owner, _, par = name.partition(".")
+        if owner not in labels or par not in PLANET_PARAMS:
+            raise ValueError(f"samples: {name!r} is not a planet parameter; names look like 'b.t0' "
+                             f"(planets {sorted(labels)}, parameters {PLANET_PARAMS})")
+        if not np.all(np.isfinite(np.asarray(samples[name], float))):
+            raise ValueError(f"samples: {name!r} holds non-finite values")
+    return names, int(n[0])
+
+
+def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
+    """chi^2 of every (draw, case, alpha) and each draw's no-PPO chi^2.
+
+    Args:
+        systems: one :class:`System` per draw (same star, planets, tilted).
+        tm: model times [d] (``LightCurve.supersampled_times``), nsub per point.
+        y, sig: the data and their errors per point.
+        alpha [deg], cases: the grid.
+
+    Returns:
+        chi2 [draw, case, alpha], chi2_null [draw] (the no-PPO model: the sum
+        of each disk's own transit), ppo [draw, case, alpha] (True where the
+        tilted planet overlaps another planet on the star in some frame:
+        :func:`jaxppo.model._overlap.ppo_table` over all events at once).
+
+    One batched computation: the one-disk terms of all draws in one call, the
+    overlapping frames of all draws, cases and alphas in one call of the
+    overlap kernel the plain scan uses (bounded by its own chunking).
+    """
+    alpha = np.asarray(alpha, float)
+    tm = np.asarray(tm, float)
+    n_d, n_c, n_a, n_t = len(systems), len(cases), alpha.size, tm.size
+    n_pts = n_t // nsub
+    star = systems[0].star
+    k, tilted = len(systems[0].planets), systems[0].tilted
+    signs_of = [case_signs(k, tilted, c) for c in cases]
+    # untilted geometry of every draw ("same" case, r = 0 behind the star)
+    # and its tilted planet at every alpha
+    geo = [untilted_geometry(s, tm, alpha) for s in systems]
+    x0 = np.stack([g[0] for g in geo])  # [draw, time, disk]
+    y0 = np.stack([g[1] for g in geo])
+    r0 = np.stack([g[2] for g in geo])
+    d0 = np.hypot(x0, y0)
+    on = on_star(x0, y0, r0)
+    # one-disk terms: alpha- and case-independent, one call for all draws
+    base = np.ones((n_d, n_t))
+    fr = on.any(-1)
+    if fr.any():
+        base[fr] = one_disk_sum(star, d0[fr], r0[fr], _ORDER, _KCHUNK)
+    m_base = base.reshape(n_d, n_pts, nsub).mean(-1)
+    res0 = (y[None, :] - m_base) / sig[None, :]
+    chi2_null = np.sum(res0**2, axis=1)
+
+    # overlapping frames of every (draw, case, alpha): the one contact test
+    jobs_d, jobs_c, jobs_a, jobs_t, jobs_x, jobs_y = [], [], [], [], [], []
+    ppo = np.zeros((n_d, n_c, n_a), bool)
+    for di, (s, g) in enumerate(zip(systems, geo)):
+        xt, yt = g[3], g[4]  # [alpha, time]
+        ppo[di] = contact_frames(s, tm, alpha, cases, tilted_only=True, geometry=g).any(-1)
+        hits = contact_frames(s, tm, alpha, cases, geometry=g)
+        for ci in range(n_c):
+            ai, ti = np.nonzero(hits[ci])
+            if ai.size:
+                jobs_d.append(np.full(ai.size, di))
+                jobs_c.append(np.full(ai.size, ci))
+                jobs_a.append(ai)
+                jobs_t.append(ti)
+                jobs_x.append(xt[ai, ti])
+                jobs_y.append(yt[ai, ti])
+    chi2 = np.broadcast_to(chi2_null[:, None, None], (n_d, n_c, n_a)).copy()
+    if not jobs_d:
+        return chi2, chi2_null, ppo
+    jd, jc, ja, jt, xt_j, yt_j = (np.concatenate(v) for v in (jobs_d, jobs_c, jobs_a, jobs_t, jobs_x, jobs_y))
+    X = x0[jd, jt].copy()
+    Y = y0[jd, jt] * np.stack(signs_of)[jc]  # untilted planets mirrored per case
+    X[:, tilted] = xt_j
+    Y[:, tilted] = yt_j
+    vals = np.asarray(overlap_flux(star, X, Y, r0[jd, jt], _ORDER, _KCHUNK))
+    # sparse chi^2 update: each overlapping sub-exposure moves its point's
+    # exposure-averaged model by (val - base) / nsub
+    shift = (vals - base[jd, jt]) / nsub
+    pt = jt // nsub
+    key = ((jd * n_c + jc) * n_a + ja) * n_pts + pt
+    uk, inv = np.unique(key, return_inverse=True)
+    dm = np.bincount(inv, weights=shift, minlength=uk.size)
+    p_idx = uk % n_pts
+    rest = uk // n_pts
+    a_idx = rest % n_a
+    rest //= n_a
+    c_idx = rest % n_c
+    d_idx = rest // n_c
+    r_old = res0[d_idx, p_idx]
+    r_new = r_old - dm / sig[p_idx]
+    np.add.at(chi2, (d_idx, c_idx, a_idx), r_new**2 - r_old**2)
+    return chi2, chi2_null, ppo
+
+
+def _chi2_0(chi2, chi2_null, ppo):
+    """Ground level per draw and case as the scan defines it: the median of
+    chi^2 over the alphas with no PPO in any frame; with none, the chi^2 of
+    the no-PPO model."""
+    n_d, n_c, _ = chi2.shape
+    out = np.empty((n_d, n_c))
+    for d in range(n_d):
+        for c in range(n_c):
+            quiet = ~ppo[d, c]
+            out[d, c] = np.median(chi2[d, c, quiet]) if quiet.any() else chi2_null[d]
+    return out
+
+
+def quiet_alpha(system: System, tm: np.ndarray, case) -> float:
+    """A tilt [deg] without a PPO in any frame, as far as possible (in
+    alpha) from every tilt with one, so the transit posterior sampled there
+    is the no-PPO posterior for all plausible draws."""
+    grid = np.arange(0.0, 360.0, 0.5)
+    quiet = ~ppo_table(system, [tm], grid, case)[:, 0]
+    if not quiet.any():
+        raise ValueError("alpha: every tilt produces a planet-planet occultation in these windows; "
+                         "the no-PPO transit posterior cannot be sampled at a quiet tilt (pass samples=)")
+    if quiet.all():
+        return 0.0
+    # distance (circular, in grid steps) to the nearest PPO tilt
+    loud = np.nonzero(~quiet)[0]
+    idx = np.arange(grid.size)
+    dist = np.min(np.abs((idx[:, None] - loud[None, :] + grid.size // 2) % grid.size - grid.size // 2), axis=1)
+    return float(grid[int(np.argmax(np.where(quiet, dist, -1)))])
+
+
+def _centre_epochs(system: System, t_mid: float) -> System:
+    """The same orbits with each planet's t0 moved by whole periods to the
+    transit nearest t_mid [d]."""
+    planets = []
+    for pl in system.planets:
+        n = np.round((t_mid - float(pl.t0)) / float(pl.period))
+        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period)))
+    return system.replace(planets=planets)
+
+
+def _digest(cfg: ScanConfig, settings: dict) -> str:
+    payload = json.dumps({"scan": cfg.digest, "marginal": settings}, sort_keys=True, default=str).encode()
+    return hashlib.sha256(payload).hexdigest()[:16]
+
+
+def _config(system, lightcurve, kw) -> ScanConfig:
+    from ._config import check_alpha_grid
+    from ._scan import config_from_arguments
+
+    if isinstance(system, ScanConfig):
+        if lightcurve is not None:
+            raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
+        return system
+    cfg = config_from_arguments(system, lightcurve, kw["alpha"], kw["cases"], kw["margin"], kw["detrend"], kw["baseline"],
+                       kw["clip"], kw["multi_transits"], 60)
+    check_alpha_grid(cfg.alpha)
+    return cfg
+
+
+def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=None, samples=None,
+                  num_warmup: int = 300, thin: int = 1, seed: int = 0, chains: int = 4, stellar_density=None,
+                  chunk: int = 16, fixed=None,
+                  restart: bool = False, progress: bool = True, figures: bool = True, alpha=None,
+                  cases=("same", "opposite"), margin: float = 0.05, detrend=2, baseline: float = 0.3,
+                  clip=5.0, multi_transits=None, min_ess: float = MIN_IMPORTANCE_ESS) -> MarginalResult:
+    """The obliquity scan marginalised over the transit parameters (issue 11;
+    the paper's proposal at the end of Sect. 4.2). docs/marginal.md.
+
+    ``jp.marginal_scan(jp.load_config(path), draws=64, out="dir")`` or
+    ``jp.marginal_scan(system, lightcurve, alpha=np.arange(0, 360, 1.0), ...)``.
+
+    Args:
+        system: a :class:`ScanConfig` (its own scan settings) or a
+            :class:`System` with ``lightcurve``.
+        draws: N, the number of posterior draws (>= 1).
+        out: folder for marginal.csv, marginal.json, marginal.png, the draws
+            and the progress file (resumes); None: a temporary folder.
+        free: the sampled transit parameters (default: t0, period, a, inc and
+            radius of every planet); the a/R* named here are tied to one
+            stellar density (Kepler's third law; :func:`nuts_draws`).
+        samples: name -> array of N draws to use instead of NUTS (e.g. your
+            own posterior); ``draws`` is then their number.
+        num_warmup, thin, seed, chains: NUTS settings (N x thin samples over
+            ``chains`` vectorised chains, every thin-th kept).
+        stellar_density: (mean, sd) [g/cm^3], the Gaussian prior on rho*
+            when an a/R* is free; default: a config's ``[fit]
+            stellar_density``, else the density the system's a/R* imply,
+            10 % wide.
+        chunk: draws per batched computation and per progress record flush
+            (memory grows with chunk x alphas x cases x frames / 8 bytes).
+        fixed: the fixed-parameter :class:`ScanResult` of the same config, if
+            already computed (else it is computed, without figures).
+        restart: discard this folder's marginal progress and draws.
+        min_ess: the guard: a case's geometry probabilities, posterior peak
+            and rating are given only when the importance weights of each
+            geometry's mass and of the total have a Kish ESS >= ``min_ess``
+            and a Pareto k-hat <= min(0.7, 1 - 1/log10 N)
+            (:func:`jaxppo.inference._importance.importance_reliability`); otherwise
+            they are None and the case says why.
+        alpha, cases, margin, detrend, baseline, clip, multi_transits: as
+            :func:`jaxppo.scan` (only with a System).
+
+    Returns:
+        :class:`MarginalResult` (marginal.json as a dict; ``table``,
+        ``delta_chi2`` [draw, case, alpha], ``fixed``).
+    """
+    from tqdm import tqdm
+
+    t_begin = time.perf_counter()
+    cfg = _config(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
+                                           baseline=baseline, clip=clip, multi_transits=multi_transits))
+    if samples is None:
+        if isinstance(draws, bool) or int(draws) != draws or int(draws) < 1:
+            raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
+        draws = int(draws)
+    if not (isinstance(min_ess, (int, float)) and not isinstance(min_ess, bool) and np.isfinite(min_ess)
+            and min_ess >= 1):
+        raise ValueError(f"min_ess must be a number >= 1, got {min_ess!r}")
+    for name, v, lo in (("chunk", chunk, 1), ("thin", thin, 1), ("num_warmup", num_warmup, 1), ("chains", chains, 1)):
+        if isinstance(v, bool) or int(v) != v or int(v) < lo:
+            raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+    sysm = cfg.system
+    free = default_free(sysm) if free is None else tuple(free)
+    if samples is not None:
+        snames, draws = _check_samples(sysm, samples)
+        free = tuple(snames)
+        given = {n: np.asarray(samples[n], float).tolist() for n in snames}
+    else:
+        given = None
+    density, density_source = None, None
+    if given is None and any(n.endswith(".a") for n in free):
+        if stellar_density is None and isinstance(system, ScanConfig):
+            stellar_density = (system.raw.get("fit") or {}).get("stellar_density")
+            density_source = (system.raw.get("fit") or {}).get("stellar_density_source", "[fit] stellar_density")
+        if stellar_density is None:
+            labels = [pl.name or str(i) for i, pl in enumerate(sysm.planets)]
+            tied = [labels.index(n.split(".")[0]) for n in free if n.endswith(".a") and n.split(".")[0] in labels]
+            *density, density_source = default_density(sysm, tied)
+        else:
+            density = check_density(stellar_density)
+            density_source = density_source or "stellar_density argument"
+        density = [float(v) for v in density]
+    settings = {"draws": draws, "free": list(free), "num_warmup": int(num_warmup), "thin": int(thin),
+                "seed": int(seed), "chains": int(chains), "density": density, "samples_sha256": None if given is None else
+                hashlib.sha256(json.dumps(given, sort_keys=True).encode()).hexdigest()[:20]}
+    digest = _digest(cfg, settings)
+
+    if out is None:
+        with tempfile.TemporaryDirectory(prefix="jaxppo_marginal_") as tmp:
+            return _run(cfg, Path(tmp), digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed,
+                        restart, progress, False, t_begin, tqdm, chains, density, density_source, min_ess)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart,
+                progress, figures, t_begin, tqdm, chains, density, density_source, min_ess)
+
+
+def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart, progress,
+         figures, t_begin, tqdm, chains, density, density_source, min_ess):
+    import jax
+
+    sysm = cfg.system
+    if fixed is not None and fixed.get("config_digest") != cfg.digest:
+        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.get('config_digest')}, "
+                         f"this one {cfg.digest})")
+    prog_path, draws_path = out / PROGRESS, out / DRAWS
+    if restart:
+        for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
+            if (out / name).is_file():
+                (out / name).unlink()
+    done, notes = read_progress(prog_path, digest, out, cfg.source)
+    for note in notes:
+        warnings.warn(note, stacklevel=3)
+
+    windows, _ = windows_and_events(cfg)
+    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
+    tm, nsub = data.supersampled_times()
+    y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
+    timing = {}
+
+    # ---- the draws (kept beside the results: a resumed run uses the same) ----
+    stored = None
+    if draws_path.exists():
+        try:
+            rec = json.loads(draws_path.read_text())
+            if rec.get("digest") == digest:
+                stored = rec
+        except (json.JSONDecodeError, OSError):
+            stored = None
+        if stored is None:
+            raise ValueError(f"{out} holds draws of a different marginal scan ({draws_path.name}); "
+                             "use another out folder or restart=True")
+    if stored is not None:
+        samples = {k: np.asarray(v, float) for k, v in stored["samples"].items()}
+        sampler = stored["sampler"]
+    elif given is not None:
+        samples = {k: np.asarray(v, float) for k, v in given.items()}
+        sampler = {"method": "given by the caller"}
+    else:
+        a_ref = quiet_alpha(sysm, tm, cfg.cases[0])
+        # Sample t0 at the transit nearest the middle of the windows: the
+        # same orbit, but t0 and the period are then nearly uncorrelated
+        # (a config's t0 lies hundreds of periods before most events, where
+        # the two are correlated to |r| ~ 1 and NUTS needs deep trees).
+        centred = _centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
+        t0 = time.perf_counter()
+        samples, sampler = nuts_draws(centred, data, free, density, a_ref, cfg.cases[0], draws, num_warmup, thin,
+                                      seed, chains, progress)
+        timing["sampler_s"] = time.perf_counter() - t0
+        sampler.update({"alpha_ref": a_ref, "case_ref": cfg.cases[0], "density_prior": density,
+                        "density_prior_source": density_source,
+                        "t0_epochs": {pl.name or str(i): float(pl.t0) for i, pl in enumerate(centred.planets)}})
+        if "star.density" in samples:
+            sampler["star.density"] = samples.pop("star.density").tolist()
+    if stored is None:
+        atomic_write(draws_path, json.dumps({"digest": digest, "sampler": sampler,
+                                              "samples": {k: v.tolist() for k, v in samples.items()}},
+                                             allow_nan=False, default=float))
+    if not prog_path.exists():
+        atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
+    systems = _systems_from(sysm, samples, list(samples))
+    n_d = len(systems)
+
+    # ---- per-draw chi^2 curves, batched per chunk, written as they go ----
+    def key(d, case):
+        return f"{case}#{d}"
+
+    # The draws were sampled from the transit posterior at tilt alpha_ref:
+    # the exact importance weight of alpha is L(alpha) / L(alpha_ref), so
+    # each draw's chi^2 at alpha_ref is its reference (the no-PPO chi^2
+    # wherever alpha_ref is free of PPOs for that draw). Draws given by the
+    # caller are taken as no-PPO posterior draws: reference chi^2_0.
+    a_ref = sampler.get("alpha_ref")
+
+    def finished(d):
+        return (key(d, "null"), 0.0) in done and (a_ref is None or (key(d, "ref"), 0.0) in done) and all((key(d, c), round(float(a), 9)) in done
+                                                        for c in cfg.cases for a in cfg.alpha)
+
+    todo = [d for d in range(n_d) if not finished(d)]
+    bar = tqdm(total=n_d, initial=n_d - len(todo), desc="marginal scan", unit="draw", disable=not progress,
+               leave=False)
+    t0 = time.perf_counter()
+    with open(prog_path, "a") as fh:
+        for i in range(0, len(todo), chunk):
+            idx = todo[i:i + chunk]
+            chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
+            c0 = _chi2_0(chi2, chi2_null, ppo)
+            if a_ref is not None:
+                c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
+                                      (sampler["case_ref"],))[0][:, 0, 0]
+            for j, d in enumerate(idx):
+                recs = [{"config_digest": digest, "case": key(d, "null"), "alpha": [0.0],
+                         "chi2": [float(chi2_null[j])]}]
+                if a_ref is not None:
+                    recs.append({"config_digest": digest, "case": key(d, "ref"), "alpha": [0.0],
+                                 "chi2": [float(c_ref[j])]})
+                for ci, c in enumerate(cfg.cases):
+                    recs.append({"config_digest": digest, "case": key(d, c), "alpha": cfg.alpha.tolist(),
+                                 "chi2": chi2[j, ci].tolist()})
+                    recs.append({"config_digest": digest, "case": key(d, "c0:" + c), "alpha": [0.0],
+                                 "chi2": [float(c0[j, ci])]})
+                for rec in recs:
+                    fh.write(record_line(rec))
+                    for a, v in zip(rec["alpha"], rec["chi2"]):
+                        done[(rec["case"], round(float(a), 9))] = float(v)
+            fh.flush()
+            os.fsync(fh.fileno())
+            bar.update(len(idx))
+    bar.close()
+    timing["chi2_s"] = time.perf_counter() - t0
+    timing["draws_computed"] = len(todo)
+
+    chi2 = np.array([[[done[(key(d, c), round(float(a), 9))] for a in cfg.alpha] for c in cfg.cases]
+                     for d in range(n_d)])
+    c0 = np.array([[done[(key(d, "c0:" + c), 0.0)] for c in cfg.cases] for d in range(n_d)])
+    chi2_null = np.array([done[(key(d, "null"), 0.0)] for d in range(n_d)])
+    dchi2 = chi2 - c0[:, :, None]  # [draw, case, alpha]
+    chi2_ref = None if a_ref is None else np.array([done[(key(d, "ref"), 0.0)] for d in range(n_d)])
+
+    # ---- the fixed-parameter scan, for comparison ----
+    if fixed is None:
+        with tempfile.TemporaryDirectory(prefix="jaxppo_fixed_") as tmp:
+            fixed = run_scan(cfg, tmp, progress=False, figures=False)
+    # a draw is sampled under the no-PPO model iff alpha_ref is quiet for it
+    ref_quiet = None
+    if a_ref is not None:
+        ref_quiet = float(np.mean([~ppo_table(s, [tm], np.array([float(a_ref)]), sampler["case_ref"])[0, 0]
+                                   for s in systems]))
+    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet, min_ess)
+    if "star.density" in sampler:
+        rho = np.asarray(sampler["star.density"], float)
+        result["parameters"]["star.density"] = {"median": float(np.median(rho)),
+                                                "p16": float(np.percentile(rho, 15.865)),
+                                                "p84": float(np.percentile(rho, 84.135))}
+    result["seconds"] = {"total": time.perf_counter() - t_begin, **timing,
+                         "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
+    result["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
+    result["progress_notes"] = notes
+    atomic_write(out / "marginal.csv", _csv(result.table))
+    if figures:
+        result["figures"] = [str(_plot(out, result, cfg))]
+    atomic_write(out / "marginal.json", json.dumps(result, indent=2, allow_nan=False))
+    return result
+
+
+def _withheld(geo: dict, names, reason: str) -> dict:
+    """The geometry block of a case whose importance weights are
+    unreliable: every probability, the Bayes factor and the rating withheld
+    (None), the reason in their place."""
+    out = {k: v for k, v in geo.items()}
+    for nm in names:
+        out[nm] = dict(geo[nm], probability=None)
+    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
+    return out
+
+
+def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
+             min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
+    n_d = dchi2.shape[0]
+    step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
+    rows, cases = [], {}
+    for ci, case in enumerate(cfg.cases):
+        dc = dchi2[:, ci]  # [draw, alpha]
+        ref = c0[:, ci] if chi2_ref is None else chi2_ref
+        # log importance weights L(alpha) / L(reference of the draw)
+        logw = -0.5 * (chi2[:, ci] - ref[:, None])
+        # marginal Delta chi^2: -2 log of the mean importance weight, against
+        # the same average of the ground levels (0 when every reference is
+        # the draw's chi^2_0, as for draws given by the caller)
+        ground = -2.0 * _logmeanexp(-0.5 * (c0[:, ci] - ref)[:, None], axis=0)[0]
+        dm = -2.0 * _logmeanexp(logw, axis=0) - ground
+        w = np.exp(-0.5 * (dm - dm.min()))
+        post = w / (np.sum(w) * step)
+        med, lo, hi = np.percentile(dc, [50.0, 15.865, 84.135], axis=0)
+        geo = geometry_probabilities(cfg.alpha, dm, case)
+        names = [k for k in geo if isinstance(geo[k], dict)]
+        per = [geometry_probabilities(cfg.alpha, dc[d], case) for d in range(n_d)]
+        spread = {}
+        for nm in names:
+            p = np.array([g[nm]["probability"] for g in per])
+            spread[nm] = {"median": float(np.median(p)), "p16": float(np.percentile(p, 15.865)),
+                          "p84": float(np.percentile(p, 84.135)), "std": float(np.std(p))}
+        # Kish effective sample size of the importance weights at each alpha
+        ess = kish_ess(logw, axis=0)
+        # the guard: a probability, peak or rating only from weights that
+        # do not rest on a handful of draws (per geometry and in total)
+        a_mod = np.mod(cfg.alpha, 360.0)
+        pro = (a_mod <= 90.0) | (a_mod > 270.0)
+        check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
+        if not check["reliable"]:
+            geo = _withheld(geo, names, check["reason"])
+            post = np.full_like(post, np.nan)
+        fx_a, fx_d = fixed.delta_chi2(case)
+        cases[case] = {
+            "geometries": geo, "probability_spread_over_draws": spread,
+            "reliable": check["reliable"], "importance": check,
+            "peak": ({"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())}
+                     if check["reliable"] else None),
+            "fixed_peak": {"alpha": float(fx_a[np.argmin(fx_d)]), "delta_chi2": float(fx_d.min())},
+            "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())},
+            "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())},
+            "importance_ess": {"min": float(ess.min()), "alpha_at_min": float(cfg.alpha[np.argmin(ess)]),
+                               "median": float(np.median(ess))},
+            "chi2_0": {"median": float(np.median(c0[:, ci])), "min": float(c0[:, ci].min()),
+                       "max": float(c0[:, ci].max())},
+        }
+        for j, a in enumerate(cfg.alpha):
+            rows.append((case, float(a), float(post[j]), float(dm[j]), float(med[j]), float(lo[j]), float(hi[j]),
+                         float(fx_d[j])))
+    pstats = {n: {"median": float(np.median(v)), "p16": float(np.percentile(v, 15.865)),
+                  "p84": float(np.percentile(v, 84.135))} for n, v in samples.items()}
+    res = MarginalResult(
+        config=cfg.source, config_digest=cfg.digest, marginal_digest=digest, draws=n_d, sampler=sampler,
+        parameters=pstats, alpha_ref_quiet_fraction=ref_quiet,
+        chi2_null={"median": float(np.median(chi2_null)), "min": float(chi2_null.min()),
+                   "max": float(chi2_null.max())},
+        weight=("p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_ref) / 2); chi2_ref per draw: "
+                + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
+                   f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
+        cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases},
+    )
+    res.table = np.array(rows, dtype=_DTYPE)
+    res.delta_chi2 = dchi2
+    res.fixed = fixed
+    return res
+
+
+_DTYPE = [("case", "U16"), ("alpha", float), ("posterior", float), ("marginal_delta_chi2", float),
+          ("delta_chi2_median", float), ("delta_chi2_p16", float), ("delta_chi2_p84", float),
+          ("fixed_delta_chi2", float)]
+
+
+def _csv(table) -> str:
+    head = ",".join(n for n, _ in _DTYPE)
+    lines = [f"{r[0]},{r[1]:.10g}," + ",".join(f"{v:.17g}" for v in list(r)[2:]) for r in table]
+    return head + "\n" + "\n".join(lines) + "\n"
+
+
+def _plot(out: Path, result: MarginalResult, cfg) -> Path:
+    """Per case: the Delta chi^2 band (16-84 % over draws), its median, the
+    marginal Delta chi^2 and the fixed-parameter curve; below, the marginal
+    posterior against the fixed-parameter posterior."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = result.table
+    fig, axes = plt.subplots(2, len(cfg.cases), figsize=(5.5 * len(cfg.cases), 6), squeeze=False, sharex=True)
+    for ci, case in enumerate(cfg.cases):
+        s = t[t["case"] == case]
+        ax = axes[0, ci]
+        ax.fill_between(s["alpha"], s["delta_chi2_p16"], s["delta_chi2_p84"], color="C0", alpha=0.3, lw=0,
+                        label="draws, 16-84 %")
+        ax.plot(s["alpha"], s["delta_chi2_median"], color="C0", lw=0.8, label="draws, median")
+        ax.plot(s["alpha"], s["marginal_delta_chi2"], color="C3", lw=1.0, label="marginal")
+        ax.plot(s["alpha"], s["fixed_delta_chi2"], color="k", lw=0.8, ls="--", label="fixed parameters")
+        ax.axhline(0, color="k", lw=0.4)
+        ax.set_title(f"case {case}: {result['draws']} draws")
+        ax.set_ylabel("Delta chi^2")
+        ax.legend(fontsize=7)
+        ax = axes[1, ci]
+        fa, fd = result.fixed.delta_chi2(case)
+        fw = np.exp(-0.5 * (fd - fd.min()))
+        step = float(fa[1] - fa[0]) if fa.size > 1 else 360.0
+        if result["cases"][case]["reliable"]:
+            ax.plot(s["alpha"], s["posterior"], color="C3", lw=1.0, label="marginal")
+        else:
+            ax.text(0.5, 0.5, "marginal withheld:\nimportance weights unreliable", transform=ax.transAxes,
+                    ha="center", va="center", color="C3", fontsize=8)
+        ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
+        ax.set_xlabel("tilt angle alpha [deg]")
+        ax.set_ylabel("p(alpha | D) [1/deg]")
+        ax.set_xlim(0, 360)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "marginal.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,82 @@
+"""The pixel-grid method against the exact engine."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo import RasterSettings
+from jaxppo.model._kepler20 import kepler20_system
+from jaxppo.core.raster import pixel_disk_area
+
+
+def _kepler20_ppo_frames():
+    """Frames of Kepler-20 double transit 3 (BKJD 844.13) at alpha = 90 deg,
+    where b occults c, plus frames with both planets apart."""
+    system = kepler20_system()
+    t = np.linspace(844.05, 844.22, 40)
+    x, y, r = (np.asarray(v) for v in system.positions(jnp.asarray(t), 90.0, "same"))
+    keep = (np.hypot(x, y) - r < 1).all(-1)
+    return system.star, x[keep], y[keep], r[keep]
+
+
+def test_pixel_disk_area_closed_form():
+    assert abs(float(pixel_disk_area(-2.0, 2.0, -2.0, 2.0, 0.1, 0.2, 0.7)) - np.pi * 0.49) < 1e-14
+    assert abs(float(pixel_disk_area(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0)) - np.pi / 4) < 1e-15
+    # half plane x >= 0.5 of the unit disk: the circular segment
+    seg = np.arccos(0.5) - 0.5 * np.sqrt(0.75)
+    assert abs(float(pixel_disk_area(0.5, 2.0, -2.0, 2.0, 0.0, 0.0, 1.0)) - seg) < 1e-14
+
+
+def test_window_default_within_1e7_on_kepler20():
+    star, x, y, r = _kepler20_ppo_frames()
+    exact = np.asarray(jp.occultation_flux(star, x, y, r, method="exact"))
+    ras = np.asarray(jp.occultation_flux(star, x, y, r, method="raster"))
+    assert (np.hypot(x[:, 0] - x[:, 1], y[:, 0] - y[:, 1]) < r.sum(1)).any()  # a PPO is in the set
+    assert np.max(np.abs(ras - exact)) < 1e-7
+
+
+def test_full_disk_converges_with_measured_order():
+    star, x, y, r = _kepler20_ppo_frames()
+    exact = np.asarray(jp.occultation_flux(star, x, y, r, method="exact"))
+    errs = []
+    ns = (64, 128, 256, 512)
+    for n in ns:
+        f = np.asarray(jp.occultation_flux(star, x, y, r, method="raster", raster=RasterSettings("full", n=n, ss=2)))
+        errs.append(np.sqrt(np.mean((f - exact) ** 2)))
+    order = -np.polyfit(np.log(ns), np.log(errs), 1)[0]
+    assert errs[-1] < errs[0] / 4
+    assert order > 1.0, (errs, order)
+
+
+def test_window_converges_with_pixel_scale():
+    star, x, y, r = _kepler20_ppo_frames()
+    exact = np.asarray(jp.occultation_flux(star, x, y, r, method="exact"))
+    errs = [np.max(np.abs(np.asarray(jp.occultation_flux(star, x, y, r, method="raster", raster=RasterSettings(scale=0.018 / d))) - exact)) for d in (4, 8, 16)]
+    assert errs[2] < errs[1] < errs[0]
+
+
+def test_surface_map_uses_raster_and_dims_the_star():
+    star = jp.Star.quadratic(0.4, 0.26)
+    spot = lambda x, y: 1.0 - 0.5 * ((x - 0.3) ** 2 + (y - 0.1) ** 2 < 0.05**2)
+    spotted = star.with_surface(spot)
+    assert not spotted.symmetric
+    with pytest.raises(ValueError, match="radially symmetric"):
+        jp.occultation_flux(spotted, [0.3], [0.1], [0.04], method="exact")
+    # crossing the spot removes less light than crossing the bare star there
+    on_spot = float(jp.occultation_flux(spotted, [0.3], [0.1], [0.04]))
+    bare = float(jp.occultation_flux(star, [0.3], [0.1], [0.04]))
+    assert on_spot > bare
+    # away from the spot the spotted star behaves like the bare one, up to the
+    # lower total flux (normalisation)
+    away = float(jp.occultation_flux(spotted, [-0.5], [-0.3], [0.04]))
+    assert away < 1.0
+
+
+def test_bad_raster_settings():
+    with pytest.raises(ValueError, match="raster mode"):
+        RasterSettings(mode="sphere")
+    with pytest.raises(ValueError, match="aa must be"):
+        RasterSettings(mode="full", aa="exact")
+    with pytest.raises(ValueError, match="pixel scale"):
+        RasterSettings(scale=-1.0)

@@ -1,0 +1,111 @@
+"""Batched [case, alpha, time] sweeps: auto equals exact, chunking and
+sharding change nothing."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.model._kepler20 import kepler20_system
+
+
+@pytest.fixture(scope="module")
+def grid():
+    system = kepler20_system()
+    ev = [e for e in jp.multi_transits(system, 800, 900)][0]
+    t = np.arange(ev.start - 0.05, ev.end + 0.05, 2.0 / 1440.0)
+    alpha = np.arange(60.0, 120.0, 1.0)
+    return system, t, alpha
+
+
+def test_sweep_equals_exact(grid):
+    system, t, alpha = grid
+    flux, stats = jp.sweep(system, t, alpha, return_stats=True)
+    assert flux.shape == (2, alpha.size, t.size)
+    assert stats["union"] > 0  # the grid contains PPOs
+    for ci, case in enumerate(("same", "opposite")):
+        exact = np.asarray(system.flux(t, alpha, case=case, method="exact"))
+        assert np.max(np.abs(flux[ci] - exact)) < 1e-13
+
+
+def test_only_ppo_frames_depend_on_alpha(grid):
+    system, t, alpha = grid
+    flux = jp.sweep(system, t, alpha)
+    varies = np.any(flux != flux[:, :1, :], axis=1)
+    x, y, r = (np.asarray(v) for v in system.positions(t[None, :], alpha[:, None], "same"))
+    overlap = (np.hypot(x[..., 0] - x[..., 1], y[..., 0] - y[..., 1]) < r.sum(-1)).any(0)
+    assert np.all(~varies[0] | overlap)
+
+
+def test_chunking_gives_same_numbers(grid):
+    system, t, alpha = grid
+    a = jp.sweep(system, t, alpha)
+    b = jp.sweep(system, t, alpha, chunk=7)
+    # the same numbers up to the last bit that XLA's code for another batch
+    # size may round differently
+    np.testing.assert_allclose(a, b, rtol=0, atol=4e-16)
+
+
+def test_sharded_equals_unsharded(grid, tmp_path):
+    system, t, alpha = grid
+    ref = jp.sweep(system, t, alpha)
+    np.save(tmp_path / "t.npy", t)
+    np.save(tmp_path / "a.npy", alpha)
+    code = textwrap.dedent(f"""
+        import jax, numpy as np
+        jax.config.update("jax_enable_x64", True)
+        assert jax.device_count() == 4, jax.devices()
+        import jaxppo as jp
+        from jaxppo.model._kepler20 import kepler20_system
+        t = np.load(r"{tmp_path / 't.npy'}"); a = np.load(r"{tmp_path / 'a.npy'}")
+        np.save(r"{tmp_path / 'out.npy'}", jp.sweep(kepler20_system(), t, a, chunk=33))
+    """)
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=600)
+    np.testing.assert_allclose(np.load(tmp_path / "out.npy"), ref, atol=1e-15, rtol=0)
+
+
+def test_auto_gradients_finite(grid):
+    import jax
+    import jax.numpy as jnp
+
+    system, t, _ = grid
+
+    def f(radius):
+        pl = system.planets[0].replace(radius=radius)
+        return jnp.sum(system.replace(planets=(pl, system.planets[1])).flux(jnp.asarray(t), 90.0))
+
+    g = jax.grad(f)(jnp.asarray(0.018))
+    assert np.isfinite(float(g))
+
+
+def test_bad_sweep_inputs(grid):
+    system, t, alpha = grid
+    with pytest.raises(ValueError, match="case"):
+        jp.sweep(system, t, alpha, cases=("same", "upside-down"))
+    with pytest.raises(ValueError, match="finite"):
+        jp.sweep(system, np.array([np.nan]), alpha)
+
+
+def test_one_million_frames_stay_under_2gb():
+    code = textwrap.dedent("""
+        import jax, numpy as np
+        jax.config.update("jax_enable_x64", True)
+        import jaxppo as jp
+        from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
+        system = kepler20_system()
+        t = np.concatenate([np.arange(e.start - 0.05, e.end + 0.05, 1 / 1440) for e in paper_multi_transits(system)])[:1400]
+        out = jp.sweep(system, t, np.arange(0.0, 360.0), chunk=16384)
+        assert out.size >= 1_000_000
+        # VmHWM: this process image's peak resident memory (ru_maxrss would
+        # also count the forked parent's memory before exec)
+        hwm = [l for l in open("/proc/self/status") if l.startswith("VmHWM")][0]
+        print(int(hwm.split()[1]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True)
+    peak_kb = int(proc.stdout.strip().splitlines()[-1])
+    assert peak_kb < 2 * 1024 * 1024, f"peak resident memory {peak_kb / 1024:.0f} MB"

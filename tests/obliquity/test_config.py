@@ -1,0 +1,241 @@
+"""The scan config (TOML): [data] inputs, unknown keys, the template."""
+
+import gzip
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.obliquity._config import load_config
+
+BASE = """
+[star]
+law = "quadratic"
+coefficients = [0.495, 0.154]
+
+[[planet]]
+name = "b"
+period = 3.69611590
+t0 = 134.501962
+a = 10.60
+inc = 87.687
+radius = 0.01805
+tilted = true
+
+[[planet]]
+name = "c"
+period = 10.85408479
+t0 = 138.608470
+a = 22.764
+inc = 89.967
+radius = 0.02878
+
+[data]
+{data}
+
+[scan]
+alpha = [0.0, 360.0, 1.0]
+"""
+
+
+def _lc():
+    return jp.simulate_kepler20(seed=2, noise=4e-4)
+
+
+def _csv(path, header, cols):
+    text = header + "\n" + "\n".join(",".join(f"{v:.12g}" for v in row) for row in zip(*cols)) + "\n"
+    if path.name.endswith(".gz"):
+        with gzip.open(path, "wt") as fh:
+            fh.write(text)
+    else:
+        path.write_text(text)
+
+
+def _cfg(tmp_path, data):
+    p = tmp_path / "c.toml"
+    p.write_text(BASE.format(data=data))
+    return p
+
+
+def test_data_columns_named_by_the_user(tmp_path):
+    lc = _lc()
+    _csv(tmp_path / "d.csv", "time,flux,error", (lc.time, lc.flux, lc.flux_err))
+    cfg = load_config(_cfg(tmp_path, 'path = "d.csv"\ncolumns = {flux_err = "error"}'))
+    np.testing.assert_allclose(cfg.lightcurve.flux_err, lc.flux_err, rtol=1e-11)
+    with pytest.raises(ValueError, match=r"\[data\].*columns.flux_err = 'err_flux' is not a column"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"\ncolumns = {flux_err = "err_flux"}'))
+
+
+def test_data_several_gzipped_quarters(tmp_path):
+    lc = _lc()
+    half = lc.time.size // 2
+    for k, (sl, level) in enumerate(((slice(0, half), 1.5e5), (slice(half, None), 0.8e5))):
+        _csv(tmp_path / f"q{k}.csv.gz", "time_bkjd,pdcsap_flux,pdcsap_flux_err",
+             (lc.time[sl], lc.flux[sl] * level, lc.flux_err[sl] * level))
+    cfg = load_config(_cfg(tmp_path, 'path = ["q0.csv.gz", "q1.csv.gz"]\nexposure = 0.0204336'))
+    got = cfg.lightcurve
+    assert len(got) == len(lc) and got.exposure == 0.0204336
+    # each file divided by its own median: the levels are gone
+    for sl in (slice(0, half), slice(half, None)):
+        np.testing.assert_allclose(got.flux[sl] * np.median(lc.flux[sl]), lc.flux[sl], rtol=1e-10)
+    with pytest.raises(ValueError, match=r"\[data\] file not found: .*q9.csv"):
+        load_config(_cfg(tmp_path, 'path = ["q0.csv.gz", "q9.csv"]'))
+    with pytest.raises(ValueError, match=r"\[data\] path must be"):
+        load_config(_cfg(tmp_path, "path = []"))
+
+
+# ---- unknown keys ------------------------------------------------------------------
+
+def _valid(tmp_path):
+    lc = _lc()
+    lc.to_csv(tmp_path / "d.csv")
+    return BASE.format(data='path = "d.csv"')
+
+
+@pytest.mark.parametrize(
+    "edit, where, key, close",
+    [
+        (lambda t: t.replace("tilted = true", "tilded = true"), r"\[\[planet\]\] #1 \(b\)", "tilded", "tilted"),
+        (lambda t: t.replace('path = "d.csv"', 'path = "d.csv"\nexposure_time = 0.02'), r"\[data\]", "exposure_time", "exposure"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alphas = [0.0, 360.0, 2.0]"), r"\[scan\]", "alphas", "alpha"),
+        (lambda t: t + 'case = ["same"]\n', r"\[scan\]", "case", "cases"),
+        (lambda t: t.replace("radius = 0.02878", "radius = 0.02878\nincl = 89.9"), r"\[\[planet\]\] #2 \(c\)", "incl", "inc"),
+        (lambda t: t.replace("coefficients = [0.495, 0.154]", "coeffs = [0.495, 0.154]"), r"\[star\] \(law = 'quadratic'\)", "coeffs", "coefficients"),
+        (lambda t: t.replace("[scan]", "[scans]"), r"top level \(sections\)", "scans", "scan"),
+        (lambda t: t.replace('path = "d.csv"', 'path = "d.csv"\ncolumns = {fluxerr = "e"}'), r"\[data\] columns", "fluxerr", "flux_err"),
+    ],
+)
+def test_unknown_keys_are_errors_naming_the_closest_key(tmp_path, edit, where, key, close):
+    """Old code ran these with defaults: planet 1 tilted whatever `tilded`
+    said, no exposure smearing, the default alpha grid, both cases."""
+    p = tmp_path / "c.toml"
+    p.write_text(edit(_valid(tmp_path)))
+    with pytest.raises(ValueError, match=rf"{where}: unknown key '{key}'; did you mean '{close}'\?"):
+        load_config(p)
+
+
+def test_tilted_must_be_a_boolean(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text(_valid(tmp_path).replace("tilted = true", 'tilted = "false"'))
+    with pytest.raises(ValueError, match="tilted must be true or false"):
+        load_config(p)
+
+
+def test_key_of_another_law_is_an_error(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text(_valid(tmp_path).replace('law = "quadratic"', 'law = "quadratic"\nlimb = "rescale"'))
+    with pytest.raises(ValueError, match=r"\[star\] \(law = 'quadratic'\): unknown key 'limb'"):
+        load_config(p)
+
+
+def test_init_writes_a_template_that_loads_and_names_every_key(tmp_path, capsys):
+    from jaxppo import _config
+    from jaxppo.cli import main
+
+    path = tmp_path / "mine.toml"
+    assert main(["init", str(path)]) == 0
+    cfg = load_config(path)
+    assert cfg.detrend == 2 and cfg.lightcurve.exposure == 0.0204335982 and cfg.alpha.size == 360
+    text = path.read_text()
+    for key in _config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS:
+        assert f"{key} =" in text, key
+    assert main(["init", str(path)]) == 2  # never overwrites without --force
+    assert "exists" in capsys.readouterr().err
+    assert main(["init", str(path), "--force"]) == 0
+
+
+def test_every_key_is_documented():
+    from pathlib import Path
+
+    from jaxppo import _config
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "config.md").read_text()
+    keys = set(_config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS)
+    keys |= {k for ks in _config.STAR_KEYS.values() for k in ks}
+    for key in sorted(keys):
+        assert f"`{key}`" in doc, key
+
+
+def test_bundled_configs_load():
+    from jaxppo.model._phoenix import data_path
+
+    for name in ("kepler20_real_llc.toml", "kepler20_buchhave2016_llc.toml", "kepler20_synthetic.toml"):
+        load_config(data_path(name))
+
+
+def test_every_bundled_file_has_provenance_and_licence():
+    """jaxppo/data/README.md lists each bundled file with its source and licence."""
+    from jaxppo.model._phoenix import data_path
+
+    folder = data_path("")
+    text = (folder / "README.md").read_text()
+    rows = [ln for ln in text.splitlines() if ln.startswith("| `")]
+    for f in sorted(p.name for p in folder.iterdir() if p.is_file()):
+        row = next((r for r in rows if f"`{f}`" in r.split("|")[1]), None)
+        assert row is not None, f
+        cells = [c.strip() for c in row.split("|")[1:-1]]
+        assert len(cells) == 5 and all(cells[:4]), (f, cells)  # file, what, source, licence (cite may be '-')
+
+
+def test_quoted_numbers_and_optional_scan_section(tmp_path):
+    """A quoted planet value ("0.01805") was silently converted; a config
+    without [scan] (every key has a default) was refused."""
+    from jaxppo.model._phoenix import data_path as jp_data
+
+    text = Path(jp_data("kepler20_synthetic.toml")).read_text()
+    data = str(Path(jp_data("kepler20_synthetic_bc.csv")))
+    text = text.replace('path = "kepler20_synthetic_bc.csv"', f'path = "{data}"')
+    p = tmp_path / "c.toml"
+    p.write_text(text.replace("radius = 0.02878", 'radius = "0.02878"'))
+    with pytest.raises(ValueError, match=r"radius must be a number, got '0.02878'"):
+        load_config(p)
+    head, _, _ = text.partition("[scan]")
+    p.write_text(head)
+    cfg = load_config(p)
+    assert cfg.alpha.size == 360 and cfg.cases == ("same", "opposite")
+
+
+def test_marginalize_and_fit_free_keys(tmp_path):
+    """[scan] marginalize and [fit] free are read and checked; neither
+    changes the plain scan's digest (its progress survives a new N)."""
+    from jaxppo.model._phoenix import data_path as jp_data
+
+    text = Path(jp_data("kepler20_synthetic.toml")).read_text()
+    data = str(Path(jp_data("kepler20_synthetic_bc.csv")))
+    text = text.replace('path = "kepler20_synthetic_bc.csv"', f'path = "{data}"')
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    base = load_config(p)
+    assert base.marginalize == 0 and base.fit_free is None
+    p.write_text(text.replace("[scan]\n", "[scan]\nmarginalize = 32\n") + '\n[fit]\nfree = ["b.t0", "c.radius"]\n')
+    cfg = load_config(p)
+    assert cfg.marginalize == 32 and cfg.fit_free == ("b.t0", "c.radius") and cfg.digest == base.digest
+    for bad, match in (("marginalize = -1", "marginalize must be"), ("marginalize = 2.5", "marginalize must be")):
+        p.write_text(text.replace("[scan]\n", f"[scan]\n{bad}\n"))
+        with pytest.raises(ValueError, match=match):
+            load_config(p)
+    p.write_text(text + '\n[fit]\nfree = ["b.tzero"]\n')
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['b.tzero'\]"):
+        load_config(p)
+    p.write_text(text + '\n[fit]\nfrees = ["b.t0"]\n')
+    with pytest.raises(ValueError, match="free"):
+        load_config(p)
+
+
+def test_planet_eccentricity_keys(tmp_path):
+    """e and omega are optional planet keys (they were rejected as unknown, so
+    an eccentric system could not be scanned from a config)."""
+    p = tmp_path / "c.toml"
+    text = _valid(tmp_path)
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = 0.2\nomega = 40.0', 1))
+    b = load_config(p).system.planets[0]
+    assert float(b.e) == 0.2 and float(b.omega) == 40.0 and not b.circular
+    p.write_text(text)
+    assert load_config(p).system.planets[0].circular
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = "0.2"', 1))
+    with pytest.raises(ValueError, match="e must be a number"):
+        load_config(p)
+    p.write_text(text.replace('name = "b"', 'name = "b"\ne = 1.2', 1))
+    with pytest.raises(ValueError, match=r"e \(eccentricity\) must be in \[0, 1\)"):
+        load_config(p)

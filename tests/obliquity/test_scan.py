@@ -1,0 +1,577 @@
+"""The obliquity scan end to end (paper Sects. 2.1 and 3.3)."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.obliquity._config import load_config
+from jaxppo.obliquity._scan import run_scan
+
+CONFIG = """
+[star]
+law = "nonlinear"
+coefficients = [1.0984732924, -1.74332475724, 2.46865245453, -0.995093958392]
+
+[[planet]]
+name = "b"
+period = 3.69611590
+t0 = 134.501962
+a = 10.60
+inc = 87.687
+radius = {rb}
+tilted = true
+
+[[planet]]
+name = "c"
+period = 10.85408479
+t0 = 138.608470
+a = 22.764
+inc = 89.967
+radius = {rc}
+
+[data]
+path = "{data}"
+
+[scan]
+alpha = [{a0}, {a1}, {step}]
+cases = ["same", "opposite"]
+block = {block}
+"""
+
+
+def _config(tmp_path, lc, a0=0.0, a1=360.0, scale=1.0, block=60, name="scan.toml", inc_c=89.967, step=1.0):
+    lc.to_csv(tmp_path / "data.csv")
+    text = CONFIG.format(rb=0.01805 * scale, rc=0.02878 * scale, data="data.csv", a0=a0, a1=a1, block=block, step=step)
+    text = text.replace("inc = 89.967", f"inc = {inc_c}")
+    (tmp_path / name).write_text(text)
+    return tmp_path / name
+
+
+@pytest.mark.parametrize("case_true", ["same", "opposite"])
+def test_injected_ppo_is_recovered(tmp_path, case_true):
+    """Planets enlarged 2x, noise 1e-4. Kepler-20 c crosses almost centrally
+    (b = 0.013), which makes the two hemisphere cases nearly degenerate; here
+    c is given b = 0.40 (i = 88.99 deg) so that the case is identifiable."""
+    scale, inc_c = 2.0, 88.99
+    system = jp.kepler20_system(radius_scale=scale)
+    c = system.planets[1].replace(inc=inc_c)
+    system = system.replace(planets=(system.planets[0], c))
+    events = [e for e in jp.multi_transits(system, 300, 1600)]
+    t = np.concatenate([np.arange(e.start - 0.05, e.end + 0.05, 1 / 1440) for e in events])
+    # inject at the middle of the widest alpha range that gives a PPO
+    from jaxppo.model._overlap import ppo_table
+
+    grid = np.arange(0.0, 360.0)
+    hit = ppo_table(system, [np.arange(e.start, e.end, 1 / 1440) for e in events], grid, case_true).any(1)
+    runs, cur = [], []
+    for i in np.nonzero(hit)[0]:
+        if cur and i != cur[-1] + 1:
+            runs.append(cur)
+            cur = []
+        cur.append(i)
+    runs.append(cur)
+    widest = max(runs, key=len)
+    alpha_true = float(grid[widest[len(widest) // 2]])
+    lc = jp.simulate(system, t, noise=1e-4, alpha=alpha_true, case=case_true, seed=5)
+    path = _config(tmp_path, lc, 0.0, 360.0, scale, inc_c=inc_c)
+    res = run_scan(load_config(path), tmp_path / "out", progress=False, figures=False)
+    other = "opposite" if case_true == "same" else "same"
+    best = res["cases"][case_true]["min_delta_chi2"]
+    assert abs(best["alpha"] - alpha_true) <= 2.0
+    assert best["value"] < res["cases"][other]["min_delta_chi2"]["value"]  # the right case fits better
+    prograde = alpha_true <= 90 or alpha_true > 270
+    expect = {("same", True): "prograde, same hemisphere", ("same", False): "retrograde, different hemispheres",
+              ("opposite", True): "prograde, different hemispheres", ("opposite", False): "retrograde, same hemisphere"}
+    assert res["probabilities"][case_true]["favoured"] == expect[(case_true, prograde)]
+
+
+def test_null_data_is_exactly_flat_without_ppo(tmp_path):
+    lc = jp.simulate_kepler20(seed=3, noise=4e-4)
+    cfg = load_config(_config(tmp_path, lc, 0.0, 360.0))
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    for case in ("same", "opposite"):
+        sel = rows["case"] == case
+        alpha, dchi2 = rows["alpha"][sel], rows["delta_chi2"][sel]
+        ppo = res["cases"][case]["ppo_transits"]
+        has = np.array([f"{a:g}" in ppo for a in alpha])
+        assert np.all(dchi2[~has] == 0.0)  # exactly: no render noise
+        assert np.all(dchi2[has] != 0.0)
+        post = rows["posterior"][sel]
+        assert abs(np.sum(post) * 1.0 - 1.0) < 1e-12
+    # case "opposite" shifts the PPO ranges by a few degrees (paper Table 5)
+    def first(case, lo, hi):
+        return min(float(a) for a in res["cases"][case]["ppo_transits"] if lo < float(a) < hi)
+    assert 0 < first("opposite", 60, 120) - first("same", 60, 120) <= 6
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["chi2_0"]["same"] > 0
+
+
+def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    path = _config(tmp_path, lc, 0.0, 360.0, block=12, step=5.0)
+    cfg = load_config(path)
+    full = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+
+    import jaxppo.obliquity._scan as scan_mod
+
+    calls = {"n": 0}
+    real = scan_mod.sweep
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scan_mod, "sweep", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    lines = (tmp_path / "out" / "scan_progress.jsonl").read_text().splitlines()
+    assert len(lines) == 1 + 3  # header + three finished blocks kept
+    calls["n"] = 10
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert calls["n"] == 10 + 12 - 3 + 1  # 12 blocks in all, 3 already done; +1: the null model
+    a = (tmp_path / "ref" / "scan.csv").read_text()
+    b = (tmp_path / "out" / "scan.csv").read_text()
+    assert a == b and res["chi2_0"] == full["chi2_0"]
+
+
+def test_changed_config_is_not_mixed(tmp_path):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    cfg = load_config(_config(tmp_path, lc, step=12.0))
+    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    cfg2 = load_config(_config(tmp_path, lc, scale=1.1, name="other.toml", step=12.0))
+    with pytest.raises(ValueError, match="different configuration"):
+        run_scan(cfg2, tmp_path / "out", progress=False, figures=False)
+    run_scan(cfg2, tmp_path / "out", restart=True, progress=False, figures=False)
+
+
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda t: t.replace("period = 3.69611590\n", ""), r"missing \['period'\]"),
+        (lambda t: t.replace('law = "nonlinear"', 'law = "gaussian"'), "unknown limb-darkening law 'gaussian'"),
+        (lambda t: t.replace('path = "data.csv"', 'path = "nowhere.csv"'), "file not found"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [10.0, 10.0, 1.0]"), "empty"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [100.0, 200.0, 1.0]"), r"\[scan\] alpha = .*whole circle"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 7.0]"), r"\[scan\] alpha = .*divides 360"),
+        (lambda t: t.replace("alpha = [0.0, 360.0, 1.0]", "alpha = [-180.0, 180.0, 2.0]"), None),
+        (lambda t: t.replace('cases = ["same", "opposite"]', 'cases = ["sideways"]'), "unknown case"),
+        (lambda t: t.replace("radius = 0.01805", "radius = -0.01805"), "radius must be > 0"),
+    ],
+)
+def test_bad_configs_fail_before_work(tmp_path, edit, match):
+    lc = jp.simulate_kepler20(seed=1)
+    path = _config(tmp_path, lc)
+    path.write_text(edit(path.read_text()))
+    if match is None:  # a valid edit (any full circle is fine)
+        load_config(path)
+        return
+    with pytest.raises(ValueError, match=match):
+        load_config(path)
+
+
+def test_unreadable_data(tmp_path):
+    lc = jp.simulate_kepler20(seed=1)
+    path = _config(tmp_path, lc)
+    (tmp_path / "data.csv").write_text("time,flux,flux_err\n1.0,abc,0.1\n")
+    with pytest.raises(ValueError, match="unreadable row"):
+        load_config(path)
+    (tmp_path / "data.csv").write_text("when,what\n1,2\n")
+    with pytest.raises(ValueError, match="no time column"):
+        load_config(path)
+
+
+# ---- per-window detrending (paper Sect. 2.2) ---------------------------------
+
+def _wide_windows(system, half_width=0.4, cadence=2 / 1440):
+    events = [e for e in jp.multi_transits(system, 300, 1600)]
+    return events, [np.arange(e.start - half_width, e.end + half_width, cadence) for e in events]
+
+
+def _write_csv(path, t, f, e=None):
+    cols = (t, f) if e is None else (t, f, e)
+    head = "time,flux" if e is None else "time,flux,flux_err"
+    path.write_text(head + "\n" + "\n".join(",".join(f"{v:.12g}" for v in r) for r in zip(*cols)) + "\n")
+
+
+def _scan_text(extra="", step=1.0):
+    return CONFIG.format(rb=0.01805, rc=0.02878, data="data.csv", a0=0.0, a1=360.0, block=120, step=step) + extra
+
+
+def test_detrending_removes_per_window_levels_slopes_and_curvature(tmp_path):
+    """Each multi-transit gets its own level (raw quarter fluxes differ by
+    per cent), slope and curvature. Dividing every window by its
+    out-of-transit polynomial must give the same geometry probabilities
+    (0.5 percentage points) and chi^2_0 (3 %) as the clean data; without
+    the detrending chi^2_0 is in the millions."""
+    system = jp.kepler20_system()
+    events, ts = _wide_windows(system)
+    rng = np.random.default_rng(11)
+    clean, trended = [], []
+    for e, t in zip(events, ts):
+        lc = jp.simulate(system, t, noise=2e-4, seed=int(rng.integers(1 << 30)))
+        x = t - e.mid
+        trend = rng.uniform(0.97, 1.03) * (1 + rng.uniform(-3e-3, 3e-3) * x + rng.uniform(-6e-3, 6e-3) * x**2)
+        clean.append(lc.flux)
+        trended.append(lc.flux * trend)
+    t = np.concatenate(ts)
+    err = np.full(t.size, 2e-4)
+    results = {}
+    for name, f in (("clean", np.concatenate(clean)), ("trended", np.concatenate(trended))):
+        d = tmp_path / name
+        d.mkdir()
+        _write_csv(d / "data.csv", t, f, err)
+        (d / "scan.toml").write_text(_scan_text("detrend = 2\nbaseline = 0.35\n", step=2.0))
+        results[name] = run_scan(load_config(d / "scan.toml"), d / "out", progress=False, figures=False)
+    a, b = results["clean"], results["trended"]
+    for case in ("same", "opposite"):
+        assert abs(b["chi2_0"][case] / a["chi2_0"][case] - 1) < 0.03, (a["chi2_0"], b["chi2_0"])
+        for geo, v in a["probabilities"][case].items():
+            if isinstance(v, dict):
+                assert abs(100 * (b["probabilities"][case][geo]["probability"] - v["probability"])) < 0.5
+    n = b["points"]
+    assert 0.8 < b["chi2_0"]["same"] / n < 1.2
+    assert b["detrending"]["order"] == 2
+
+
+def test_errors_estimated_and_outliers_clipped_out_of_transit_only(tmp_path):
+    system = jp.kepler20_system()
+    events, ts = _wide_windows(system, cadence=4 / 1440)
+    t = np.concatenate(ts)
+    lc = jp.simulate(system, t, noise=3e-4, seed=8)
+    f = lc.flux.copy()
+    e0 = events[0]
+    from jaxppo.model._overlap import in_transit_mask
+
+    in_tr = in_transit_mask(system, t)
+    # three out-of-transit outliers inside the chi^2 window of event 1, and a
+    # 10-sigma "bump" in transit (a PPO-like brightening that must survive)
+    oot_idx = np.nonzero((t > e0.end + 0.015) & (t < e0.end + 0.05) & ~in_tr)[0][:3]
+    f[oot_idx] += 0.01
+    bump = np.nonzero((t > e0.overlap_start) & (t < e0.overlap_end))[0][0]
+    f[bump] += 3e-3
+    _write_csv(tmp_path / "data.csv", t, f)  # no flux_err column
+    (tmp_path / "scan.toml").write_text(_scan_text())
+    cfg = load_config(tmp_path / "scan.toml")
+    assert cfg.lightcurve.errors_estimated
+    from jaxppo.obliquity._scan import scan_windows
+
+    w = scan_windows(cfg)[0]
+    def kept(tt):
+        return np.min(np.abs(w.time - tt)) < 1e-7  # times went through the CSV (12 digits)
+
+    assert w.clipped == 3 and not any(kept(tt) for tt in t[oot_idx])
+    assert kept(t[bump])  # in-transit points are never clipped
+    assert abs(w.sigma / 3e-4 - 1) < 0.15
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert "estimated" in res["detrending"]["flux_err"]
+    assert res["multi_transits"][0]["clipped"] == 3
+
+
+def test_in_transit_mask_against_contact_times():
+    """First to last contact of a circular orbit (Winn 2010, Eq. 14):
+    T14 = P / pi * asin(sqrt((1 + p)^2 - b^2) / (a sin i))."""
+    from jaxppo.model._overlap import in_transit_mask
+
+    system = jp.kepler20_system()
+    for k, pl in enumerate(system.planets):
+        P, a, inc, p = float(pl.period), float(pl.a), np.deg2rad(float(pl.inc)), float(pl.radius)
+        b = a * np.cos(inc)
+        half = P / (2 * np.pi) * np.arcsin(np.sqrt((1 + p) ** 2 - b**2) / (a * np.sin(inc)))
+        mid = float(pl.t0) + 40 * P
+        t = mid + np.array([-half - 1e-6, -half + 1e-6, half - 1e-6, half + 1e-6])
+        # the other planet must not be in transit at these times
+        one = jp.System(system.star, [pl], tilted=0)
+        np.testing.assert_array_equal(in_transit_mask(one, t), [False, True, True, False])
+        np.testing.assert_array_equal(in_transit_mask(one, t, pad=2e-6), [True, True, True, True])
+
+
+def test_summary_is_strict_json_and_bayes_factor_never_infinite():
+    """A decisive signal (Delta chi^2 of thousands in one range) underflows
+    exp(-Delta chi^2 / 2): the Bayes factor comes from log space, and what
+    cannot be a float is null, never Infinity (invalid JSON)."""
+    from jaxppo.obliquity._scan import geometry_probabilities
+
+    alpha = np.arange(0.0, 360.0, 1.0)
+    retro = (alpha > 90) & (alpha <= 270)
+    geo = geometry_probabilities(alpha, np.where(retro, 5000.0, 0.0), "same")
+    text = json.dumps(geo, allow_nan=False)
+    assert geo["bayes_factor"] is None and abs(geo["log10_bayes_factor"] - 2500 / np.log(10)) < 1e-9  # 180 angles in each range
+    assert geo["favoured"] == "prograde, same hemisphere" and geo["jeffreys"] == "decisive"
+    assert "Infinity" not in text
+    # a moderate one: K = sum over the ranges of exp(-Delta chi^2 / 2), exactly
+    d = np.where(retro, 3.0, 0.0)
+    geo = geometry_probabilities(alpha, d, "opposite")
+    k = np.exp(1.5)
+    assert abs(geo["bayes_factor"] - k) < 1e-12 * k
+    assert abs(geo["prograde, different hemispheres"]["probability"] - k / (1 + k)) < 1e-14
+
+
+def test_no_mirror_block_with_the_other_cases_names(tmp_path):
+    """Cases 3 and 2 are cases 1 and 4 at 360 - alpha (paper Eq. 2): the
+    same physical geometries, so a case-1 summary may only name case 1's
+    geometries (old code printed case 4's names for "case 3")."""
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    res = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "out", progress=False, figures=False)
+    allowed = {"same": {"prograde, same hemisphere", "retrograde, different hemispheres"},
+               "opposite": {"prograde, different hemispheres", "retrograde, same hemisphere"}}
+
+    def names(obj):
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if "hemisphere" in k:
+                    yield k
+                yield from names(v)
+        elif isinstance(obj, str) and "hemisphere" in obj:
+            yield obj
+
+    for case in ("same", "opposite"):
+        assert set(names(res["cases"][case])) <= allowed[case]
+
+
+def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
+    """Paper Table 3 (left columns, T0 in BJD - 2454000) in the bundled
+    config, and its Fig. 5 right panel: with these parameters the scan of the
+    seven double transits has one prominent dip, at alpha = 26 deg (case 1);
+    the long-cadence data show it too."""
+    from jaxppo.model._phoenix import data_path
+
+    text = data_path("kepler20_buchhave2016_llc.toml").read_text()
+    text = text.replace('path = "', f'path = "{data_path("")}/').replace("alpha = [0.0, 360.0, 1.0]", "alpha = [0.0, 360.0, 2.0]")
+    text = text.replace("multi_transits = [334.02, 496.77, ", "multi_transits = [334.02, ")  # the paper's seven
+    text = text.replace('cases = ["same", "opposite"]', 'cases = ["same"]')
+    (tmp_path / "b16.toml").write_text(text)
+    cfg = load_config(tmp_path / "b16.toml")
+    b, c = cfg.system.planets
+    table3 = {"b": (0.01774, 87.355, 10.34, 967.502014, 3.69611525), "c": (0.02895, 89.815, 21.17, 971.607955, 10.85409089)}
+    for pl in (b, c):
+        p, i, a, t0, per = table3[pl.name]
+        assert (float(pl.radius), float(pl.inc), float(pl.a), float(pl.period)) == (p, i, a, per)
+        assert abs(float(pl.t0) - (t0 + 2454000 - 2454833)) < 1e-9
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    low = rows["alpha"][(rows["alpha"] < 90) & (rows["delta_chi2"] < -0.5)]
+    assert low.size and np.all((low >= 24) & (low <= 30)), low
+    assert len(res["multi_transits"]) == 7
+
+
+# ---- progress bookkeeping -------------------------------------------------------
+
+def _small(tmp_path, **kw):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    return load_config(_config(tmp_path, lc, block=6, step=12.0, **kw))  # 2 cases x 30 alphas: 10 blocks
+
+
+def _interrupt_after(monkeypatch, n_blocks):
+    import jaxppo.obliquity._scan as scan_mod
+
+    real, calls = scan_mod.sweep, {"n": 0}
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > n_blocks:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scan_mod, "sweep", flaky)
+    return lambda: monkeypatch.setattr(scan_mod, "sweep", real)
+
+
+def test_torn_last_line_is_truncated_before_appending(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    ref = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 3)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    with open(prog, "a") as fh:
+        fh.write('{"config_digest": "x", "case": "same", "alpha": [0.0, 12')  # killed mid-write
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)  # and once more: the file stays sound
+    for line in prog.read_text().splitlines():
+        json.loads(line)  # every line whole: nothing appended onto the torn one
+    assert len(prog.read_text().splitlines()) == 1 + 10
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+    assert res["chi2_0"] == ref["chi2_0"]
+    assert any("cut by an interruption" in str(w.message) for w in caught)
+
+
+def test_edited_record_is_rejected_and_recomputed(tmp_path):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    good = (tmp_path / "out" / "scan.csv").read_text()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    rec = json.loads(lines[2])
+    rec["chi2"][0] -= 50.0  # a hand-edited chi^2 must not be used
+    lines[2] = json.dumps(rec)
+    prog.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert (tmp_path / "out" / "scan.csv").read_text() == good
+    assert any("line 3: checksum mismatch" in str(w.message) for w in caught)
+
+
+def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    undo = _interrupt_after(monkeypatch, 4)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    undo()
+    prog = tmp_path / "out" / "scan_progress.jsonl"
+    lines = prog.read_text().splitlines()
+    lines[0] = lines[0][:17]  # damaged header, four good records behind it
+    prog.write_text("\n".join(lines) + "\n")
+    import jaxppo.obliquity._scan as scan_mod
+
+    calls = {"n": 0}
+    real = scan_mod.sweep
+
+    def counting(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(scan_mod, "sweep", counting)
+    with pytest.warns(UserWarning, match="header line is damaged"):
+        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    assert calls["n"] == 10 - 4 + 1  # the four good blocks kept (+1: the null model)
+    assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
+
+
+def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
+    cfg = _small(tmp_path)
+    out = tmp_path / "out"
+    run_scan(cfg, out, progress=False, figures=False)
+    (out / "fig5_delta_chi2.png").write_bytes(b"old figure")
+    cfg2 = _small(tmp_path, scale=1.1, name="other.toml")
+    undo = _interrupt_after(monkeypatch, 1)
+    with pytest.raises(KeyboardInterrupt):
+        run_scan(cfg2, out, restart=True, progress=False, figures=False)
+    undo()
+    # an interrupted restart leaves no result of the old config beside the new one
+    for name in ("scan.csv", "summary.json", "fig5_delta_chi2.png"):
+        assert not (out / name).exists(), name
+    assert json.loads((out / "config.json").read_text())["digest"] == cfg2.digest
+    run_scan(cfg2, out, progress=False, figures=False)  # resumes the restarted scan
+    assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
+
+
+# ---- public API ---------------------------------------------------------------------
+
+def test_public_scan_matches_the_config_route(tmp_path):
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    via_file = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "cfg", progress=False, figures=False)
+    lc_read = jp.load_config(tmp_path / "scan.toml").lightcurve  # the same (CSV-rounded) points
+    res = jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0))
+    np.testing.assert_array_equal(res.table["chi2"], via_file.table["chi2"])
+    assert res["probabilities"] == via_file["probabilities"]
+    assert list(res.table.dtype.names) == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
+    a, d = res.delta_chi2("opposite")
+    assert a.size == 60 and np.all(d[a < 15] == 0)
+    assert len(res.windows) == 7 and isinstance(res.windows[0], jp.ScanWindow)
+    ax = res.plot()
+    assert len(ax.get_lines()) == 3  # two cases and the zero line
+    import matplotlib.pyplot as plt
+
+    plt.close(ax.figure)
+    with pytest.raises(ValueError, match="alpha covers 100 .. 199 deg"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(100.0, 200.0, 1.0))
+    with pytest.raises(ValueError, match="cases = .*unknown case 'sideways'"):
+        jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0), cases=("sideways",))
+
+
+# ---- results out and the load report ------------------------------------------------
+
+def test_ecsv_table_with_units_and_provenance(tmp_path):
+    """scan.ecsv beside scan.csv: the same numbers (read back exactly), with
+    units and the config digest, jaxppo version and cases in its metadata;
+    the summary carries the load report (what loading dropped)."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    lc = jp.simulate_kepler20(seed=4, noise=4e-4)
+    path = _config(tmp_path, lc, step=30.0)
+    # two flagged rows and a repeated cadence: reported, not silent
+    text = (tmp_path / "data.csv").read_text().splitlines()
+    rows = ["time,flux,flux_err,quality"] + [r + ",0" for r in text[1:]]
+    rows[5] = rows[5][:-1] + "1"
+    rows[9] = rows[9][:-1] + "32"
+    rows.insert(12, rows[11])
+    (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
+    cfg = load_config(path)
+    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    tab = Table.read(tmp_path / "out" / "scan.ecsv")
+    csv = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert tab.colnames == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
+    assert tab["alpha"].unit == u.deg and tab["posterior"].unit == 1 / u.deg
+    np.testing.assert_array_equal(tab["chi2"], res.table["chi2"])
+    np.testing.assert_array_equal(np.asarray(tab["alpha"]), csv["alpha"])
+    np.testing.assert_array_equal(np.asarray(tab["case"]), csv["case"])
+    assert tab.meta["config_digest"] == cfg.digest == res["config_digest"]
+    assert tab.meta["jaxppo_version"] == jp.__version__ and tab.meta["cases"] == ["same", "opposite"]
+    assert tab.meta["alpha_grid_deg"] == {"start": 0.0, "stop": 360.0, "step": 30.0}
+    assert tab.meta["chi2_0"]["same"] == res["chi2_0"]["same"]
+    rep = json.loads((tmp_path / "out" / "summary.json").read_text())["data"]
+    assert rep["report"]["flagged"] == 2 and rep["report"]["duplicated"] == 1
+    assert "dropped: 2 flagged" in rep["loaded"] and "1 repeated time stamps" in rep["loaded"]
+
+
+def test_long_cadence_exposure_average_is_converged(tmp_path):
+    """The real default scan's Delta chi^2 against an independent 401-point
+    exposure average of System.flux (exact) over the same detrended points.
+    With 2-minute sub-exposures (15 per 29.4-min cadence) the scan was off by
+    up to 0.08 (e.g. 0.562 against 0.514 at alpha = 125 deg) because b's
+    ingress and a PPO last only 3-9 min."""
+    cfg = load_config()
+    res = run_scan(cfg, tmp_path / "o", progress=False, figures=False)
+    windows = res.windows
+    t = np.concatenate([w.time for w in windows])
+    y = np.concatenate([w.flux for w in windows])
+    sig = np.concatenate([w.flux_err for w in windows])
+    n = 401
+    off = ((np.arange(n) + 0.5) / n - 0.5) * cfg.lightcurve.exposure
+    tm = (t[:, None] + off[None, :]).ravel()
+    alphas = np.array([0.0, 141.0, 150.0, 225.0, 311.0, 319.0])
+    model = np.asarray(cfg.system.flux(tm, alpha=alphas, case="same", method="exact")).reshape(alphas.size, t.size, n)
+    chi2 = np.sum(((y - model.mean(-1)) / sig) ** 2, axis=1)
+    dchi2_ref = chi2[1:] - chi2[0]  # alpha = 0: no PPO in any frame (the ground level)
+    a, d = res.delta_chi2("same")
+    ours = np.array([d[np.isclose(a, al)][0] for al in alphas[1:]])
+    assert np.max(np.abs(ours - dchi2_ref)) < 0.01, (ours, dchi2_ref)
+    assert abs(res["chi2_0"]["same"] - chi2[0]) < 0.01
+
+
+def test_scan_refuses_float32(tmp_path):
+    """With x64 off the real scan ran in float32 without a word (chi^2_0
+    146.266 instead of 146.275); it must refuse, naming the fix."""
+    import subprocess
+    import sys
+
+    code = ("import jaxppo as jp\n"
+            "try:\n    jp.scan(jp.load_config(), out=None)\n"
+            "except ValueError as e:\n    print('REFUSED', e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert "REFUSED" in out and "jax_enable_x64" in out
+
+
+def test_case_labels_are_canonical():
+    """'+' of a two-planet system is case 'same' (and '-' is 'opposite'):
+    they were scanned twice under different geometry names."""
+    from jaxppo.model._system import scan_cases
+
+    system = jp.kepler20_system()
+    assert scan_cases(system, ["+"]) == ("same",)
+    assert scan_cases(system, "-") == ("opposite",)
+    with pytest.raises(ValueError, match="listed twice"):
+        scan_cases(system, ["same", "+"])
+    with pytest.raises(ValueError, match="sign"):
+        system.positions(np.zeros(1), 0.0, (True,))

@@ -1,0 +1,117 @@
+"""The package's layout stays what the README says: imports point down
+(import-linter's contracts in pyproject.toml, run by .ci/run, and an
+independent AST check here), private means private, no module of JAX's
+internals, no module over 600 lines and no function over 80."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "jaxppo"
+LAYERS = ("core", "model", ("inference", "activity"), "obliquity", "cli")
+MAX_MODULE_LINES = 600
+MAX_FUNCTION_LINES = 80
+# functions allowed past MAX_FUNCTION_LINES, each with the reason (none today)
+LONG_FUNCTIONS: dict[str, str] = {}
+
+
+def _modules():
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE.parent).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        yield path, parts, ast.parse(path.read_text())
+
+
+def _layer(parts):
+    if len(parts) < 2:
+        return None
+    for i, layer in enumerate(LAYERS):
+        names = layer if isinstance(layer, tuple) else (layer,)
+        if parts[1] in names:
+            return i
+    return None
+
+
+def test_no_private_names_across_modules():
+    bad = []
+    for path, parts, tree in _modules():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith("jaxppo")):
+                for alias in node.names:
+                    if alias.name.startswith("_") and alias.name != "__version__" and not alias.name.startswith("__"):
+                        bad.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} imports {alias.name}")
+    assert not bad, "\n".join(bad)
+
+
+def test_no_jax_internals():
+    bad = []
+    for path, _, tree in _modules():
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module or ""]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            bad += [f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {n}" for n in names if n.startswith("jax._src")]
+    assert not bad, bad
+
+
+def test_imports_point_down():
+    """Each module imports only its own layer or lower ones; inference and
+    activity not each other (import-linter checks the same in CI)."""
+    bad = []
+    for path, parts, tree in _modules():
+        mine = _layer(parts)
+        if mine is None:
+            continue
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                here = parts if path.name == "__init__.py" else parts[:-1]
+                target = here[: len(here) - node.level + 1] + (node.module.split(".") if node.module else [])
+            elif (node.module or "").startswith("jaxppo"):
+                target = node.module.split(".")
+            else:
+                continue
+            theirs = _layer(target)
+            if theirs is None:
+                if target == ["jaxppo"] and parts[1] != "cli":  # the CLI sits above the package's API
+                    bad.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} imports the package root")
+                continue
+            if theirs > mine or (theirs == mine and target[1] != parts[1]):
+                bad.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} imports {'.'.join(target)}")
+    assert not bad, "\n".join(bad)
+
+
+def test_sizes():
+    bad = []
+    for path, _, tree in _modules():
+        n = path.read_text().count("\n")
+        rel = str(path.relative_to(PACKAGE.parent))
+        if n > MAX_MODULE_LINES:
+            bad.append(f"{rel}: {n} lines")
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES and f"{rel}:{node.name}" not in LONG_FUNCTIONS:
+                    bad.append(f"{rel}:{node.name}: {length} lines")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_checks_can_fail(tmp_path, monkeypatch):
+    """The AST checks see what they look for (a module importing a private
+    name, jax._src and an upward import)."""
+    pkg = tmp_path / "jaxppo"
+    (pkg / "model").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "model" / "__init__.py").write_text("")
+    (pkg / "model" / "_a.py").write_text("from ._b import _hidden\nfrom jax._src import core\n"
+                                        "from ..obliquity._scan import run_scan\n")
+    monkeypatch.setattr(__import__(__name__), "PACKAGE", pkg)
+    for check in (test_no_private_names_across_modules, test_no_jax_internals, test_imports_point_down):
+        with pytest.raises(AssertionError):
+            check()
