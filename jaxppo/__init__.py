@@ -54,9 +54,9 @@ from .inference._sample import sample as sample
 from .obliquity._config import ScanConfig as ScanConfig
 from .obliquity._config import load_config as load_config
 from .obliquity._scan import ScanResult as ScanResult
-from .obliquity._scan import ScanWindow as ScanWindow
+from .obliquity._windows import ScanWindow as ScanWindow
 from .obliquity._scan import scan as scan
-from .obliquity._scan import scan_windows as scan_windows
+from .obliquity._windows import scan_windows as scan_windows
 from .obliquity._marginal import MarginalResult as MarginalResult
 from .obliquity._marginal import marginal_scan as marginal_scan
 from . import activity as activity

@@ -88,7 +88,7 @@ def _demo_events(system):
     same event in the demo and in the scan's figures."""
     from jaxppo.obliquity._config import load_config
     from jaxppo.model._kepler20 import paper_multi_transits
-    from jaxppo.obliquity._scan import scan_windows
+    from jaxppo.obliquity._windows import scan_windows
 
     events = paper_multi_transits(system)
     by_mid = {round(w.event.mid, 2): w.number for w in scan_windows(load_config())}
@@ -146,20 +146,29 @@ def cmd_demo(args) -> int:
     return 0
 
 
-def _print_summary(result) -> None:
-    for case, geo in result["probabilities"].items():
-        n = result.get("points")
-        per = f" for {n} points (chi2_0 / N = {result['chi2_0'][case] / n:.3f})" if n else ""
-        print(f"case {case}: chi2_0 = {result['chi2_0'][case]:.3f}{per}")
-        for name, v in geo.items():
-            if isinstance(v, dict):
-                print(f"   {name:36s} p = {100 * v['probability']:6.2f} %   sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
-        k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
-        print(f"   Bayes factor {k} for '{geo['favoured']}': {geo['jeffreys']}")
+def _scan_products(result, cfg, out):
+    """After the scan: its figures, then the PPO-or-spot verdict of each
+    negative dip (written into summary.json as ``ppo_or_spot``; a failure
+    there is reported in the block, never fails the finished scan). What a
+    finished scan already holds is not redone."""
+    from jaxppo.activity import ppo_or_spot
+    from jaxppo.obliquity._scan import draw_figures, figures_current, with_summary
+
+    if not figures_current(result, out):
+        result = draw_figures(result, cfg, out)
+    if "ppo_or_spot" not in result.summary:
+        try:
+            block = ppo_or_spot(result, cfg.system, out=out)
+        except Exception as exc:  # noqa: BLE001 - a summary block, not the scan's result
+            block = {"error": f"{type(exc).__name__}: {exc}"}
+        result = with_summary(out, result, ppo_or_spot=block)
+    return result
 
 
 def cmd_scan(args) -> int:
-    """Run the obliquity scan; no config runs the bundled default."""
+    """Run the obliquity scan, then its figures, the PPO-or-spot verdict of
+    its dips and, if asked for, the marginal scan; no config runs the
+    bundled default."""
     _enable_x64()
     from jaxppo.obliquity._config import alpha_grid, load_config
     from jaxppo.obliquity._scan import run_scan
@@ -172,29 +181,13 @@ def cmd_scan(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_scan(cfg, out, restart=args.restart, progress=not args.quiet)
+        seconds = time.perf_counter() - t0
+        result = _scan_products(result, cfg, out)
     for w in caught:
         print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
-    print(f"data: {result['data']['loaded']}" if "data" in result else f"data: {cfg.lightcurve.report_line()}")
-    res = result.get("resumed", {})
-    if res.get("finished_before"):
-        print(f"resumed: the scan in {out} had already finished with this config ({res['alphas_total']} alphas, "
-              f"digest {result['config_digest']}); nothing recomputed or redrawn")
-    elif res.get("alphas_done_before"):
-        print(f"resumed from {out / 'scan_progress.jsonl'}: {res['alphas_done_before']} of {res['alphas_total']} "
-              "alphas were already done")
-    if not res.get("finished_before"):
-        print(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over {len(result['multi_transits'])} "
-              f"multi-transits ({result['points']} points) in {time.perf_counter() - t0:.2f} s")
-    det = result.get("detrending", {})
-    if det.get("order") not in (None, "none"):
-        print(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
-              f"{sum(m.get('clipped', 0) for m in result['multi_transits'])} outliers clipped; errors {det['flux_err']}")
-    _print_summary(result)
-    from jaxppo.obliquity._tables import table5_text
+    from jaxppo.obliquity._report import scan_report
 
-    print(table5_text(result["table5"], cfg.cases), end="")
-    verb = "results in" if res.get("finished_before") else "wrote"
-    print(f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {len(result.get('figures', []))} figures")
+    print(scan_report(result.summary, cfg, out, seconds), end="")
     draws = args.marginalize if args.marginalize is not None else cfg.marginalize
     if draws:
         from jaxppo.obliquity._marginal import marginal_scan
@@ -223,35 +216,12 @@ def cmd_plot(args) -> int:
     config saved beside it (DIR/config.json, data paths resolved against the
     config's absolute folder): works from any working directory."""
     _enable_x64()
-    from jaxppo.obliquity._config import config_from_dict, load_config
-    from jaxppo.obliquity._figures import scan_figures
+    from jaxppo.obliquity._config import finished_scan_config
+    from jaxppo.obliquity._figures import read_scan_csv, scan_figures
+    from jaxppo.obliquity._windows import scan_windows
 
     out = Path(args.dir)
-    if not out.exists():
-        raise ValueError(f"DIR {out}: no such folder")
-    if not out.is_dir():
-        raise ValueError(f"DIR {out} is a file; give the scan's output folder")
-    for name in ("summary.json", "scan.csv"):
-        if not (out / name).exists():
-            raise ValueError(f"{out} holds no finished scan ({name} missing)")
-    try:
-        summary = json.loads((out / "summary.json").read_text())
-        saved = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else {}
-    except json.JSONDecodeError as err:
-        raise ValueError(f"{out}: summary.json or config.json is not valid JSON ({err}); rerun the scan") from None
-    if summary.get("config") == "<jaxppo.scan>":
-        raise ValueError(f"{out} was written by jaxppo.scan() from Python, without a config file; "
-                         "redraw it there with ScanResult.plot()")
-    if saved.get("base") and isinstance(saved.get("config"), dict):
-        cfg = config_from_dict(saved["config"], saved["base"], saved.get("source", str(out / "config.json")))
-    else:  # written before config.json carried the config's folder
-        cfg = load_config(summary["config"])
-    if cfg.digest != summary.get("config_digest"):
-        raise ValueError(f"the data or config of the scan in {out} changed since it ran ({summary['config']}); "
-                         "rerun the scan")
-    from jaxppo.obliquity._figures import read_scan_csv
-    from jaxppo.obliquity._scan import scan_windows
-
+    cfg, summary = finished_scan_config(out)
     files = scan_figures(out, summary, read_scan_csv(out / "scan.csv"), cfg.system, scan_windows(cfg), cfg.cases)
     print("wrote " + ", ".join(files))
     return 0
@@ -285,18 +255,10 @@ def _fit_inputs(args):
     cfg = load_config(args.config)
     lc = cfg.lightcurve
     if args.windows:
-        from jaxppo import LightCurve
-        from jaxppo.obliquity._scan import scan_windows
+        from jaxppo.obliquity._windows import windows_lightcurve
 
-        wins = scan_windows(cfg)
-        t = np.concatenate([w.time for w in wins])
-        f = np.concatenate([w.flux for w in wins])
-        e = np.concatenate([w.flux_err for w in wins])
-        # windows of neighbouring events may share points: keep each once
-        _, first = np.unique(t, return_index=True)
-        lc = LightCurve(t[first], f[first], e[first], exposure=lc.exposure,
-                        report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}"})
-        print(f"data: {len(lc)} points in {len(wins)} detrended multi-transit windows (as jaxppo scan sees them)")
+        lc = windows_lightcurve(cfg)
+        print(f"data: {len(lc)} points in {lc.report['windows']} (as jaxppo scan sees them)")
     return cfg, lc
 
 
@@ -438,16 +400,8 @@ def _draws(text: str) -> int:
     return n
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``jaxppo`` (every option documented with its
-    unit and default; docs/cli.md)."""
-    from jaxppo._version import __version__
-
-    parser = _Parser(prog="jaxppo", description="Planet-planet occultations in JAX: the orbital obliquity scan of "
-                     "Mueller, Ioannidis & Schmitt (2021), fits and sampling. Times [d] are on the data's scale "
-                     "(BKJD for the bundled Kepler data), angles in degrees.")
-    parser.add_argument("--version", action="version", version=f"jaxppo {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+def _add_scan(sub) -> None:
+    """The ``scan`` subcommand."""
     p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures",
                        description="Run (or resume) the obliquity scan of a config; writes scan.csv, scan.ecsv, "
                        "summary.json and five figures into --out. A rerun with the same config and --out resumes "
@@ -469,6 +423,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="discard earlier results in --out instead of resuming (default: resume)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (default: show it)")
     p.set_defaults(func=cmd_scan)
+
+
+def _add_fit_sample(sub) -> None:
+    """The ``fit`` and ``sample`` subcommands."""
     for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
                                  ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
         p = sub.add_parser(name, help=helptext, description=helptext + ". Free parameters: PLANET.t0 [d], "
@@ -511,6 +469,10 @@ def build_parser() -> argparse.ArgumentParser:
                            help="write the posterior, log-likelihood, sample stats and data as arviz netCDF "
                            "(default: none)")
         p.set_defaults(func=func)
+
+
+def _add_activity(sub) -> None:
+    """The ``activity`` subcommand."""
     p = sub.add_parser("activity", help="stellar activity: rotation period, variability, brightness map, spots",
                        description="Rotation period (generalised Lomb-Scargle, astropy), peak-to-peak variability "
                        "per quarter, the rotation-chunk brightness map (paper Fig. 3) and an optional few-spot "
@@ -530,6 +492,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-transit-mask", action="store_true",
                    help="keep the planets' transits in (default: mask Kepler-20 b-f)")
     p.set_defaults(func=cmd_activity)
+
+
+def _add_tools(sub) -> None:
+    """The ``init``, ``plot``, ``simulate`` and ``demo`` subcommands."""
     p = sub.add_parser("init", help="write a commented scan config template (every key, units, defaults)")
     p.add_argument("path", nargs="?", default="jaxppo_scan.toml", metavar="PATH",
                    help="file to write; its folder must exist (default: jaxppo_scan.toml)")
@@ -562,6 +528,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="jaxppo_demo", metavar="DIR",
                    help="output folder, created if missing (default: jaxppo_demo)")
     p.set_defaults(func=cmd_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``jaxppo`` (every option documented with its
+    unit and default; docs/cli.md)."""
+    from jaxppo._version import __version__
+
+    parser = _Parser(prog="jaxppo", description="Planet-planet occultations in JAX: the orbital obliquity scan of "
+                     "Mueller, Ioannidis & Schmitt (2021), fits and sampling. Times [d] are on the data's scale "
+                     "(BKJD for the bundled Kepler data), angles in degrees.")
+    parser.add_argument("--version", action="version", version=f"jaxppo {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (_add_scan, _add_fit_sample, _add_activity, _add_tools):
+        add(sub)
     return parser
 
 

@@ -12,12 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model._lightcurve import COLUMN_ROLES, LightCurve, quality_bitmask
+from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality_bitmask
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
 from ..model._system import CASES, Planet, System, scan_cases
 
-__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "config_from_dict", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
+__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
+           "config_from_dict", "finished_scan_config", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 _PLANET_OPTIONAL = {"e": 0.0, "omega": 90.0}  # circular unless given
@@ -266,21 +267,107 @@ def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
     return config_from_dict(raw, path.resolve().parent, source)
 
 
-def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
-    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
-    paths are relative to the folder ``base``."""
-    base = Path(base)
-    _check_keys(raw, SECTIONS, "top level (sections)", source)
-    for sec in ("star", "data", "scan"):
-        if sec in raw and not isinstance(raw[sec], dict):
-            raise _err(source, f"[{sec}] must be a table (a [{sec}] section)")
-    raw = dict(raw)
-    raw.setdefault("scan", {})  # every [scan] key has a default (docs/config.md)
-    for sec in ("star", "planet", "data"):
-        if sec not in raw:
-            raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
-    star = _star_from(raw["star"], base, source)
+def _is_number(v) -> bool:
+    """A real number, not a bool (``True`` is an int to Python, a typo here)."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
+
+def _none_word(v) -> bool:
+    return isinstance(v, str) and v.lower() == "none"
+
+
+def check_scan_settings(margin=0.05, detrend=2, baseline=0.3, clip=5.0, block=60, multi_transits=None,
+                        marginalize=0) -> dict:
+    """The scan settings checked and normalised: the one set of rules of
+    both the config file (``[scan]``) and the Python API (:func:`jaxppo.scan`,
+    :func:`jaxppo.marginal_scan`).
+
+    Args:
+        margin: [d] out-of-transit data in the chi^2 on each side of an
+            event, a finite number >= 0.
+        detrend: order 0..5 of each event's out-of-transit polynomial (a
+            whole number), or "none".
+        baseline: [d] baseline fitted on each side of an event, > margin.
+        clip: [robust sigmas] outlier threshold >= 2, or "none".
+        block: alphas per progress record, a whole number >= 1.
+        multi_transits: [d] mid-time(s) of the events to use, or None (all).
+        marginalize: draws of the marginalised scan, a whole number >= 0.
+
+    Returns:
+        dict with ``margin``, ``baseline`` (float), ``detrend``, ``block``,
+        ``marginalize`` (int; detrend None for "none"), ``clip`` (float or
+        None) and ``events`` (tuple of float, or None).
+
+    Raises:
+        ValueError naming the parameter and the value.
+    """
+    if not (_is_number(margin) and np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin must be a number of days >= 0, got {margin!r}")
+    if _none_word(detrend):
+        detrend = None
+    elif not (_is_number(detrend) and np.isfinite(detrend) and int(detrend) == detrend and 0 <= detrend <= 5):
+        raise ValueError(f"detrend must be a polynomial order 0..5 or \"none\", got {detrend!r}")
+    if not (_is_number(baseline) and np.isfinite(baseline) and baseline > margin):
+        raise ValueError(f"baseline must be a number of days > margin ({margin} d), got {baseline!r}")
+    if _none_word(clip):
+        clip = None
+    elif not (_is_number(clip) and clip >= 2):
+        raise ValueError(f"clip must be a threshold >= 2 (robust sigmas) or \"none\", got {clip!r}")
+    for name, v, lo, what in (("block", block, 1, "an integer"), ("marginalize", marginalize, 0, "a number of draws")):
+        if not (_is_number(v) and np.isfinite(v) and int(v) == v and v >= lo):
+            extra = " (0: off)" if name == "marginalize" else ""
+            raise ValueError(f"{name} must be {what} >= {lo}{extra}, got {v!r}")
+    events = None
+    if multi_transits is not None:
+        m = multi_transits if isinstance(multi_transits, (list, tuple, np.ndarray)) else [multi_transits]
+        if not (len(m) and np.ndim(m) == 1 and all(_is_number(v) and np.isfinite(v) for v in m)):
+            raise ValueError(f"multi_transits must be a mid-time or a non-empty list of mid-times [d], "
+                             f"got {multi_transits!r}")
+        events = tuple(float(v) for v in m)
+    return {"margin": float(margin), "detrend": None if detrend is None else int(detrend),
+            "baseline": float(baseline), "clip": None if clip is None else float(clip), "block": int(block),
+            "events": events, "marginalize": int(marginalize)}
+
+
+def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits,
+                          block) -> ScanConfig:
+    """A checked :class:`ScanConfig` from the arguments of :func:`jaxppo.scan`
+    (the checks of :func:`check_scan_settings`, as for a config file)."""
+    if not isinstance(system, System):
+        raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    if is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
+        # a lightkurve LightCurve: its default quality bitmask, flux divided
+        # by its median, exposure from TIMEDEL; the drops are in the report
+        lightcurve = LightCurve.from_lightkurve(lightcurve)
+    if not isinstance(lightcurve, LightCurve):
+        raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got {type(lightcurve).__name__}")
+    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
+    try:
+        cases = scan_cases(system, cases)
+    except ValueError as e:
+        raise ValueError(f"cases = {cases!r}: {e}") from None
+    s = check_scan_settings(margin, detrend, baseline, clip, block, multi_transits)
+    star = system.star
+    # what determines the results goes into the digest (resuming, --restart);
+    # detrend and clip as given, so that the digest of earlier runs holds
+    raw = {
+        "star": {"law": star.law, "params": np.asarray(star.params).tolist(),
+                 "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
+                 "interpolation": star.interpolation},
+        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")}}
+                   for pl in system.planets],
+        "tilted": system.tilted,
+        "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
+        "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": s["margin"],
+                 "detrend": None if s["detrend"] is None else detrend, "baseline": s["baseline"],
+                 "clip": None if s["clip"] is None else clip, "multi_transits": s["events"], "block": s["block"]},
+    }
+    return ScanConfig(system, lightcurve, alpha, cases, s["margin"], s["block"], raw, "<jaxppo.scan>",
+                      s["detrend"], s["baseline"], s["clip"], s["events"])
+
+
+def _planets_from(raw: dict, star: Star, source: str) -> System:
+    """[[planet]] entries: the system, tilted the one with tilted = true."""
     planets, tilted = [], []
     entries = raw["planet"] if isinstance(raw["planet"], list) else [raw["planet"]]
     if len(entries) < 2:
@@ -309,48 +396,12 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
             tilted.append(i)
     if len(tilted) > 1:
         raise _err(source, f"only one planet may have tilted = true, got {len(tilted)}")
-    system = System(star, planets, tilted=tilted[0] if tilted else 0)
+    return System(star, planets, tilted=tilted[0] if tilted else 0)
 
-    lc = _lightcurve_from(raw["data"], base, source)
 
-    scan = raw["scan"]
-    _check_keys(scan, SCAN_KEYS, "[scan]", source)
-    try:
-        alpha = alpha_grid(scan.get("alpha", [0.0, 360.0, 1.0]), "[scan] alpha")
-    except ValueError as e:
-        raise _err(source, str(e)) from None
-    cases = scan.get("cases", list(CASES))
-    try:
-        cases = scan_cases(system, cases)
-    except ValueError as e:
-        raise _err(source, f"[scan] cases = {cases!r}: {e}") from None
-    margin = float(scan.get("margin", 0.05))
-    if margin < 0:
-        raise _err(source, f"[scan] margin must be >= 0 days, got {margin}")
-    block = int(scan.get("block", 60))
-    if block < 1:
-        raise _err(source, f"[scan] block must be >= 1, got {block}")
-    detrend = scan.get("detrend", 2)
-    if isinstance(detrend, str) and detrend.lower() == "none":
-        detrend = None
-    elif isinstance(detrend, bool) or not isinstance(detrend, int) or not 0 <= detrend <= 5:
-        raise _err(source, f"[scan] detrend must be a polynomial order 0..5 or \"none\", got {detrend!r}")
-    baseline = scan.get("baseline", 0.3)
-    if isinstance(baseline, bool) or not isinstance(baseline, (int, float)) or not baseline > margin:
-        raise _err(source, f"[scan] baseline must be a number of days > margin ({margin}), got {baseline!r}")
-    clip = scan.get("clip", 5.0)
-    if isinstance(clip, str) and clip.lower() == "none":
-        clip = None
-    elif isinstance(clip, bool) or not isinstance(clip, (int, float)) or not clip >= 2:
-        raise _err(source, f"[scan] clip must be a threshold >= 2 (robust sigmas) or \"none\", got {clip!r}")
-    events = scan.get("multi_transits")
-    if events is not None:
-        if not (isinstance(events, list) and events and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in events)):
-            raise _err(source, f"[scan] multi_transits must be a list of mid-times [d], got {events!r}")
-        events = tuple(float(v) for v in events)
-    marginalize = scan.get("marginalize", 0)
-    if isinstance(marginalize, bool) or not isinstance(marginalize, int) or marginalize < 0:
-        raise _err(source, f"[scan] marginalize must be a number of draws >= 0 (0: off), got {marginalize!r}")
+def _fit_from(raw: dict, system: System, source: str):
+    """[fit]: the free parameters of the marginalised scan (or None), with
+    the stellar-density prior checked."""
     fit = raw.get("fit", {})
     if not isinstance(fit, dict):
         raise _err(source, "[fit] must be a table (a [fit] section)")
@@ -373,8 +424,77 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         raise _err(source, f"[fit] stellar_density must be [mean, sd] in g/cm^3, both > 0, got {rho!r}")
     if not isinstance(fit.get("stellar_density_source", ""), str):
         raise _err(source, f"[fit] stellar_density_source must be a string, got {fit['stellar_density_source']!r}")
-    return ScanConfig(system, lc, alpha, cases, margin, block, raw, source, detrend, float(baseline),
-                      None if clip is None else float(clip), events, str(base), marginalize, free)
+    return free
+
+
+def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
+    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
+    paths are relative to the folder ``base``. The [scan] settings go through
+    :func:`check_scan_settings`, as the Python API's do."""
+    base = Path(base)
+    _check_keys(raw, SECTIONS, "top level (sections)", source)
+    for sec in ("star", "data", "scan"):
+        if sec in raw and not isinstance(raw[sec], dict):
+            raise _err(source, f"[{sec}] must be a table (a [{sec}] section)")
+    raw = dict(raw)
+    raw.setdefault("scan", {})  # every [scan] key has a default (docs/config.md)
+    for sec in ("star", "planet", "data"):
+        if sec not in raw:
+            raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
+    star = _star_from(raw["star"], base, source)
+    system = _planets_from(raw, star, source)
+    lc = _lightcurve_from(raw["data"], base, source)
+
+    scan = raw["scan"]
+    _check_keys(scan, SCAN_KEYS, "[scan]", source)
+    try:
+        alpha = alpha_grid(scan.get("alpha", [0.0, 360.0, 1.0]), "[scan] alpha")
+    except ValueError as e:
+        raise _err(source, str(e)) from None
+    cases = scan.get("cases", list(CASES))
+    try:
+        cases = scan_cases(system, cases)
+    except ValueError as e:
+        raise _err(source, f"[scan] cases = {cases!r}: {e}") from None
+    try:
+        s = check_scan_settings(**{k: scan[k] for k in ("margin", "detrend", "baseline", "clip", "block",
+                                                         "multi_transits", "marginalize") if k in scan})
+    except ValueError as e:
+        raise _err(source, f"[scan] {e}") from None
+    free = _fit_from(raw, system, source)
+    return ScanConfig(system, lc, alpha, cases, s["margin"], s["block"], raw, source, s["detrend"], s["baseline"],
+                      s["clip"], s["events"], str(base), s["marginalize"], free)
+
+
+def finished_scan_config(out) -> tuple[ScanConfig, dict]:
+    """(config, summary) of the finished scan in the folder ``out``: the
+    config rebuilt from ``out``/config.json (data paths resolved against the
+    config's absolute folder, so from any working directory) and checked
+    against the digest in ``out``/summary.json."""
+    out = Path(out)
+    if not out.exists():
+        raise ValueError(f"DIR {out}: no such folder")
+    if not out.is_dir():
+        raise ValueError(f"DIR {out} is a file; give the scan's output folder")
+    for name in ("summary.json", "scan.csv"):
+        if not (out / name).exists():
+            raise ValueError(f"{out} holds no finished scan ({name} missing)")
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+        saved = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else {}
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{out}: summary.json or config.json is not valid JSON ({err}); rerun the scan") from None
+    if summary.get("config") == "<jaxppo.scan>":
+        raise ValueError(f"{out} was written by jaxppo.scan() from Python, without a config file; "
+                         "redraw it there with ScanResult.plot()")
+    if saved.get("base") and isinstance(saved.get("config"), dict):
+        cfg = config_from_dict(saved["config"], saved["base"], saved.get("source", str(out / "config.json")))
+    else:  # written before config.json carried the config's folder
+        cfg = load_config(summary["config"])
+    if cfg.digest != summary.get("config_digest"):
+        raise ValueError(f"the data or config of the scan in {out} changed since it ran ({summary['config']}); "
+                         "rerun the scan")
+    return cfg, summary
 
 
 def config_template() -> str:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model._lightcurve import LightCurve
 from ..model._sweep import sweep
 from ..model._system import case_label, case_signs
 from ._tables import peaks_and_dips
@@ -31,7 +32,6 @@ from ._tables import peaks_and_dips
 __all__ = ["scan_figures", "read_scan_csv"]
 
 _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")
-_SUB_EXPOSURE = 1.0 / 1440.0  # [d] longest sub-exposure of the exposure average
 
 
 def read_scan_csv(path) -> dict:
@@ -59,16 +59,13 @@ def _ppo(summary: dict, case) -> dict:
 
 
 def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np.ndarray:
-    """[alpha, time] flux, averaged over the exposure [d] when given."""
+    """[alpha, time] flux, averaged over the exposure [d] when given, by the
+    rule of the scan's chi^2 (:meth:`LightCurve.supersampled_times`): the
+    figures show the model whose chi^2 the scan reports."""
     time = np.asarray(time, float)
     alphas = np.atleast_1d(np.asarray(alphas, float))
-    if exposure:
-        n = max(1, int(np.ceil(exposure / _SUB_EXPOSURE)))
-        n += 1 - n % 2
-        off = ((np.arange(n) + 0.5) / n - 0.5) * exposure
-        tm = (time[:, None] + off[None, :]).ravel()
-    else:
-        n, tm = 1, time
+    ones = np.ones_like(time)
+    tm, n = LightCurve(time, ones, ones, exposure or None).supersampled_times()
     f = sweep(system, tm, alphas, cases=(case,), no_overlap=no_overlap)[0]
     return f.reshape(alphas.size, time.size, n).mean(-1)
 

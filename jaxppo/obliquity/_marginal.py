@@ -27,8 +27,8 @@ cases in one call of the same overlap kernel the plain scan uses
 the points containing an overlapping sub-exposure change.
 
 Results are written as they go (one checksummed JSON line per draw and case,
-the progress format of :mod:`jaxppo.obliquity._scan`, fsynced per chunk of draws); an
-interrupted run resumes without recomputing finished draws.
+the progress format of :mod:`jaxppo.obliquity._progress`, fsynced per chunk of
+draws); an interrupted run resumes without recomputing finished draws.
 """
 
 from __future__ import annotations
@@ -40,21 +40,24 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import numpy as np
 
-from ._config import ScanConfig
+from ._config import ScanConfig, check_alpha_grid, config_from_arguments
+from ._marginal_result import MarginalResult, analyse_draws, marginal_csv, plot_marginal
+from ._progress import atomic_write, read_progress, record_line
+from ._scan import run_scan
+from ._windows import windows_and_events
+from ..inference._importance import MIN_IMPORTANCE_ESS
 from ..inference._posterior import PLANET_PARAMS, check_density, default_density, nuts_draws
 from ..model._lightcurve import LightCurve
-from ._progress import atomic_write, read_progress, record_line
 from ..model._overlap import contact_frames, on_star, ppo_table, untilted_geometry
-from ._scan import windows_and_events, geometry_probabilities, run_scan
-from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 from ..model._plan import one_disk_sum, overlap_flux
 from ..model._system import System, case_signs
 
-__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free"]
+__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "quiet_alpha"]
 
 PROGRESS = "marginal_progress.jsonl"
 DRAWS = "marginal_draws.json"
@@ -66,51 +69,6 @@ def default_free(system: System) -> tuple[str, ...]:
     return tuple(f"{pl.name or i}.{p}" for i, pl in enumerate(system.planets) for p in PLANET_PARAMS)
 
 
-def _logmeanexp(v: np.ndarray, axis: int) -> np.ndarray:
-    m = np.max(v, axis=axis, keepdims=True)
-    return np.squeeze(m, axis) + np.log(np.mean(np.exp(v - m), axis=axis))
-
-
-class MarginalResult(dict):
-    """The marginal scan: this dict is marginal.json (per case: the
-    geometry probabilities from the marginal posterior, their spread over
-    draws, the Bayes factor and Jeffreys rating, the importance-sampling
-    effective sample size); ``table`` holds the rows of marginal.csv;
-    ``delta_chi2`` [draw, case, alpha] the per-draw curves; ``fixed`` the
-    fixed-parameter :class:`ScanResult`."""
-
-    def summary_lines(self) -> list[str]:
-        """What ``jaxppo scan --marginalize N`` prints: per case, each
-        geometry's marginal probability (16-84 % over draws) beside the fixed
-        scan's, the Bayes factor and rating, the posterior peak, the
-        importance ESS; then the timings."""
-        lines = [f"marginalised over {self['draws']} draws ({self['sampler'].get('method', '')})"]
-        for case, c in self["cases"].items():
-            geo, fx = c["geometries"], self.fixed["probabilities"][case]
-            imp = c["importance"]
-            if not c["reliable"]:
-                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
-                             f"(--marginalize N, now {self['draws']}) or sample alpha jointly")
-                continue
-            for name, g in geo.items():
-                if isinstance(g, dict):
-                    sp = c["probability_spread_over_draws"][name]
-                    lines.append(f"  case {case}: {name}: {100 * g['probability']:.2f} % "
-                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
-                                 f"{100 * fx[name]['probability']:.2f} %)")
-            k = geo["bayes_factor"]
-            kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
-            ess = min(g["ess"] for g in imp["groups"].values())
-            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
-                         f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
-                         f"of the geometry masses min {ess:.1f} of {self['draws']} (per alpha min "
-                         f"{c['importance_ess']['min']:.1f})")
-        sec = self.get("seconds") or {}
-        if sec:
-            lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
-                         f"{sec['draws_computed']} draws {sec['chi2_s']:.1f} s); load average "
-                         + " ".join(f"{v:.2f}" for v in self["cpu"]["load_average"]))
-        return lines
 
 
 def _systems_from(system: System, samples: dict, names) -> list[System]:
@@ -144,6 +102,29 @@ def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
         if not np.all(np.isfinite(np.asarray(samples[name], float))):
             raise ValueError(f"samples: {name!r} holds non-finite values")
     return names, int(n[0])
+
+
+
+
+def _overlap_jobs(systems, geo, tm, alpha, cases):
+    """The frames in which some disk overlaps another, over every (draw,
+    case, alpha): the one contact test. Returns (draw, case, alpha, frame,
+    x, y of the tilted planet) arrays, or None when there are none, and ppo
+    [draw, case, alpha] (the tilted planet overlaps another in some frame)."""
+    jobs = [[] for _ in range(6)]
+    ppo = np.zeros((len(systems), len(cases), alpha.size), bool)
+    for di, (s, g) in enumerate(zip(systems, geo)):
+        xt, yt = g[3], g[4]  # [alpha, time]
+        ppo[di] = contact_frames(s, tm, alpha, cases, tilted_only=True, geometry=g).any(-1)
+        hits = contact_frames(s, tm, alpha, cases, geometry=g)
+        for ci in range(len(cases)):
+            ai, ti = np.nonzero(hits[ci])
+            if ai.size:
+                for lst, v in zip(jobs, (np.full(ai.size, di), np.full(ai.size, ci), ai, ti, xt[ai, ti], yt[ai, ti])):
+                    lst.append(v)
+    if not jobs[0]:
+        return None, ppo
+    return tuple(np.concatenate(v) for v in jobs), ppo
 
 
 def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
@@ -190,25 +171,11 @@ def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
     chi2_null = np.sum(res0**2, axis=1)
 
     # overlapping frames of every (draw, case, alpha): the one contact test
-    jobs_d, jobs_c, jobs_a, jobs_t, jobs_x, jobs_y = [], [], [], [], [], []
-    ppo = np.zeros((n_d, n_c, n_a), bool)
-    for di, (s, g) in enumerate(zip(systems, geo)):
-        xt, yt = g[3], g[4]  # [alpha, time]
-        ppo[di] = contact_frames(s, tm, alpha, cases, tilted_only=True, geometry=g).any(-1)
-        hits = contact_frames(s, tm, alpha, cases, geometry=g)
-        for ci in range(n_c):
-            ai, ti = np.nonzero(hits[ci])
-            if ai.size:
-                jobs_d.append(np.full(ai.size, di))
-                jobs_c.append(np.full(ai.size, ci))
-                jobs_a.append(ai)
-                jobs_t.append(ti)
-                jobs_x.append(xt[ai, ti])
-                jobs_y.append(yt[ai, ti])
+    jobs, ppo = _overlap_jobs(systems, geo, tm, alpha, cases)
     chi2 = np.broadcast_to(chi2_null[:, None, None], (n_d, n_c, n_a)).copy()
-    if not jobs_d:
+    if jobs is None:
         return chi2, chi2_null, ppo
-    jd, jc, ja, jt, xt_j, yt_j = (np.concatenate(v) for v in (jobs_d, jobs_c, jobs_a, jobs_t, jobs_x, jobs_y))
+    jd, jc, ja, jt, xt_j, yt_j = jobs
     X = x0[jd, jt].copy()
     Y = y0[jd, jt] * np.stack(signs_of)[jc]  # untilted planets mirrored per case
     X[:, tilted] = xt_j
@@ -280,17 +247,49 @@ def _digest(cfg: ScanConfig, settings: dict) -> str:
 
 
 def _config(system, lightcurve, kw) -> ScanConfig:
-    from ._config import check_alpha_grid
-    from ._scan import config_from_arguments
-
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
         return system
-    cfg = config_from_arguments(system, lightcurve, kw["alpha"], kw["cases"], kw["margin"], kw["detrend"], kw["baseline"],
-                       kw["clip"], kw["multi_transits"], 60)
+    cfg = config_from_arguments(system, lightcurve, kw["alpha"], kw["cases"], kw["margin"], kw["detrend"],
+                                kw["baseline"], kw["clip"], kw["multi_transits"], 60)
     check_alpha_grid(cfg.alpha)
     return cfg
+
+
+def _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains):
+    """The sampler and batching options checked; returns ``draws`` as int
+    (unchanged when ``samples`` give the draws)."""
+    if samples is None:
+        if isinstance(draws, bool) or int(draws) != draws or int(draws) < 1:
+            raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
+        draws = int(draws)
+    if not (isinstance(min_ess, (int, float)) and not isinstance(min_ess, bool) and np.isfinite(min_ess)
+            and min_ess >= 1):
+        raise ValueError(f"min_ess must be a number >= 1, got {min_ess!r}")
+    for name, v, lo in (("chunk", chunk, 1), ("thin", thin, 1), ("num_warmup", num_warmup, 1), ("chains", chains, 1)):
+        if isinstance(v, bool) or int(v) != v or int(v) < lo:
+            raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+    return draws
+
+
+def _density_prior(system, sysm: System, free, given, stellar_density):
+    """(density prior [mean, sd] [g/cm^3] or None, its source) of the
+    sampler: only when NUTS samples a free a/R*."""
+    density, density_source = None, None
+    if given is None and any(n.endswith(".a") for n in free):
+        if stellar_density is None and isinstance(system, ScanConfig):
+            stellar_density = (system.raw.get("fit") or {}).get("stellar_density")
+            density_source = (system.raw.get("fit") or {}).get("stellar_density_source", "[fit] stellar_density")
+        if stellar_density is None:
+            labels = [pl.name or str(i) for i, pl in enumerate(sysm.planets)]
+            tied = [labels.index(n.split(".")[0]) for n in free if n.endswith(".a") and n.split(".")[0] in labels]
+            *density, density_source = default_density(sysm, tied)
+        else:
+            density = check_density(stellar_density)
+            density_source = density_source or "stellar_density argument"
+        density = [float(v) for v in density]
+    return density, density_source
 
 
 def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=None, samples=None,
@@ -337,24 +336,14 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
             :func:`jaxppo.scan` (only with a System).
 
     Returns:
-        :class:`MarginalResult` (marginal.json as a dict; ``table``,
-        ``delta_chi2`` [draw, case, alpha], ``fixed``).
+        :class:`MarginalResult`: ``summary`` (marginal.json), ``table``
+        (marginal.csv), ``delta_chi2`` [draw, case, alpha], ``fixed``.
     """
     from tqdm import tqdm
-
     t_begin = time.perf_counter()
     cfg = _config(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits))
-    if samples is None:
-        if isinstance(draws, bool) or int(draws) != draws or int(draws) < 1:
-            raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
-        draws = int(draws)
-    if not (isinstance(min_ess, (int, float)) and not isinstance(min_ess, bool) and np.isfinite(min_ess)
-            and min_ess >= 1):
-        raise ValueError(f"min_ess must be a number >= 1, got {min_ess!r}")
-    for name, v, lo in (("chunk", chunk, 1), ("thin", thin, 1), ("num_warmup", num_warmup, 1), ("chains", chains, 1)):
-        if isinstance(v, bool) or int(v) != v or int(v) < lo:
-            raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+    draws = _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains)
     sysm = cfg.system
     free = default_free(sysm) if free is None else tuple(free)
     if samples is not None:
@@ -363,77 +352,45 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         given = {n: np.asarray(samples[n], float).tolist() for n in snames}
     else:
         given = None
-    density, density_source = None, None
-    if given is None and any(n.endswith(".a") for n in free):
-        if stellar_density is None and isinstance(system, ScanConfig):
-            stellar_density = (system.raw.get("fit") or {}).get("stellar_density")
-            density_source = (system.raw.get("fit") or {}).get("stellar_density_source", "[fit] stellar_density")
-        if stellar_density is None:
-            labels = [pl.name or str(i) for i, pl in enumerate(sysm.planets)]
-            tied = [labels.index(n.split(".")[0]) for n in free if n.endswith(".a") and n.split(".")[0] in labels]
-            *density, density_source = default_density(sysm, tied)
-        else:
-            density = check_density(stellar_density)
-            density_source = density_source or "stellar_density argument"
-        density = [float(v) for v in density]
+    density, density_source = _density_prior(system, sysm, free, given, stellar_density)
     settings = {"draws": draws, "free": list(free), "num_warmup": int(num_warmup), "thin": int(thin),
                 "seed": int(seed), "chains": int(chains), "density": density, "samples_sha256": None if given is None else
                 hashlib.sha256(json.dumps(given, sort_keys=True).encode()).hexdigest()[:20]}
-    digest = _digest(cfg, settings)
-
+    opts = SimpleNamespace(digest=_digest(cfg, settings), given=given, free=free, draws=draws, num_warmup=num_warmup,
+                           thin=thin, seed=seed, chunk=chunk, chains=chains, density=density,
+                           density_source=density_source, min_ess=min_ess, restart=restart, progress=progress,
+                           t_begin=t_begin)
     if out is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_marginal_") as tmp:
-            return _run(cfg, Path(tmp), digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed,
-                        restart, progress, False, t_begin, tqdm, chains, density, density_source, min_ess)
+            return _run(cfg, Path(tmp), fixed, False, opts)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    return _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart,
-                progress, figures, t_begin, tqdm, chains, density, density_source, min_ess)
+    return _run(cfg, out, fixed, figures, opts)
 
 
-def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed, chunk, fixed, restart, progress,
-         figures, t_begin, tqdm, chains, density, density_source, min_ess):
-    import jax
-
-    sysm = cfg.system
-    if fixed is not None and fixed.get("config_digest") != cfg.digest:
-        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.get('config_digest')}, "
-                         f"this one {cfg.digest})")
-    prog_path, draws_path = out / PROGRESS, out / DRAWS
-    if restart:
-        for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
-            if (out / name).is_file():
-                (out / name).unlink()
-    done, notes = read_progress(prog_path, digest, out, cfg.source)
-    for note in notes:
-        warnings.warn(note, stacklevel=3)
-
-    windows, _ = windows_and_events(cfg)
-    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
-                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
-    tm, nsub = data.supersampled_times()
-    y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
-    timing = {}
-
-    # ---- the draws (kept beside the results: a resumed run uses the same) ----
+def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, o, timing: dict):
+    """(samples, sampler) of the marginal scan: the draws stored in
+    ``draws_path`` by an earlier run with this digest, else those given by
+    the caller, else NUTS draws of the no-PPO transit posterior (written to
+    ``draws_path``: a resumed run uses the same)."""
     stored = None
     if draws_path.exists():
         try:
             rec = json.loads(draws_path.read_text())
-            if rec.get("digest") == digest:
+            if rec.get("digest") == o.digest:
                 stored = rec
         except (json.JSONDecodeError, OSError):
             stored = None
         if stored is None:
-            raise ValueError(f"{out} holds draws of a different marginal scan ({draws_path.name}); "
+            raise ValueError(f"{draws_path.parent} holds draws of a different marginal scan ({draws_path.name}); "
                              "use another out folder or restart=True")
     if stored is not None:
-        samples = {k: np.asarray(v, float) for k, v in stored["samples"].items()}
-        sampler = stored["sampler"]
-    elif given is not None:
-        samples = {k: np.asarray(v, float) for k, v in given.items()}
+        return {k: np.asarray(v, float) for k, v in stored["samples"].items()}, stored["sampler"]
+    if o.given is not None:
+        samples = {k: np.asarray(v, float) for k, v in o.given.items()}
         sampler = {"method": "given by the caller"}
     else:
+        sysm = cfg.system
         a_ref = quiet_alpha(sysm, tm, cfg.cases[0])
         # Sample t0 at the transit nearest the middle of the windows: the
         # same orbit, but t0 and the period are then nearly uncorrelated
@@ -441,27 +398,32 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
         # the two are correlated to |r| ~ 1 and NUTS needs deep trees).
         centred = _centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
         t0 = time.perf_counter()
-        samples, sampler = nuts_draws(centred, data, free, density, a_ref, cfg.cases[0], draws, num_warmup, thin,
-                                      seed, chains, progress)
+        samples, sampler = nuts_draws(centred, data, o.free, o.density, a_ref, cfg.cases[0], o.draws, o.num_warmup,
+                                      o.thin, o.seed, o.chains, o.progress)
         timing["sampler_s"] = time.perf_counter() - t0
-        sampler.update({"alpha_ref": a_ref, "case_ref": cfg.cases[0], "density_prior": density,
-                        "density_prior_source": density_source,
+        sampler.update({"alpha_ref": a_ref, "case_ref": cfg.cases[0], "density_prior": o.density,
+                        "density_prior_source": o.density_source,
                         "t0_epochs": {pl.name or str(i): float(pl.t0) for i, pl in enumerate(centred.planets)}})
         if "star.density" in samples:
             sampler["star.density"] = samples.pop("star.density").tolist()
-    if stored is None:
-        atomic_write(draws_path, json.dumps({"digest": digest, "sampler": sampler,
-                                              "samples": {k: v.tolist() for k, v in samples.items()}},
-                                             allow_nan=False, default=float))
-    if not prog_path.exists():
-        atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
-    systems = _systems_from(sysm, samples, list(samples))
-    n_d = len(systems)
+    atomic_write(draws_path, json.dumps({"digest": o.digest, "sampler": sampler,
+                                          "samples": {k: v.tolist() for k, v in samples.items()}},
+                                         allow_nan=False, default=float))
+    return samples, sampler
 
-    # ---- per-draw chi^2 curves, batched per chunk, written as they go ----
-    def key(d, case):
-        return f"{case}#{d}"
 
+def _key(d, case) -> str:
+    return f"{case}#{d}"
+
+
+def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, timing):
+    """Per-draw chi^2 curves, batched per chunk of draws, written as they go
+    (one record per draw and case, fsynced per chunk); returns (Delta chi^2
+    [draw, case, alpha], chi^2 [draw, case, alpha], chi^2_0 [draw, case],
+    no-PPO chi^2 [draw], reference chi^2 [draw] or None)."""
+    from tqdm import tqdm
+
+    n_d, digest = len(systems), o.digest
     # The draws were sampled from the transit posterior at tilt alpha_ref:
     # the exact importance weight of alpha is L(alpha) / L(alpha_ref), so
     # each draw's chi^2 at alpha_ref is its reference (the no-PPO chi^2
@@ -470,31 +432,31 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     a_ref = sampler.get("alpha_ref")
 
     def finished(d):
-        return (key(d, "null"), 0.0) in done and (a_ref is None or (key(d, "ref"), 0.0) in done) and all((key(d, c), round(float(a), 9)) in done
-                                                        for c in cfg.cases for a in cfg.alpha)
+        return (_key(d, "null"), 0.0) in done and (a_ref is None or (_key(d, "ref"), 0.0) in done) and all(
+            (_key(d, c), round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
 
     todo = [d for d in range(n_d) if not finished(d)]
-    bar = tqdm(total=n_d, initial=n_d - len(todo), desc="marginal scan", unit="draw", disable=not progress,
+    bar = tqdm(total=n_d, initial=n_d - len(todo), desc="marginal scan", unit="draw", disable=not o.progress,
                leave=False)
     t0 = time.perf_counter()
     with open(prog_path, "a") as fh:
-        for i in range(0, len(todo), chunk):
-            idx = todo[i:i + chunk]
+        for i in range(0, len(todo), o.chunk):
+            idx = todo[i:i + o.chunk]
             chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
             c0 = _chi2_0(chi2, chi2_null, ppo)
             if a_ref is not None:
                 c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
                                       (sampler["case_ref"],))[0][:, 0, 0]
             for j, d in enumerate(idx):
-                recs = [{"config_digest": digest, "case": key(d, "null"), "alpha": [0.0],
+                recs = [{"config_digest": digest, "case": _key(d, "null"), "alpha": [0.0],
                          "chi2": [float(chi2_null[j])]}]
                 if a_ref is not None:
-                    recs.append({"config_digest": digest, "case": key(d, "ref"), "alpha": [0.0],
+                    recs.append({"config_digest": digest, "case": _key(d, "ref"), "alpha": [0.0],
                                  "chi2": [float(c_ref[j])]})
                 for ci, c in enumerate(cfg.cases):
-                    recs.append({"config_digest": digest, "case": key(d, c), "alpha": cfg.alpha.tolist(),
+                    recs.append({"config_digest": digest, "case": _key(d, c), "alpha": cfg.alpha.tolist(),
                                  "chi2": chi2[j, ci].tolist()})
-                    recs.append({"config_digest": digest, "case": key(d, "c0:" + c), "alpha": [0.0],
+                    recs.append({"config_digest": digest, "case": _key(d, "c0:" + c), "alpha": [0.0],
                                  "chi2": [float(c0[j, ci])]})
                 for rec in recs:
                     fh.write(record_line(rec))
@@ -507,171 +469,64 @@ def _run(cfg, out, digest, settings, given, free, draws, num_warmup, thin, seed,
     timing["chi2_s"] = time.perf_counter() - t0
     timing["draws_computed"] = len(todo)
 
-    chi2 = np.array([[[done[(key(d, c), round(float(a), 9))] for a in cfg.alpha] for c in cfg.cases]
+    chi2 = np.array([[[done[(_key(d, c), round(float(a), 9))] for a in cfg.alpha] for c in cfg.cases]
                      for d in range(n_d)])
-    c0 = np.array([[done[(key(d, "c0:" + c), 0.0)] for c in cfg.cases] for d in range(n_d)])
-    chi2_null = np.array([done[(key(d, "null"), 0.0)] for d in range(n_d)])
-    dchi2 = chi2 - c0[:, :, None]  # [draw, case, alpha]
-    chi2_ref = None if a_ref is None else np.array([done[(key(d, "ref"), 0.0)] for d in range(n_d)])
+    c0 = np.array([[done[(_key(d, "c0:" + c), 0.0)] for c in cfg.cases] for d in range(n_d)])
+    chi2_null = np.array([done[(_key(d, "null"), 0.0)] for d in range(n_d)])
+    chi2_ref = None if a_ref is None else np.array([done[(_key(d, "ref"), 0.0)] for d in range(n_d)])
+    return chi2 - c0[:, :, None], chi2, c0, chi2_null, chi2_ref
+
+
+def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
+    """The marginal scan in ``out`` (resumes; see :func:`marginal_scan`)."""
+    if fixed is not None and fixed.config_digest != cfg.digest:
+        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, "
+                         f"this one {cfg.digest})")
+    prog_path, draws_path = out / PROGRESS, out / DRAWS
+    if o.restart:
+        for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
+            if (out / name).is_file():
+                (out / name).unlink()
+    done, notes = read_progress(prog_path, o.digest, out, cfg.source)
+    for note in notes:
+        warnings.warn(note, stacklevel=3)
+
+    windows, _ = windows_and_events(cfg)
+    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
+    tm, nsub = data.supersampled_times()
+    y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
+    timing = {}
+    samples, sampler = _draws(cfg, data, tm, draws_path, o, timing)
+    if not prog_path.exists():
+        atomic_write(prog_path, json.dumps({"config_digest": o.digest, "source": cfg.source, "format": 2}) + "\n")
+    systems = _systems_from(cfg.system, samples, list(samples))
+    dchi2, chi2, c0, chi2_null, chi2_ref = _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path,
+                                                        o, timing)
 
     # ---- the fixed-parameter scan, for comparison ----
     if fixed is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_fixed_") as tmp:
-            fixed = run_scan(cfg, tmp, progress=False, figures=False)
+            fixed = run_scan(cfg, tmp, progress=False)
     # a draw is sampled under the no-PPO model iff alpha_ref is quiet for it
-    ref_quiet = None
+    a_ref, ref_quiet = sampler.get("alpha_ref"), None
     if a_ref is not None:
         ref_quiet = float(np.mean([~ppo_table(s, [tm], np.array([float(a_ref)]), sampler["case_ref"])[0, 0]
                                    for s in systems]))
-    result = _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet, min_ess)
+    result = analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, o.digest, ref_quiet,
+                           o.min_ess)
+    summary = result.summary
     if "star.density" in sampler:
         rho = np.asarray(sampler["star.density"], float)
-        result["parameters"]["star.density"] = {"median": float(np.median(rho)),
-                                                "p16": float(np.percentile(rho, 15.865)),
-                                                "p84": float(np.percentile(rho, 84.135))}
-    result["seconds"] = {"total": time.perf_counter() - t_begin, **timing,
-                         "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
-    result["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
-    result["progress_notes"] = notes
-    atomic_write(out / "marginal.csv", _csv(result.table))
+        summary["parameters"]["star.density"] = {"median": float(np.median(rho)),
+                                                 "p16": float(np.percentile(rho, 15.865)),
+                                                 "p84": float(np.percentile(rho, 84.135))}
+    summary["seconds"] = {"total": time.perf_counter() - o.t_begin, **timing,
+                          "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
+    summary["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
+    summary["progress_notes"] = notes
+    atomic_write(out / "marginal.csv", marginal_csv(result.table))
     if figures:
-        result["figures"] = [str(_plot(out, result, cfg))]
-    atomic_write(out / "marginal.json", json.dumps(result, indent=2, allow_nan=False))
+        summary["figures"] = [str(plot_marginal(out, result, cfg))]
+    atomic_write(out / "marginal.json", json.dumps(summary, indent=2, allow_nan=False))
     return result
-
-
-def _withheld(geo: dict, names, reason: str) -> dict:
-    """The geometry block of a case whose importance weights are
-    unreliable: every probability, the Bayes factor and the rating withheld
-    (None), the reason in their place."""
-    out = {k: v for k, v in geo.items()}
-    for nm in names:
-        out[nm] = dict(geo[nm], probability=None)
-    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
-    return out
-
-
-def _analyse(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
-             min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
-    n_d = dchi2.shape[0]
-    step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
-    rows, cases = [], {}
-    for ci, case in enumerate(cfg.cases):
-        dc = dchi2[:, ci]  # [draw, alpha]
-        ref = c0[:, ci] if chi2_ref is None else chi2_ref
-        # log importance weights L(alpha) / L(reference of the draw)
-        logw = -0.5 * (chi2[:, ci] - ref[:, None])
-        # marginal Delta chi^2: -2 log of the mean importance weight, against
-        # the same average of the ground levels (0 when every reference is
-        # the draw's chi^2_0, as for draws given by the caller)
-        ground = -2.0 * _logmeanexp(-0.5 * (c0[:, ci] - ref)[:, None], axis=0)[0]
-        dm = -2.0 * _logmeanexp(logw, axis=0) - ground
-        w = np.exp(-0.5 * (dm - dm.min()))
-        post = w / (np.sum(w) * step)
-        med, lo, hi = np.percentile(dc, [50.0, 15.865, 84.135], axis=0)
-        geo = geometry_probabilities(cfg.alpha, dm, case)
-        names = [k for k in geo if isinstance(geo[k], dict)]
-        per = [geometry_probabilities(cfg.alpha, dc[d], case) for d in range(n_d)]
-        spread = {}
-        for nm in names:
-            p = np.array([g[nm]["probability"] for g in per])
-            spread[nm] = {"median": float(np.median(p)), "p16": float(np.percentile(p, 15.865)),
-                          "p84": float(np.percentile(p, 84.135)), "std": float(np.std(p))}
-        # Kish effective sample size of the importance weights at each alpha
-        ess = kish_ess(logw, axis=0)
-        # the guard: a probability, peak or rating only from weights that
-        # do not rest on a handful of draws (per geometry and in total)
-        a_mod = np.mod(cfg.alpha, 360.0)
-        pro = (a_mod <= 90.0) | (a_mod > 270.0)
-        check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
-        if not check["reliable"]:
-            geo = _withheld(geo, names, check["reason"])
-            post = np.full_like(post, np.nan)
-        fx_a, fx_d = fixed.delta_chi2(case)
-        cases[case] = {
-            "geometries": geo, "probability_spread_over_draws": spread,
-            "reliable": check["reliable"], "importance": check,
-            "peak": ({"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())}
-                     if check["reliable"] else None),
-            "fixed_peak": {"alpha": float(fx_a[np.argmin(fx_d)]), "delta_chi2": float(fx_d.min())},
-            "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())},
-            "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())},
-            "importance_ess": {"min": float(ess.min()), "alpha_at_min": float(cfg.alpha[np.argmin(ess)]),
-                               "median": float(np.median(ess))},
-            "chi2_0": {"median": float(np.median(c0[:, ci])), "min": float(c0[:, ci].min()),
-                       "max": float(c0[:, ci].max())},
-        }
-        for j, a in enumerate(cfg.alpha):
-            rows.append((case, float(a), float(post[j]), float(dm[j]), float(med[j]), float(lo[j]), float(hi[j]),
-                         float(fx_d[j])))
-    pstats = {n: {"median": float(np.median(v)), "p16": float(np.percentile(v, 15.865)),
-                  "p84": float(np.percentile(v, 84.135))} for n, v in samples.items()}
-    res = MarginalResult(
-        config=cfg.source, config_digest=cfg.digest, marginal_digest=digest, draws=n_d, sampler=sampler,
-        parameters=pstats, alpha_ref_quiet_fraction=ref_quiet,
-        chi2_null={"median": float(np.median(chi2_null)), "min": float(chi2_null.min()),
-                   "max": float(chi2_null.max())},
-        weight=("p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_ref) / 2); chi2_ref per draw: "
-                + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
-                   f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
-        cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases},
-    )
-    res.table = np.array(rows, dtype=_DTYPE)
-    res.delta_chi2 = dchi2
-    res.fixed = fixed
-    return res
-
-
-_DTYPE = [("case", "U16"), ("alpha", float), ("posterior", float), ("marginal_delta_chi2", float),
-          ("delta_chi2_median", float), ("delta_chi2_p16", float), ("delta_chi2_p84", float),
-          ("fixed_delta_chi2", float)]
-
-
-def _csv(table) -> str:
-    head = ",".join(n for n, _ in _DTYPE)
-    lines = [f"{r[0]},{r[1]:.10g}," + ",".join(f"{v:.17g}" for v in list(r)[2:]) for r in table]
-    return head + "\n" + "\n".join(lines) + "\n"
-
-
-def _plot(out: Path, result: MarginalResult, cfg) -> Path:
-    """Per case: the Delta chi^2 band (16-84 % over draws), its median, the
-    marginal Delta chi^2 and the fixed-parameter curve; below, the marginal
-    posterior against the fixed-parameter posterior."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = result.table
-    fig, axes = plt.subplots(2, len(cfg.cases), figsize=(5.5 * len(cfg.cases), 6), squeeze=False, sharex=True)
-    for ci, case in enumerate(cfg.cases):
-        s = t[t["case"] == case]
-        ax = axes[0, ci]
-        ax.fill_between(s["alpha"], s["delta_chi2_p16"], s["delta_chi2_p84"], color="C0", alpha=0.3, lw=0,
-                        label="draws, 16-84 %")
-        ax.plot(s["alpha"], s["delta_chi2_median"], color="C0", lw=0.8, label="draws, median")
-        ax.plot(s["alpha"], s["marginal_delta_chi2"], color="C3", lw=1.0, label="marginal")
-        ax.plot(s["alpha"], s["fixed_delta_chi2"], color="k", lw=0.8, ls="--", label="fixed parameters")
-        ax.axhline(0, color="k", lw=0.4)
-        ax.set_title(f"case {case}: {result['draws']} draws")
-        ax.set_ylabel("Delta chi^2")
-        ax.legend(fontsize=7)
-        ax = axes[1, ci]
-        fa, fd = result.fixed.delta_chi2(case)
-        fw = np.exp(-0.5 * (fd - fd.min()))
-        step = float(fa[1] - fa[0]) if fa.size > 1 else 360.0
-        if result["cases"][case]["reliable"]:
-            ax.plot(s["alpha"], s["posterior"], color="C3", lw=1.0, label="marginal")
-        else:
-            ax.text(0.5, 0.5, "marginal withheld:\nimportance weights unreliable", transform=ax.transAxes,
-                    ha="center", va="center", color="C3", fontsize=8)
-        ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
-        ax.set_xlabel("tilt angle alpha [deg]")
-        ax.set_ylabel("p(alpha | D) [1/deg]")
-        ax.set_xlim(0, 360)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = out / "marginal.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

@@ -1,11 +1,18 @@
-"""The orbital obliquity scan of Mueller et al. (2021), Sects. 2.1 and 3.3.
+"""The orbital obliquity scan of Mueller et al. (2021), Sects. 2.1 and 3.3:
+the driver (:func:`run_scan`, :func:`scan`), its outputs and restart.
 
-chi^2(alpha) over all multi-transits of the tilted planet at once, the ground
-level chi^2_0 (median over the alphas at which no planet-planet occultation
-occurs in any frame, found from the geometry), Delta chi^2, the posterior
-p(alpha | D) ~ exp(-Delta chi^2 / 2) normalised over [0, 360), the geometry
-probabilities (Table 6), the Bayes factor with its Jeffreys rating, and the
-numbers of the transits in which each alpha produces a PPO.
+chi^2(alpha) over all multi-transits of the tilted planet at once (the
+windows of :mod:`._windows`), the ground level chi^2_0 (median over the
+alphas at which no planet-planet occultation occurs in any frame, found from
+the geometry), Delta chi^2, the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2)
+normalised over [0, 360), the geometry probabilities (Table 6, :mod:`._stats`),
+the Bayes factor with its Jeffreys rating, and the numbers of the transits in
+which each alpha produces a PPO.
+
+The scan computes and writes; it draws nothing and judges nothing: the
+figures (:func:`draw_figures`, ``jaxppo.scan(..., figures=True)``) and the
+PPO-or-spot verdict (:func:`jaxppo.activity.ppo_or_spot`) come after it, on
+the finished :class:`ScanResult` (the command line runs all of them).
 
 Long runs write their progress as they go (one checksummed JSON line per
 finished (case, alpha) block, flushed and fsynced) and resume without
@@ -17,7 +24,6 @@ old outputs before writing new ones.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import time
@@ -28,228 +34,18 @@ import numpy as np
 
 from ._config import ScanConfig
 from ._progress import atomic_write, read_progress, record_line
-from ..model._sweep import sweep
-from ..model._lightcurve import LightCurve, is_lightkurve
-from ..model._overlap import in_transit_mask, ppo_table
-from ..model._system import MultiTransit, multi_transits
+from ._stats import geometry_probabilities
+from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
+from ._windows import ScanWindow, windows_and_events
+from ..model._lightcurve import LightCurve
+from ..model._overlap import ppo_table
+from ..model._sweep import sweep
 
-__all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
-           "scan_events"]
+__all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
+           "PROGRESS"]
 
 PROGRESS = "scan_progress.jsonl"
-# Extra width [d] (15 min) of each transit window in the out-of-transit mask:
-# room for ephemeris errors, so no ingress point bends the baseline.
-_TRANSIT_PAD = 15.0 / 1440.0
-# [scan] multi_transits lists mid-times; an event matches within this [d]
-_EVENT_MATCH = 0.1
-
-
-def jeffreys(k: float) -> str:
-    """Jeffreys (1961) rating of a Bayes factor K >= 1."""
-    if k < 10**0.5:
-        return "barely worth mentioning"
-    if k < 10:
-        return "substantial"
-    if k < 10**1.5:
-        return "strong"
-    if k < 100:
-        return "very strong"
-    return "decisive"
-
-
-@dataclasses.dataclass(frozen=True)
-class ScanWindow:
-    """One multi-transit as the chi^2 sees it.
-
-    ``number``: 1-based, as in ``summary["multi_transits"]``; ``event``: the
-    :class:`MultiTransit`; ``time`` [d], ``flux``, ``flux_err``: the points
-    inside [event.start - margin, event.end + margin] after detrending (each
-    window divided by its out-of-transit polynomial) and outlier removal;
-    ``exposure`` [d] of each point (None: instantaneous). ``baseline_points``:
-    out-of-transit points the trend was fitted to; ``clipped``: points dropped
-    as outliers (out of transit only); ``sigma``: the error estimated from the
-    out-of-transit scatter (None when the data's own errors are used);
-    ``trend``: polynomial coefficients (highest power first) in t - event.mid.
-    """
-
-    number: int
-    event: MultiTransit
-    time: np.ndarray
-    flux: np.ndarray
-    flux_err: np.ndarray
-    exposure: float | None
-    baseline_points: int = 0
-    clipped: int = 0
-    sigma: float | None = None
-    trend: tuple = ()
-
-    def as_dict(self) -> dict:
-        return dict(self.event.as_dict(), number=self.number, points=int(self.time.size),
-                    baseline_points=self.baseline_points, clipped=self.clipped, sigma=self.sigma)
-
-
-def _robust_sigma(r: np.ndarray) -> float:
-    """1.4826 x the median absolute deviation: the Gaussian sigma, unmoved by
-    a few outliers."""
-    return float(1.4826 * np.median(np.abs(r - np.median(r))))
-
-
-def _detrend_window(t, f, e, oot, mid, order, clip, estimate):
-    """Fit the polynomial to the out-of-transit points, iteratively dropping
-    those whose residual exceeds ``clip`` robust sigmas (never in-transit
-    points: a PPO bump or a transit cannot be clipped). Returns the kept mask,
-    the trend coefficients and the estimated sigma (or None)."""
-    keep = np.ones(t.size, bool)
-    x = t - mid
-    w = None if estimate else 1.0 / e
-    for _ in range(10):
-        fit_pts = oot & keep
-        coef = np.polyfit(x[fit_pts], f[fit_pts], order, w=None if w is None else w[fit_pts])
-        res = f / np.polyval(coef, x) - 1.0
-        if clip is None:
-            break
-        s_rob = _robust_sigma(res[fit_pts])
-        if not s_rob > 0:  # noise-free data: nothing is an outlier
-            break
-        new = keep & ~(oot & (np.abs(res) > clip * s_rob))
-        # stop when nothing changes, or before the baseline gets too thin
-        if new.sum() == keep.sum() or (oot & new).sum() < order + 3:
-            break
-        keep = new
-    fit_pts = oot & keep
-    sigma = None
-    if estimate:
-        # unbiased residual variance of the kept baseline (n - order - 1 dof)
-        r = f[fit_pts] / np.polyval(coef, x[fit_pts]) - 1.0
-        sigma = float(np.sqrt(np.sum(r**2) / (fit_pts.sum() - order - 1)))
-    return keep, coef, sigma
-
-
-def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
-    """The multi-transits of the tilted planet that have data, each with the
-    detrended, outlier-cleaned points the chi^2 uses (paper Sect. 2.2).
-
-    Per event: the baseline is [start - baseline, end + baseline]; its points
-    outside every planet's transit (contact times, widened by half an
-    exposure) fit a polynomial of order ``detrend``, and the window is divided
-    by it. Outliers: baseline points more than ``clip`` x 1.4826 MAD from the
-    trend are dropped (iterated); in-transit points are never clipped. When
-    the data carry no errors (``lightcurve.errors_estimated``), each window's
-    error is the rms of its baseline residuals with n - order - 1 degrees of
-    freedom. Events with too few baseline points (fewer than order + 3 in all
-    or fewer than 2 on a side) are skipped and listed in ``skipped`` of the
-    summary. ``detrend = "none"``: the flux is used as loaded."""
-    return windows_and_events(cfg)[0]
-
-
-def windows_and_events(cfg: ScanConfig):
-    sysm, lc = cfg.system, cfg.lightcurve
-    tilted_name = sysm.planets[sysm.tilted].name
-    tilted_label = tilted_name or str(sysm.tilted)
-    events = [e for e in multi_transits(sysm, float(lc.time.min()) - 1.0, float(lc.time.max()) + 1.0)
-              if tilted_label in e.planets]
-    if cfg.events is not None:
-        # only the listed multi-transits (e.g. the paper's seven)
-        missing = [m for m in cfg.events if not any(abs(e.mid - m) < _EVENT_MATCH for e in events)]
-        if missing:
-            raise ValueError(f"{cfg.source}: [scan] multi_transits: no multi-transit of planet {tilted_label!r} "
-                             f"within {_EVENT_MATCH} d of {missing}; the data hold {[round(e.mid, 2) for e in events]}")
-        events = [e for e in events if any(abs(e.mid - m) < _EVENT_MATCH for m in cfg.events)]
-    order, clip = cfg.detrend, cfg.clip
-    pad = 0.5 * (lc.exposure or 0.0) + _TRANSIT_PAD
-    windows, skipped = [], []
-    for e in events:
-        lo, hi = e.start - cfg.margin, e.end + cfg.margin
-        if order is None:
-            sel = (lc.time >= lo) & (lc.time <= hi)
-            if sel.any():
-                windows.append(ScanWindow(len(windows) + 1, e, lc.time[sel], lc.flux[sel], lc.flux_err[sel], lc.exposure))
-            continue
-        base = (lc.time >= e.start - cfg.baseline) & (lc.time <= e.end + cfg.baseline)
-        chi_sel = (lc.time[base] >= lo) & (lc.time[base] <= hi)
-        if not chi_sel.any():
-            continue
-        t, f, err = lc.time[base], lc.flux[base], lc.flux_err[base]
-        oot = ~in_transit_mask(sysm, t, pad)
-        n_left, n_right = int((oot & (t < e.start)).sum()), int((oot & (t > e.end)).sum())
-        if oot.sum() < order + 3 or (order >= 1 and min(n_left, n_right) < 2):
-            skipped.append({"mid": e.mid, "reason": f"{int(oot.sum())} out-of-transit baseline points "
-                            f"({n_left} before, {n_right} after); need >= {order + 3} and >= 2 on each side"})
-            continue
-        keep, coef, sigma = _detrend_window(t, f, err, oot, e.mid, order, clip, lc.errors_estimated)
-        trend = np.polyval(coef, t - e.mid)
-        use = chi_sel & keep
-        fe = np.full(t.size, sigma) if sigma is not None else err / trend
-        windows.append(ScanWindow(
-            len(windows) + 1, e, t[use], f[use] / trend[use], fe[use], lc.exposure,
-            baseline_points=int((oot & keep).sum()), clipped=int((~keep).sum()), sigma=sigma,
-            trend=tuple(float(c) for c in coef)))
-    if not windows:
-        raise ValueError(
-            f"{cfg.source}: the data ({lc.time.min():.3f} .. {lc.time.max():.3f}) contain no usable multi-transit "
-            f"of planet {tilted_label!r}" + (f" (skipped: {skipped})" if skipped else "")
-        )
-    return windows, skipped
-
-
-def scan_events(cfg: ScanConfig):
-    """(event, mask of ``cfg.lightcurve``) of the multi-transits the scan
-    uses, numbered as :func:`scan_windows` (the mask covers the chi^2 window
-    of the raw light curve; the detrended points are in scan_windows)."""
-    lc = cfg.lightcurve
-    return [(w.event, (lc.time >= w.event.start - cfg.margin) & (lc.time <= w.event.end + cfg.margin))
-            for w in scan_windows(cfg)]
-
-
-def _geometry_names(case: str) -> tuple[str, str]:
-    """Names of the prograde and retrograde ranges of a case. With one
-    untilted planet, a retrograde tilt puts the tilted planet in the other
-    hemisphere (paper Table 6). With more, a mixed case ("+-": the untilted
-    planets' hemispheres relative to the tilted planet's before its tilt) is
-    named by its signs."""
-    if case == "same":
-        return "prograde, same hemisphere", "retrograde, different hemispheres"
-    if case == "opposite":
-        return "prograde, different hemispheres", "retrograde, same hemisphere"
-    return f"prograde, hemispheres {case}", f"retrograde, hemispheres {case}"
-
-
-def _logsumexp(v: np.ndarray) -> float:
-    if v.size == 0:
-        return -np.inf
-    m = float(np.max(v))
-    return m + float(np.log(np.sum(np.exp(v - m))))
-
-
-def geometry_probabilities(alpha, delta_chi2, case) -> dict:
-    """Integrate the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2) (uniform
-    prior on [0, 360), Eq. 1) over the paper's Table 6 ranges: prograde
-    [0, 90] and (270, 360), retrograde (90, 270]; with the sum of positive
-    Delta chi^2 in each range and the Bayes factor K = p_favoured / p_other
-    (computed in log space: ``log10_bayes_factor`` is always finite;
-    ``bayes_factor`` is None where K overflows a float)."""
-    alpha = np.mod(np.asarray(alpha, float), 360.0)
-    dchi2 = np.asarray(delta_chi2, float)
-    pro = (alpha <= 90.0) | (alpha > 270.0)
-    names = _geometry_names(case)
-    logw = -0.5 * dchi2
-    log_pro, log_ret = _logsumexp(logw[pro]), _logsumexp(logw[~pro])
-    log_tot = np.logaddexp(log_pro, log_ret)
-    p_pro, p_ret = float(np.exp(log_pro - log_tot)), float(np.exp(log_ret - log_tot))
-    pos = np.clip(dchi2, 0.0, None)
-    favoured = names[0] if log_pro >= log_ret else names[1]
-    log10_k = abs(log_pro - log_ret) / np.log(10.0)
-    if not np.isfinite(log10_k):
-        raise ValueError(f"alpha: the grid leaves the {'retrograde' if np.isinf(log_ret) else 'prograde'} range "
-                         "empty; the geometry probabilities need angles in both")
-    kk = float(10.0**log10_k) if log10_k < 300 else None
-    return {
-        names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
-        names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
-        "bayes_factor": kk, "log10_bayes_factor": float(log10_k), "favoured": favoured,
-        "jeffreys": jeffreys(10.0**min(log10_k, 300.0)),
-    }
 
 
 def _detrend_summary(cfg) -> dict:
@@ -266,18 +62,62 @@ def _detrend_summary(cfg) -> dict:
     }
 
 
-class ScanResult(dict):
-    """A finished scan: the summary (this dict, also written to
-    summary.json: chi2_0, geometry probabilities, Bayes factors, the
-    multi-transits used, the detrending), ``table`` (the rows of scan.csv),
-    ``windows`` (the :class:`ScanWindow` data the chi^2 used) and ``plot()``."""
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class ScanResult(DeprecatedSummaryAccess):
+    """A finished scan (immutable).
+
+    Fields:
+        summary: what summary.json holds: ``chi2_0`` and ``probabilities``
+            per case, ``cases`` (per case: ground level, geometries, Delta
+            chi^2 extremes [deg], ``ppo_transits``), the ``multi_transits``
+            used, ``detrending``, ``alpha`` [deg], ``table5``, ``resumed``,
+            ``seconds`` [s] of the scan; after the figures also ``figures``
+            (paths), after the command line's verdict ``ppo_or_spot``. Treat
+            it as read-only: :func:`with_summary` gives a new result.
+        table: the rows of scan.csv, a structured array with ``case``,
+            ``alpha`` [deg], ``chi2``, ``delta_chi2`` and ``posterior`` [1/deg].
+        windows: the :class:`ScanWindow` data the chi^2 used.
+
+    ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
+    ``summary`` (the result used to be that dict) but warn: deprecated, gone
+    in the next release.
+    """
+
+    summary: dict
     table: np.ndarray
-    windows: list
+    windows: tuple[ScanWindow, ...]
 
     @property
-    def summary(self) -> dict:
-        return dict(self)
+    def config_digest(self) -> str:
+        """Hash of the config and data the scan ran on (:attr:`ScanConfig.digest`)."""
+        return self.summary["config_digest"]
+
+    @property
+    def chi2_0(self) -> dict:
+        """The ground level chi^2_0 per case."""
+        return self.summary["chi2_0"]
+
+    @property
+    def probabilities(self) -> dict:
+        """Per case: the geometry probabilities, Bayes factor and rating (Table 6)."""
+        return self.summary["probabilities"]
+
+    @property
+    def table5(self) -> list:
+        """The peaks and dips of Delta chi^2 (paper Table 5), rows as dicts."""
+        return self.summary["table5"]
+
+    @property
+    def resumed(self) -> dict:
+        """How much was done before this call (``finished_before``: all of it)."""
+        return self.summary["resumed"]
+
+    def by_case(self) -> dict:
+        """{case: {"alpha", "chi2", "delta_chi2", "posterior"}} arrays of :attr:`table`."""
+        t = self.table
+        return {str(c): {k: t[k][t["case"] == c] for k in ("alpha", "chi2", "delta_chi2", "posterior")}
+                for c in dict.fromkeys(t["case"])}
 
     def delta_chi2(self, case: str) -> tuple[np.ndarray, np.ndarray]:
         """(alpha [deg], Delta chi^2) of one case."""
@@ -294,7 +134,7 @@ class ScanResult(dict):
             _, ax = plt.subplots(figsize=(8, 3.6))
         for case in dict.fromkeys(self.table["case"]):
             a, d = self.delta_chi2(case)
-            geo = self["probabilities"][case]
+            geo = self.probabilities[case]
             fav = geo["favoured"]
             ax.plot(a, d, lw=1, label=f"case {case} ({fav} {100 * geo[fav]['probability']:.1f} %)")
         ax.axhline(0, color="k", lw=0.5)
@@ -303,6 +143,39 @@ class ScanResult(dict):
         ax.set_xlim(0, 360)
         ax.legend(fontsize=8)
         return ax
+
+
+def write_summary(out, result: ScanResult) -> None:
+    """summary.json of ``result`` in the folder ``out``, atomically; strict
+    JSON (no NaN / Infinity): a value that cannot be written is a bug, not a
+    file."""
+    atomic_write(Path(out) / "summary.json", json.dumps(result.summary, indent=2, allow_nan=False))
+
+
+def with_summary(out, result: ScanResult, **entries) -> ScanResult:
+    """A new result whose summary also holds ``entries`` (e.g. ``figures``,
+    ``ppo_or_spot``), written to ``out``/summary.json (None: not written)."""
+    new = dataclasses.replace(result, summary={**result.summary, **entries})
+    if out is not None:
+        write_summary(out, new)
+    return new
+
+
+def draw_figures(result: ScanResult, cfg: ScanConfig, out) -> ScanResult:
+    """Draw the scan's figures (paper Figs. 4-7 and the Table 6 bars;
+    :func:`jaxppo.obliquity._figures.scan_figures`) of a finished scan into
+    ``out`` and record their paths in summary.json (``figures``)."""
+    from ._figures import scan_figures
+
+    files = scan_figures(out, result.summary, result.by_case(), cfg.system, result.windows, cfg.cases)
+    return with_summary(out, result, figures=files)
+
+
+def figures_current(result: ScanResult, out) -> bool:
+    """Whether the figures summary.json names are all in ``out`` (a rerun
+    of a finished scan then redraws nothing)."""
+    files = result.summary.get("figures")
+    return bool(files) and all((Path(out) / Path(f).name).is_file() for f in files)
 
 
 _TABLE_DTYPE = [("case", "U16"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
@@ -364,17 +237,16 @@ def _clear_outputs(out: Path) -> None:
 _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
-def _finished_result(out: Path, cfg: ScanConfig, digest: str, figures: bool):
+def _finished_result(out: Path, cfg: ScanConfig, digest: str):
     """The stored result of a scan that already finished in ``out`` with this
-    config (same digest, every output present, figures when asked for), or
-    None. A rerun then recomputes and redraws nothing."""
+    config (same digest, every output present), or None. A rerun then
+    recomputes nothing (the command line redraws the figures only when they
+    are missing)."""
     try:
         summary = json.loads((out / "summary.json").read_text())
         if summary.get("config_digest") != digest or set(summary.get("chi2_0", {})) != set(cfg.cases):
             return None
         if not all((out / n).is_file() for n in ("scan.ecsv", "table5.csv", "table5.md")) or "table5" not in summary:
-            return None
-        if figures and not (summary.get("figures") and all((out / Path(f).name).is_file() for f in summary["figures"])):
             return None
         with open(out / "scan.csv") as fh:
             lines = fh.read().splitlines()
@@ -387,13 +259,10 @@ def _finished_result(out: Path, cfg: ScanConfig, digest: str, figures: bool):
     expect = [(c, float(a)) for c in cfg.cases for a in cfg.alpha]
     if [(str(c), float(a)) for c, a in zip(table["case"], table["alpha"])] != [(c, float(f"{a:.10g}")) for c, a in expect]:
         return None
-    result = ScanResult(summary)
-    result.table = table
-    result.windows = windows_and_events(cfg)[0]
     n = len(expect)
-    result["resumed"] = {"alphas_done_before": n, "alphas_total": n, "finished_before": True}
-    result["progress_notes"] = []
-    return result
+    summary["resumed"] = {"alphas_done_before": n, "alphas_total": n, "finished_before": True}
+    summary["progress_notes"] = []
+    return ScanResult(summary, table, tuple(windows_and_events(cfg)[0]))
 
 
 def _require_x64(what: str) -> None:
@@ -411,44 +280,30 @@ def _require_x64(what: str) -> None:
         )
 
 
-def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True, figures: bool = True) -> ScanResult:
-    """Run (or resume) the scan and write scan.csv, scan.ecsv, summary.json
-    and figures. A scan that already finished in ``out`` with the same config
-    is returned as stored (``result["resumed"]["finished_before"]``): nothing
-    is recomputed or redrawn."""
-    from tqdm import tqdm
-
-    _require_x64("the obliquity scan")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    t_begin = time.perf_counter()
-    sysm, lc = cfg.system, cfg.lightcurve
-    digest = cfg.digest
+def _open_progress(cfg: ScanConfig, out: Path, digest: str, restart: bool):
+    """Clear the old outputs (restart), read the progress (done, notes) and
+    write the progress header and config.json."""
     prog_path = out / PROGRESS
     if restart:
         _clear_outputs(out)
     done, notes = read_progress(prog_path, digest, out, cfg.source)
-    for note in notes:
-        warnings.warn(note, stacklevel=2)
     if not prog_path.exists():
         atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
     # keep the config next to the results: jaxppo plot rebuilds it from here
     # (relative paths resolved against the absolute ``base``), from any folder
     atomic_write(out / "config.json", json.dumps({"digest": digest, "source": cfg.source, "base": cfg.base,
                                                    "config": cfg.raw}, indent=2, default=str))
-    n_total = len(cfg.cases) * cfg.alpha.size
-    n_before = sum((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
-    if n_before == n_total and not notes:
-        stored = _finished_result(out, cfg, digest, figures)
-        if stored is not None:
-            return stored
+    return done, notes
 
-    windows, skipped = windows_and_events(cfg)
-    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
-                      np.concatenate([w.flux_err for w in windows]), lc.exposure)
+
+def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurve, done: dict, progress: bool) -> None:
+    """chi^2 of every (case, alpha) not yet in ``done``, in blocks of
+    ``cfg.block`` alphas, each block appended to the progress file (flushed,
+    fsynced) and entered into ``done``."""
+    from tqdm import tqdm
+
     tm, nsub = data.supersampled_times()
     y, sig = data.flux, data.flux_err
-
     todo = [(c, a) for c in cfg.cases for a in cfg.alpha if (c, round(float(a), 9)) not in done]
     blocks = []
     for c in cfg.cases:
@@ -459,7 +314,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
                desc="scan", unit="alpha", disable=not progress, leave=False)
     with open(prog_path, "a") as fh:
         for case, alphas in blocks:
-            model = sweep(sysm, tm, alphas, cases=(case,))[0]
+            model = sweep(cfg.system, tm, alphas, cases=(case,))[0]
             model = model.reshape(alphas.size, -1, nsub).mean(-1)
             chi2 = np.sum(((y[None, :] - model) / sig[None, :]) ** 2, axis=1)
             fh.write(record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}))
@@ -470,8 +325,14 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
             bar.update(alphas.size)
     bar.close()
 
-    # ---- analysis -------------------------------------------------------------
-    step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
+
+def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float):
+    """Per case: chi^2_0, Delta chi^2, the posterior, the geometry
+    probabilities and the PPO transits. Returns (csv rows, table rows,
+    summary per case, the no-PPO model's chi^2)."""
+    sysm = cfg.system
+    tm, nsub = data.supersampled_times()
+    y, sig = data.flux, data.flux_err
     times_per_event = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
     chi2_null = float(np.sum(((y - null) / sig) ** 2))
@@ -499,40 +360,57 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True,
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
             table.append((case, float(a), float(c2), float(dc), float(p)))
+    return rows, np.array(table, dtype=_TABLE_DTYPE), summary_cases
+
+
+def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True) -> ScanResult:
+    """Run (or resume) the scan and write scan.csv, scan.ecsv, table5.csv,
+    table5.md and summary.json into ``out``; no figures, no verdict (see
+    :func:`draw_figures`, :func:`jaxppo.activity.ppo_or_spot`). A scan that
+    already finished in ``out`` with the same config is returned as stored
+    (``result.resumed["finished_before"]``): nothing is recomputed."""
+    _require_x64("the obliquity scan")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_begin = time.perf_counter()
+    digest = cfg.digest
+    done, notes = _open_progress(cfg, out, digest, restart)
+    for note in notes:
+        warnings.warn(note, stacklevel=2)
+    n_total = len(cfg.cases) * cfg.alpha.size
+    n_before = sum((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
+    if n_before == n_total and not notes:
+        stored = _finished_result(out, cfg, digest)
+        if stored is not None:
+            return stored
+
+    windows, skipped = windows_and_events(cfg)
+    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
+                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
+    _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress)
+    step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
+    rows, table, summary_cases = _analyse(cfg, done, windows, data, step)
     atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
-    table_arr = np.array(table, dtype=_TABLE_DTYPE)
-    _write_ecsv(out / "scan.ecsv", table_arr, cfg, digest, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
-                int(data.time.size), step)
-    result = ScanResult(
-        config=cfg.source, config_digest=digest, chi2_0={c: summary_cases[c]["chi2_0"] for c in cfg.cases},
-        probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases},
-        cases=summary_cases,
+    chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
+    _write_ecsv(out / "scan.ecsv", table, cfg, digest, chi2_0, int(data.time.size), step)
+    summary = dict(
+        config=cfg.source, config_digest=digest, chi2_0=chi2_0,
+        probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases}, cases=summary_cases,
         multi_transits=[w.as_dict() for w in windows], skipped_multi_transits=skipped,
-        points=int(data.time.size), supersampling=nsub, exposure=lc.exposure,
+        points=int(data.time.size), supersampling=data.supersampled_times()[1], exposure=cfg.lightcurve.exposure,
         detrending=_detrend_summary(cfg),
         alpha={"start": float(cfg.alpha[0]), "stop": float(cfg.alpha[-1] + step), "step": step},
-        tilted=sysm.planets[sysm.tilted].name, progress_notes=notes, seconds=None,
-        data={"loaded": lc.report_line(), "report": lc.report},
+        tilted=cfg.system.planets[cfg.system.tilted].name, progress_notes=notes, seconds=None,
+        data={"loaded": cfg.lightcurve.report_line(), "report": cfg.lightcurve.report},
         resumed={"alphas_done_before": n_before, "alphas_total": n_total, "finished_before": False},
     )
-    result.table = table_arr
-    result.windows = windows
     # Table 5 of the paper: the peaks and dips of Delta chi^2 (and cases 3/2 by Eq. 2)
-    by_case = {c: {k: result.table[k][result.table["case"] == c] for k in ("alpha", "chi2", "delta_chi2", "posterior")}
-               for c in cfg.cases}
-    result["table5"] = table5_rows(by_case, result, cfg.cases)
-    result["table5_files"] = write_table5(out, by_case, result, cfg.cases)
-    if figures:
-        from ._figures import scan_figures
-
-        result["figures"] = scan_figures(out, result, by_case, sysm, windows, cfg.cases)
-    # each negative dip: a spot-crossing bump against the PPO (failure-safe)
-    from ..activity._ppo_or_spot import scan_hook
-
-    result["ppo_or_spot"] = scan_hook(result, sysm, out if figures else None)
-    result["seconds"] = time.perf_counter() - t_begin
-    # strict JSON (no NaN / Infinity): a value that cannot be written is a bug, not a file
-    atomic_write(out / "summary.json", json.dumps(result, indent=2, allow_nan=False))
+    result = ScanResult(summary, table, tuple(windows))
+    by_case = result.by_case()
+    summary["table5"] = table5_rows(by_case, summary, cfg.cases)
+    summary["table5_files"] = write_table5(out, by_case, summary, cfg.cases)
+    summary["seconds"] = time.perf_counter() - t_begin
+    write_summary(out, result)
     return result
 
 
@@ -555,17 +433,23 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
         cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
         out: folder for scan.csv, summary.json, the progress file (resumes)
             and, with ``figures``, the figures; None: a temporary folder.
+        figures: with ``out``, draw the figures of ``jaxppo scan`` after the
+            scan has finished (:func:`draw_figures`; skipped when a finished
+            scan's figures are all there). The PPO-or-spot verdict of the
+            command line is :func:`jaxppo.activity.ppo_or_spot` (result,
+            system, out=out).
         margin [d], detrend (order or "none"), baseline [d], clip (robust
             sigmas or "none"), multi_transits (mid-times [d]), block: as the
-            config keys of the same names (docs/config.md).
+            config keys of the same names (docs/config.md), checked by the
+            same rules (:func:`check_scan_settings`).
 
     Returns:
-        :class:`ScanResult`: the summary dict with ``table``, ``windows`` and
-        ``plot()``.
+        :class:`ScanResult`: ``summary`` (summary.json), ``table``,
+        ``windows`` and ``plot()``.
     """
     import tempfile
 
-    from ._config import ScanConfig, check_alpha_grid
+    from ._config import check_alpha_grid, config_from_arguments
 
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
@@ -576,58 +460,8 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
         check_alpha_grid(cfg.alpha)
     if out is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_scan_") as tmp:
-            return run_scan(cfg, tmp, restart=restart, progress=progress, figures=False)
-    return run_scan(cfg, out, restart=restart, progress=progress, figures=figures)
-
-
-def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block):
-    from ._config import ScanConfig
-    from ..model._system import System, scan_cases
-
-    if not isinstance(system, System):
-        raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
-    if is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
-        # a lightkurve LightCurve: its default quality bitmask, flux divided
-        # by its median, exposure from TIMEDEL; the drops are in the report
-        lightcurve = LightCurve.from_lightkurve(lightcurve)
-    if not isinstance(lightcurve, LightCurve):
-        raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got {type(lightcurve).__name__}")
-    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
-    try:
-        cases = scan_cases(system, cases)
-    except ValueError as e:
-        raise ValueError(f"cases = {cases!r}: {e}") from None
-    if not (np.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin must be >= 0 days, got {margin!r}")
-    if isinstance(detrend, str):
-        if detrend.lower() != "none":
-            raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
-        detrend = None
-    if detrend is not None and (isinstance(detrend, bool) or int(detrend) != detrend or not 0 <= detrend <= 5):
-        raise ValueError(f"detrend must be a polynomial order 0..5 or 'none', got {detrend!r}")
-    if not baseline > margin:
-        raise ValueError(f"baseline must be > margin ({margin} d), got {baseline!r}")
-    if isinstance(clip, str):
-        if clip.lower() != "none":
-            raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
-        clip = None
-    if clip is not None and not clip >= 2:
-        raise ValueError(f"clip must be a threshold >= 2 or 'none', got {clip!r}")
-    if int(block) < 1:
-        raise ValueError(f"block must be >= 1, got {block!r}")
-    events = None if multi_transits is None else tuple(float(m) for m in np.atleast_1d(multi_transits))
-    star = system.star
-    # what determines the results goes into the digest (resuming, --restart)
-    raw = {
-        "star": {"law": star.law, "params": np.asarray(star.params).tolist(),
-                 "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
-                 "interpolation": star.interpolation},
-        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")}}
-                   for pl in system.planets],
-        "tilted": system.tilted,
-        "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
-        "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": float(margin), "detrend": detrend,
-                 "baseline": float(baseline), "clip": clip, "multi_transits": events, "block": int(block)},
-    }
-    return ScanConfig(system, lightcurve, alpha, cases, float(margin), int(block), raw, "<jaxppo.scan>",
-                      detrend, float(baseline), clip, events)
+            return run_scan(cfg, tmp, restart=restart, progress=progress)
+    result = run_scan(cfg, out, restart=restart, progress=progress)
+    if figures and not figures_current(result, out):
+        result = draw_figures(result, cfg, out)
+    return result

@@ -1,0 +1,234 @@
+"""The marginal scan's result: the analysis of the per-draw chi^2 curves
+(importance weights, marginal Delta chi^2, geometry probabilities and their
+spread over the draws, the importance-sampling guard), the result class,
+marginal.csv and marginal.png."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from ._stats import geometry_probabilities
+from ._summary import DeprecatedSummaryAccess
+from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
+
+__all__ = ["MarginalResult", "MARGINAL_DTYPE", "analyse_draws", "withheld", "marginal_csv", "plot_marginal",
+           "logmeanexp"]
+
+
+def logmeanexp(v: np.ndarray, axis: int) -> np.ndarray:
+    """log(mean(exp(v))) along ``axis`` without overflow."""
+    m = np.max(v, axis=axis, keepdims=True)
+    return np.squeeze(m, axis) + np.log(np.mean(np.exp(v - m), axis=axis))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MarginalResult(DeprecatedSummaryAccess):
+    """The marginal scan (immutable).
+
+    Fields:
+        summary: what marginal.json holds: per case (``cases``) the geometry
+            probabilities from the marginal posterior, their spread over the
+            draws, the Bayes factor and Jeffreys rating (withheld, with the
+            reason, when the importance weights are unreliable), the
+            posterior peak [deg], the importance-sampling effective sample
+            size; ``probabilities``, ``draws``, ``sampler``, ``parameters``,
+            ``seconds`` [s], ``cpu``, ``progress_notes`` and, with the
+            figure, ``figures``. Treat it as read-only.
+        table: the rows of marginal.csv, a structured array with ``case``,
+            ``alpha`` [deg], ``posterior`` [1/deg], ``marginal_delta_chi2``,
+            ``delta_chi2_median`` / ``_p16`` / ``_p84`` (over the draws) and
+            ``fixed_delta_chi2``.
+        delta_chi2: [draw, case, alpha] the per-draw Delta chi^2 curves.
+        fixed: the fixed-parameter :class:`~jaxppo.ScanResult`.
+
+    ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
+    ``summary`` (the result used to be that dict) but warn: deprecated, gone
+    in the next release.
+    """
+
+    summary: dict
+    table: np.ndarray
+    delta_chi2: np.ndarray
+    fixed: object
+
+    @property
+    def probabilities(self) -> dict:
+        """Per case: the marginal geometry probabilities, Bayes factor, rating."""
+        return self.summary["probabilities"]
+
+    @property
+    def cases(self) -> dict:
+        """Per case: geometries, spread over draws, the guard, peak, ESS, chi^2_0."""
+        return self.summary["cases"]
+
+    def summary_lines(self) -> list[str]:
+        """What ``jaxppo scan --marginalize N`` prints: per case, each
+        geometry's marginal probability (16-84 % over draws) beside the fixed
+        scan's, the Bayes factor and rating, the posterior peak, the
+        importance ESS; then the timings."""
+        lines = [f"marginalised over {self.summary['draws']} draws ({self.summary['sampler'].get('method', '')})"]
+        for case, c in self.summary["cases"].items():
+            geo, fx = c["geometries"], self.fixed.probabilities[case]
+            imp = c["importance"]
+            if not c["reliable"]:
+                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
+                             f"(--marginalize N, now {self.summary['draws']}) or sample alpha jointly")
+                continue
+            for name, g in geo.items():
+                if isinstance(g, dict):
+                    sp = c["probability_spread_over_draws"][name]
+                    lines.append(f"  case {case}: {name}: {100 * g['probability']:.2f} % "
+                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
+                                 f"{100 * fx[name]['probability']:.2f} %)")
+            k = geo["bayes_factor"]
+            kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
+            ess = min(g["ess"] for g in imp["groups"].values())
+            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
+                         f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
+                         f"of the geometry masses min {ess:.1f} of {self.summary['draws']} (per alpha min "
+                         f"{c['importance_ess']['min']:.1f})")
+        sec = self.summary.get("seconds") or {}
+        if sec:
+            lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
+                         f"{sec['draws_computed']} draws {sec['chi2_s']:.1f} s); load average "
+                         + " ".join(f"{v:.2f}" for v in self.summary["cpu"]["load_average"]))
+        return lines
+
+
+
+
+def withheld(geo: dict, names, reason: str) -> dict:
+    """The geometry block of a case whose importance weights are
+    unreliable: every probability, the Bayes factor and the rating withheld
+    (None), the reason in their place."""
+    out = {k: v for k, v in geo.items()}
+    for nm in names:
+        out[nm] = dict(geo[nm], probability=None)
+    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
+    return out
+
+
+def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
+             min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
+    n_d = dchi2.shape[0]
+    step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
+    rows, cases = [], {}
+    for ci, case in enumerate(cfg.cases):
+        dc = dchi2[:, ci]  # [draw, alpha]
+        ref = c0[:, ci] if chi2_ref is None else chi2_ref
+        # log importance weights L(alpha) / L(reference of the draw)
+        logw = -0.5 * (chi2[:, ci] - ref[:, None])
+        # marginal Delta chi^2: -2 log of the mean importance weight, against
+        # the same average of the ground levels (0 when every reference is
+        # the draw's chi^2_0, as for draws given by the caller)
+        ground = -2.0 * logmeanexp(-0.5 * (c0[:, ci] - ref)[:, None], axis=0)[0]
+        dm = -2.0 * logmeanexp(logw, axis=0) - ground
+        w = np.exp(-0.5 * (dm - dm.min()))
+        post = w / (np.sum(w) * step)
+        med, lo, hi = np.percentile(dc, [50.0, 15.865, 84.135], axis=0)
+        geo = geometry_probabilities(cfg.alpha, dm, case)
+        names = [k for k in geo if isinstance(geo[k], dict)]
+        per = [geometry_probabilities(cfg.alpha, dc[d], case) for d in range(n_d)]
+        spread = {}
+        for nm in names:
+            p = np.array([g[nm]["probability"] for g in per])
+            spread[nm] = {"median": float(np.median(p)), "p16": float(np.percentile(p, 15.865)),
+                          "p84": float(np.percentile(p, 84.135)), "std": float(np.std(p))}
+        # Kish effective sample size of the importance weights at each alpha
+        ess = kish_ess(logw, axis=0)
+        # the guard: a probability, peak or rating only from weights that
+        # do not rest on a handful of draws (per geometry and in total)
+        a_mod = np.mod(cfg.alpha, 360.0)
+        pro = (a_mod <= 90.0) | (a_mod > 270.0)
+        check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
+        if not check["reliable"]:
+            geo = withheld(geo, names, check["reason"])
+            post = np.full_like(post, np.nan)
+        fx_a, fx_d = fixed.delta_chi2(case)
+        cases[case] = {
+            "geometries": geo, "probability_spread_over_draws": spread,
+            "reliable": check["reliable"], "importance": check,
+            "peak": ({"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())}
+                     if check["reliable"] else None),
+            "fixed_peak": {"alpha": float(fx_a[np.argmin(fx_d)]), "delta_chi2": float(fx_d.min())},
+            "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())},
+            "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())},
+            "importance_ess": {"min": float(ess.min()), "alpha_at_min": float(cfg.alpha[np.argmin(ess)]),
+                               "median": float(np.median(ess))},
+            "chi2_0": {"median": float(np.median(c0[:, ci])), "min": float(c0[:, ci].min()),
+                       "max": float(c0[:, ci].max())},
+        }
+        for j, a in enumerate(cfg.alpha):
+            rows.append((case, float(a), float(post[j]), float(dm[j]), float(med[j]), float(lo[j]), float(hi[j]),
+                         float(fx_d[j])))
+    pstats = {n: {"median": float(np.median(v)), "p16": float(np.percentile(v, 15.865)),
+                  "p84": float(np.percentile(v, 84.135))} for n, v in samples.items()}
+    summary = dict(
+        config=cfg.source, config_digest=cfg.digest, marginal_digest=digest, draws=n_d, sampler=sampler,
+        parameters=pstats, alpha_ref_quiet_fraction=ref_quiet,
+        chi2_null={"median": float(np.median(chi2_null)), "min": float(chi2_null.min()),
+                   "max": float(chi2_null.max())},
+        weight=("p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_ref) / 2); chi2_ref per draw: "
+                + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
+                   f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
+        cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases},
+    )
+    return MarginalResult(summary, np.array(rows, dtype=MARGINAL_DTYPE), dchi2, fixed)
+
+
+MARGINAL_DTYPE = [("case", "U16"), ("alpha", float), ("posterior", float), ("marginal_delta_chi2", float),
+          ("delta_chi2_median", float), ("delta_chi2_p16", float), ("delta_chi2_p84", float),
+          ("fixed_delta_chi2", float)]
+
+
+def marginal_csv(table) -> str:
+    head = ",".join(n for n, _ in MARGINAL_DTYPE)
+    lines = [f"{r[0]},{r[1]:.10g}," + ",".join(f"{v:.17g}" for v in list(r)[2:]) for r in table]
+    return head + "\n" + "\n".join(lines) + "\n"
+
+
+def plot_marginal(out: Path, result: MarginalResult, cfg) -> Path:
+    """Per case: the Delta chi^2 band (16-84 % over draws), its median, the
+    marginal Delta chi^2 and the fixed-parameter curve; below, the marginal
+    posterior against the fixed-parameter posterior."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = result.table
+    fig, axes = plt.subplots(2, len(cfg.cases), figsize=(5.5 * len(cfg.cases), 6), squeeze=False, sharex=True)
+    for ci, case in enumerate(cfg.cases):
+        s = t[t["case"] == case]
+        ax = axes[0, ci]
+        ax.fill_between(s["alpha"], s["delta_chi2_p16"], s["delta_chi2_p84"], color="C0", alpha=0.3, lw=0,
+                        label="draws, 16-84 %")
+        ax.plot(s["alpha"], s["delta_chi2_median"], color="C0", lw=0.8, label="draws, median")
+        ax.plot(s["alpha"], s["marginal_delta_chi2"], color="C3", lw=1.0, label="marginal")
+        ax.plot(s["alpha"], s["fixed_delta_chi2"], color="k", lw=0.8, ls="--", label="fixed parameters")
+        ax.axhline(0, color="k", lw=0.4)
+        ax.set_title(f"case {case}: {result.summary['draws']} draws")
+        ax.set_ylabel("Delta chi^2")
+        ax.legend(fontsize=7)
+        ax = axes[1, ci]
+        fa, fd = result.fixed.delta_chi2(case)
+        fw = np.exp(-0.5 * (fd - fd.min()))
+        step = float(fa[1] - fa[0]) if fa.size > 1 else 360.0
+        if result.cases[case]["reliable"]:
+            ax.plot(s["alpha"], s["posterior"], color="C3", lw=1.0, label="marginal")
+        else:
+            ax.text(0.5, 0.5, "marginal withheld:\nimportance weights unreliable", transform=ax.transAxes,
+                    ha="center", va="center", color="C3", fontsize=8)
+        ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
+        ax.set_xlabel("tilt angle alpha [deg]")
+        ax.set_ylabel("p(alpha | D) [1/deg]")
+        ax.set_xlim(0, 360)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "marginal.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

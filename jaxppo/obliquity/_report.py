@@ -1,0 +1,55 @@
+"""What ``jaxppo scan`` prints about a finished scan: the data, how much was
+resumed, the detrending, each case's ground level, geometry probabilities
+and Bayes factor, and Table 5."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ._tables import table5_text
+
+__all__ = ["scan_report", "probability_lines"]
+
+
+def probability_lines(summary: dict) -> list[str]:
+    """Per case: chi^2_0 (per point), each geometry's probability and sum of
+    positive Delta chi^2, the Bayes factor and its rating."""
+    lines = []
+    for case, geo in summary["probabilities"].items():
+        n = summary.get("points")
+        per = f" for {n} points (chi2_0 / N = {summary['chi2_0'][case] / n:.3f})" if n else ""
+        lines.append(f"case {case}: chi2_0 = {summary['chi2_0'][case]:.3f}{per}")
+        for name, v in geo.items():
+            if isinstance(v, dict):
+                lines.append(f"   {name:36s} p = {100 * v['probability']:6.2f} %   "
+                             f"sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
+        k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
+        lines.append(f"   Bayes factor {k} for '{geo['favoured']}': {geo['jeffreys']}")
+    return lines
+
+
+def scan_report(summary: dict, cfg, out, seconds: float) -> str:
+    """The text ``jaxppo scan`` prints for the scan ``summary`` of ``cfg``
+    written to ``out``, which took ``seconds`` [s]."""
+    out = Path(out)
+    lines = [f"data: {summary['data']['loaded']}" if "data" in summary else f"data: {cfg.lightcurve.report_line()}"]
+    res = summary.get("resumed", {})
+    if res.get("finished_before"):
+        lines.append(f"resumed: the scan in {out} had already finished with this config ({res['alphas_total']} "
+                     f"alphas, digest {summary['config_digest']}); nothing recomputed or redrawn")
+    elif res.get("alphas_done_before"):
+        lines.append(f"resumed from {out / 'scan_progress.jsonl'}: {res['alphas_done_before']} of "
+                     f"{res['alphas_total']} alphas were already done")
+    if not res.get("finished_before"):
+        lines.append(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over "
+                     f"{len(summary['multi_transits'])} multi-transits ({summary['points']} points) in {seconds:.2f} s")
+    det = summary.get("detrending", {})
+    if det.get("order") not in (None, "none"):
+        lines.append(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
+                     f"{sum(m.get('clipped', 0) for m in summary['multi_transits'])} outliers clipped; "
+                     f"errors {det['flux_err']}")
+    lines += probability_lines(summary)
+    text = "\n".join(lines) + "\n" + table5_text(summary["table5"], cfg.cases)
+    verb = "results in" if res.get("finished_before") else "wrote"
+    return text + (f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and "
+                   f"{len(summary.get('figures', []))} figures\n")

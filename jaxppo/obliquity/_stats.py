@@ -1,0 +1,73 @@
+"""Statistics of a Delta chi^2 curve: the posterior integrated over the
+paper's Table 6 geometry ranges, the Bayes factor and its Jeffreys (1961)
+rating."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities"]
+
+
+def jeffreys(k: float) -> str:
+    """Jeffreys (1961) rating of a Bayes factor K >= 1."""
+    if k < 10**0.5:
+        return "barely worth mentioning"
+    if k < 10:
+        return "substantial"
+    if k < 10**1.5:
+        return "strong"
+    if k < 100:
+        return "very strong"
+    return "decisive"
+
+
+def geometry_names(case: str) -> tuple[str, str]:
+    """Names of the prograde and retrograde ranges of a case. With one
+    untilted planet, a retrograde tilt puts the tilted planet in the other
+    hemisphere (paper Table 6). With more, a mixed case ("+-": the untilted
+    planets' hemispheres relative to the tilted planet's before its tilt) is
+    named by its signs."""
+    if case == "same":
+        return "prograde, same hemisphere", "retrograde, different hemispheres"
+    if case == "opposite":
+        return "prograde, different hemispheres", "retrograde, same hemisphere"
+    return f"prograde, hemispheres {case}", f"retrograde, hemispheres {case}"
+
+
+def logsumexp(v: np.ndarray) -> float:
+    """log(sum(exp(v))) without overflow; -inf for an empty v."""
+    if v.size == 0:
+        return -np.inf
+    m = float(np.max(v))
+    return m + float(np.log(np.sum(np.exp(v - m))))
+
+
+def geometry_probabilities(alpha, delta_chi2, case) -> dict:
+    """Integrate the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2) (uniform
+    prior on [0, 360), Eq. 1) over the paper's Table 6 ranges: prograde
+    [0, 90] and (270, 360), retrograde (90, 270]; with the sum of positive
+    Delta chi^2 in each range and the Bayes factor K = p_favoured / p_other
+    (computed in log space: ``log10_bayes_factor`` is always finite;
+    ``bayes_factor`` is None where K overflows a float)."""
+    alpha = np.mod(np.asarray(alpha, float), 360.0)
+    dchi2 = np.asarray(delta_chi2, float)
+    pro = (alpha <= 90.0) | (alpha > 270.0)
+    names = geometry_names(case)
+    logw = -0.5 * dchi2
+    log_pro, log_ret = logsumexp(logw[pro]), logsumexp(logw[~pro])
+    log_tot = np.logaddexp(log_pro, log_ret)
+    p_pro, p_ret = float(np.exp(log_pro - log_tot)), float(np.exp(log_ret - log_tot))
+    pos = np.clip(dchi2, 0.0, None)
+    favoured = names[0] if log_pro >= log_ret else names[1]
+    log10_k = abs(log_pro - log_ret) / np.log(10.0)
+    if not np.isfinite(log10_k):
+        raise ValueError(f"alpha: the grid leaves the {'retrograde' if np.isinf(log_ret) else 'prograde'} range "
+                         "empty; the geometry probabilities need angles in both")
+    kk = float(10.0**log10_k) if log10_k < 300 else None
+    return {
+        names[0]: {"probability": p_pro, "sum_positive_delta_chi2": float(pos[pro].sum()), "alpha_range": "[0, 90] and (270, 360)"},
+        names[1]: {"probability": p_ret, "sum_positive_delta_chi2": float(pos[~pro].sum()), "alpha_range": "(90, 270]"},
+        "bayes_factor": kk, "log10_bayes_factor": float(log10_k), "favoured": favoured,
+        "jeffreys": jeffreys(10.0**min(log10_k, 300.0)),
+    }
