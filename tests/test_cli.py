@@ -31,10 +31,10 @@ def test_default_scan_and_plot(tmp_path):
     # the default is the real long-cadence data: the eight clean b + c double
     # transits of Q1-Q17 (the paper's seven plus 496.77; 160.33 is a b + c + e
     # triple), detrended per window, errors from the out-of-transit scatter
-    mids = [round(m["mid"], 1) for m in summary["multi_transits"]]
+    mids = [round(m.summary["mid"], 1) for m in summary["multi_transits"]]
     assert len(mids) == 8 and mids[0] == 334.0 and mids[1] == 496.8 and 160.3 not in mids
-    assert all(abs(m["mid"] - p) < 0.1 for p in (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
-               for m in [min(summary["multi_transits"], key=lambda m: abs(m["mid"] - p))])
+    assert all(abs(m.summary["mid"] - p) < 0.1 for p in (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
+               for m in [min(summary["multi_transits"], key=lambda m: abs(m.summary["mid"] - p))])
     assert summary["exposure"] == 0.0204335982 and summary["supersampling"] > 1
     assert 0.8 < summary["chi2_0"]["same"] / summary["points"] < 1.3
     assert "estimated" in summary["detrending"]["flux_err"]
@@ -46,7 +46,7 @@ def test_default_scan_and_plot(tmp_path):
     from jaxppo.cli import _demo_events
 
     events, numbers = _demo_events(jp.kepler20_system())
-    by_mid = {round(m["mid"], 2): m["number"] for m in summary["multi_transits"]}
+    by_mid = {round(m.summary["mid"], 2): m.summary["number"] for m in summary["multi_transits"]}
     assert numbers == [by_mid[round(e.mid, 2)] for e in events] == [1, 3, 4, 5, 6, 7, 8]
     assert summary["data"]["report"]["kept"] == 64792 and "64792 of 64792 points kept" in summary["data"]["loaded"]
     assert (out / "scan.ecsv").exists()
@@ -115,7 +115,7 @@ def test_fit_windows_are_the_scans_detrended_windows(monkeypatch, capsys):
     the raw PDCSAP flux with its stellar variability."""
     import jaxppo as jp
     from jaxppo.obliquity._config import default_config_path, load_config
-    from jaxppo.obliquity._scan import scan_windows
+    from jaxppo.obliquity._windows import scan_windows
 
     seen = {}
 
@@ -307,7 +307,7 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
             return ["marginal: fake"]
 
     def fake(cfg, draws, out, fixed, free, restart, progress):
-        seen.update(draws=draws, fixed=fixed["config_digest"] == cfg.digest, free=free)
+        seen.update(draws=draws, fixed=fixed.summary["config_digest"] == cfg.digest, free=free)
         return Fake()
 
     monkeypatch.setattr(marginal, "marginal_scan", fake)

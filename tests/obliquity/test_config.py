@@ -130,7 +130,7 @@ def test_key_of_another_law_is_an_error(tmp_path):
 
 
 def test_init_writes_a_template_that_loads_and_names_every_key(tmp_path, capsys):
-    from jaxppo import _config
+    from jaxppo.obliquity import _config
     from jaxppo.cli import main
 
     path = tmp_path / "mine.toml"
@@ -148,7 +148,7 @@ def test_init_writes_a_template_that_loads_and_names_every_key(tmp_path, capsys)
 def test_every_key_is_documented():
     from pathlib import Path
 
-    from jaxppo import _config
+    from jaxppo.obliquity import _config
 
     doc = (Path(__file__).resolve().parents[2] / "docs" / "config.md").read_text()
     keys = set(_config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS)
@@ -239,3 +239,31 @@ def test_planet_eccentricity_keys(tmp_path):
     p.write_text(text.replace('name = "b"', 'name = "b"\ne = 1.2', 1))
     with pytest.raises(ValueError, match=r"e \(eccentricity\) must be in \[0, 1\)"):
         load_config(p)
+
+
+@pytest.mark.parametrize("key, bad", [
+    ("detrend", 2.5), ("detrend", 6), ("detrend", "linear"), ("detrend", True),
+    ("margin", -0.01), ("baseline", 0.01), ("clip", 1.5), ("clip", "off"), ("block", 0),
+    ("multi_transits", "334.02"),
+])
+def test_one_validator_for_config_and_python(tmp_path, key, bad):
+    """The same bad [scan] value is refused by the config file and by
+    jaxppo.scan() with the same message (they used to apply different rules:
+    ``int(detrend) != detrend`` against ``isinstance(detrend, int)``)."""
+    import tomllib
+
+    import jaxppo as jp
+    from jaxppo.obliquity._config import config_from_arguments, config_from_dict, synthetic_config_path
+
+    path = synthetic_config_path()
+    raw = tomllib.loads(path.read_text())
+    raw["scan"] = dict(raw.get("scan", {}), **{key: bad})
+    with pytest.raises(ValueError) as from_file:
+        config_from_dict(raw, path.parent, "cfg.toml")
+    kw = dict(margin=0.05, detrend=2, baseline=0.3, clip=5.0, multi_transits=None, block=60)
+    kw[key] = bad
+    lc = jp.LightCurve(np.linspace(0.0, 1.0, 10), np.ones(10), np.full(10, 1e-4))
+    with pytest.raises(ValueError) as from_python:
+        config_from_arguments(jp.kepler20_system(), lc, None, ("same",), **kw)
+    assert str(from_file.value) == f"cfg.toml: [scan] {from_python.value}"
+    assert str(from_python.value).startswith(f"{key} must be") and repr(bad) in str(from_python.value)

@@ -11,7 +11,7 @@ import pytest
 import jaxppo as jp
 from jaxppo.obliquity._marginal import PROGRESS, marginal_chi2, marginal_scan
 from jaxppo.model._overlap import ppo_table
-from jaxppo.obliquity._scan import scan_windows
+from jaxppo.obliquity._windows import scan_windows
 
 REAL = "jaxppo/data/kepler20_real_llc.toml"
 # two of the real double transits (BKJD), so the tests stay small
@@ -62,11 +62,11 @@ def test_equal_draws_reproduce_the_plain_scan(real, tmp_path):
             np.testing.assert_allclose(t[col], d, atol=1e-8, rtol=0)
         post = fixed.table["posterior"][fixed.table["case"] == case]
         np.testing.assert_allclose(t["posterior"], post, rtol=1e-8, atol=1e-14)
-        for name, geo in fixed["probabilities"][case].items():
+        for name, geo in fixed.summary["probabilities"][case].items():
             if isinstance(geo, dict):
-                assert m["probabilities"][case][name]["probability"] == pytest.approx(geo["probability"], abs=1e-10)
-        assert m["probabilities"][case]["jeffreys"] == fixed["probabilities"][case]["jeffreys"]
-        assert m["cases"][case]["reliable"]
+                assert m.summary["probabilities"][case][name]["probability"] == pytest.approx(geo["probability"], abs=1e-10)
+        assert m.summary["probabilities"][case]["jeffreys"] == fixed.summary["probabilities"][case]["jeffreys"]
+        assert m.summary["cases"][case]["reliable"]
         # the features are not all zero: the check has something to compare
         assert np.ptp(d) > 0.1
     _strict((tmp_path / "marginal.json").read_text())
@@ -146,9 +146,9 @@ def test_weights_against_the_sampling_tilt(real, tmp_path, monkeypatch):
     monkeypatch.setattr(mod, "quiet_alpha", lambda *args: a_ref)
     free = [f"{pl.name}.{p}" for pl in system.planets for p in ("t0", "a", "inc")]
     m = marginal_scan(system, lc, draws=4, free=free, fixed=fixed, out=tmp_path, progress=False, figures=False, **KW)
-    assert m["sampler"]["alpha_ref"] == a_ref
+    assert m.summary["sampler"]["alpha_ref"] == a_ref
     chi2_ref, _ = _brute(system, samples, fixed.windows, lc.exposure, np.array([a_ref]), "same")
-    assert m["alpha_ref_quiet_fraction"] < 1  # some draw has a PPO at alpha_ref: the reference matters
+    assert m.summary["alpha_ref_quiet_fraction"] < 1  # some draw has a PPO at alpha_ref: the reference matters
     for case in ("same", "opposite"):
         chi2, c0 = _brute(system, samples, fixed.windows, lc.exposure, KW["alpha"], case)
         ref = chi2_ref[:, 0]
@@ -281,8 +281,8 @@ def test_wrong_fixed_parameters_are_mitigated(tmp_path):
     draws = np.random.default_rng(0).multivariate_normal(fit.values, fit.covariance, size=64)
     m = marginal_scan(wrong, lc, samples={n: draws[:, i] for i, n in enumerate(free)}, fixed=fixed, out=tmp_path,
                       progress=False, figures=False, **kw)
-    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]["groups"]
-    assert m["cases"]["same"]["peak"]["alpha"] == pytest.approx(147.0, abs=3.0)
+    assert m.summary["cases"]["same"]["reliable"], m.summary["cases"]["same"]["importance"]["groups"]
+    assert m.summary["cases"]["same"]["peak"]["alpha"] == pytest.approx(147.0, abs=3.0)
     t = m.table
     peak = t["alpha"][np.argmax(t["posterior"])]
     assert abs(peak - 147.0) <= 3.0, peak
@@ -340,7 +340,7 @@ def test_flat_without_a_ppo(tmp_path):
     assert t["marginal_delta_chi2"].min() > -4.0  # no PPO preferred beyond 2 sigma
     assert t["marginal_delta_chi2"].max() > 10.0  # the PPO tilts are excluded
     # the posterior is flat (uniform density 1/360) wherever no PPO can occur, up to normalisation
-    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]["groups"]
+    assert m.summary["cases"]["same"]["reliable"], m.summary["cases"]["same"]["importance"]["groups"]
     flat = t["posterior"][~loud]
     assert np.all(np.isfinite(flat)) and flat[0] > 0
     np.testing.assert_allclose(flat, flat[0], rtol=1e-12)
@@ -385,7 +385,7 @@ def test_joint_alpha_agrees_with_the_grid_marginal(tmp_path):
     g_sd = np.sqrt(np.sum(w * (ag[inside] - g_mean) ** 2))
     aj = (res["alpha"] - lo) % 360.0 + lo
     j_mean, j_sd = aj.mean(), aj.std()
-    err = j_sd / np.sqrt(res["ess"]) + g_sd / np.sqrt(m["cases"]["same"]["importance_ess"]["median"])
+    err = j_sd / np.sqrt(res["ess"]) + g_sd / np.sqrt(m.summary["cases"]["same"]["importance_ess"]["median"])
     assert abs(j_mean - g_mean) < 3 * err + 0.25, (j_mean, g_mean, err)  # + half a grid step
     assert 0.6 < j_sd / g_sd < 1.6, (j_sd, g_sd)
 
@@ -403,12 +403,12 @@ def test_wrong_fixed_parameters_with_nuts_draws(tmp_path):
     c = true.planets[1]
     m = marginal_scan(wrong, lc, draws=32, free=("b.a", "c.t0"), num_warmup=150, chains=2, fixed=fixed,
                       out=tmp_path, progress=False, figures=False, **kw)
-    diag = m["sampler"]["diagnostics"]
+    diag = m.summary["sampler"]["diagnostics"]
     assert max(v["r_hat"] for v in diag.values()) < 1.1, diag
-    off = m["parameters"]["c.t0"]["median"] - float(c.t0)  # sampled at the transit nearest the windows' middle
+    off = m.summary["parameters"]["c.t0"]["median"] - float(c.t0)  # sampled at the transit nearest the windows' middle
     off -= np.round(off / float(c.period)) * float(c.period)
     assert abs(off) < 0.5 / 1440, off * 1440  # c's t0 back within 0.5 min of the truth
-    assert m["cases"]["same"]["reliable"], m["cases"]["same"]["importance"]
+    assert m.summary["cases"]["same"]["reliable"], m.summary["cases"]["same"]["importance"]
     t = m.table
     peak = t["alpha"][np.argmax(t["posterior"])]
     assert abs(peak - 147.0) <= 3.0, peak
@@ -430,11 +430,11 @@ def test_guard_withholds_what_one_draw_carries(tmp_path):
     draws = np.random.default_rng(0).multivariate_normal(fit.values, 25.0 * fit.covariance, size=30)
     m = marginal_scan(wrong, lc, samples={n: draws[:, i] for i, n in enumerate(free)}, fixed=fixed, out=tmp_path,
                       progress=False, figures=True, **kw)
-    cc = m["cases"]["same"]
+    cc = m.summary["cases"]["same"]
     assert cc["reliable"] is False
     assert cc["importance"]["groups"]["total"]["ess"] < 10.0
     assert cc["peak"] is None and "unreliable" in cc["importance"]["reason"]
-    geo = m["probabilities"]["same"]
+    geo = m.summary["probabilities"]["same"]
     assert geo["bayes_factor"] is None and geo["jeffreys"] == "not rated" and geo["favoured"] is None
     assert all(v["probability"] is None for v in geo.values() if isinstance(v, dict))
     assert np.all(np.isnan(m.table["posterior"]))

@@ -77,26 +77,26 @@ def test_injected_ppo_is_recovered(tmp_path, case_true):
     alpha_true = float(grid[widest[len(widest) // 2]])
     lc = jp.simulate(system, t, noise=1e-4, alpha=alpha_true, case=case_true, seed=5)
     path = _config(tmp_path, lc, 0.0, 360.0, scale, inc_c=inc_c)
-    res = run_scan(load_config(path), tmp_path / "out", progress=False, figures=False)
+    res = run_scan(load_config(path), tmp_path / "out", progress=False)
     other = "opposite" if case_true == "same" else "same"
-    best = res["cases"][case_true]["min_delta_chi2"]
+    best = res.summary["cases"][case_true]["min_delta_chi2"]
     assert abs(best["alpha"] - alpha_true) <= 2.0
-    assert best["value"] < res["cases"][other]["min_delta_chi2"]["value"]  # the right case fits better
+    assert best["value"] < res.summary["cases"][other]["min_delta_chi2"]["value"]  # the right case fits better
     prograde = alpha_true <= 90 or alpha_true > 270
     expect = {("same", True): "prograde, same hemisphere", ("same", False): "retrograde, different hemispheres",
               ("opposite", True): "prograde, different hemispheres", ("opposite", False): "retrograde, same hemisphere"}
-    assert res["probabilities"][case_true]["favoured"] == expect[(case_true, prograde)]
+    assert res.summary["probabilities"][case_true]["favoured"] == expect[(case_true, prograde)]
 
 
 def test_null_data_is_exactly_flat_without_ppo(tmp_path):
     lc = jp.simulate_kepler20(seed=3, noise=4e-4)
     cfg = load_config(_config(tmp_path, lc, 0.0, 360.0))
-    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    res = run_scan(cfg, tmp_path / "out", progress=False)
     rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
     for case in ("same", "opposite"):
         sel = rows["case"] == case
         alpha, dchi2 = rows["alpha"][sel], rows["delta_chi2"][sel]
-        ppo = res["cases"][case]["ppo_transits"]
+        ppo = res.summary["cases"][case]["ppo_transits"]
         has = np.array([f"{a:g}" in ppo for a in alpha])
         assert np.all(dchi2[~has] == 0.0)  # exactly: no render noise
         assert np.all(dchi2[has] != 0.0)
@@ -104,7 +104,7 @@ def test_null_data_is_exactly_flat_without_ppo(tmp_path):
         assert abs(np.sum(post) * 1.0 - 1.0) < 1e-12
     # case "opposite" shifts the PPO ranges by a few degrees (paper Table 5)
     def first(case, lo, hi):
-        return min(float(a) for a in res["cases"][case]["ppo_transits"] if lo < float(a) < hi)
+        return min(float(a) for a in res.summary["cases"][case]["ppo_transits"] if lo < float(a) < hi)
     assert 0 < first("opposite", 60, 120) - first("same", 60, 120) <= 6
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["chi2_0"]["same"] > 0
 
@@ -113,7 +113,7 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
     path = _config(tmp_path, lc, 0.0, 360.0, block=12, step=5.0)
     cfg = load_config(path)
-    full = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    full = run_scan(cfg, tmp_path / "ref", progress=False)
 
     import jaxppo.obliquity._scan as scan_mod
 
@@ -128,25 +128,25 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
 
     monkeypatch.setattr(scan_mod, "sweep", flaky)
     with pytest.raises(KeyboardInterrupt):
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False)
     lines = (tmp_path / "out" / "scan_progress.jsonl").read_text().splitlines()
     assert len(lines) == 1 + 3  # header + three finished blocks kept
     calls["n"] = 10
-    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    res = run_scan(cfg, tmp_path / "out", progress=False)
     assert calls["n"] == 10 + 12 - 3 + 1  # 12 blocks in all, 3 already done; +1: the null model
     a = (tmp_path / "ref" / "scan.csv").read_text()
     b = (tmp_path / "out" / "scan.csv").read_text()
-    assert a == b and res["chi2_0"] == full["chi2_0"]
+    assert a == b and res.summary["chi2_0"] == full.summary["chi2_0"]
 
 
 def test_changed_config_is_not_mixed(tmp_path):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
     cfg = load_config(_config(tmp_path, lc, step=12.0))
-    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    run_scan(cfg, tmp_path / "out", progress=False)
     cfg2 = load_config(_config(tmp_path, lc, scale=1.1, name="other.toml", step=12.0))
     with pytest.raises(ValueError, match="different configuration"):
-        run_scan(cfg2, tmp_path / "out", progress=False, figures=False)
-    run_scan(cfg2, tmp_path / "out", restart=True, progress=False, figures=False)
+        run_scan(cfg2, tmp_path / "out", progress=False)
+    run_scan(cfg2, tmp_path / "out", restart=True, progress=False)
 
 
 @pytest.mark.parametrize(
@@ -226,7 +226,7 @@ def test_detrending_removes_per_window_levels_slopes_and_curvature(tmp_path):
         d.mkdir()
         _write_csv(d / "data.csv", t, f, err)
         (d / "scan.toml").write_text(_scan_text("detrend = 2\nbaseline = 0.35\n", step=2.0))
-        results[name] = run_scan(load_config(d / "scan.toml"), d / "out", progress=False, figures=False)
+        results[name] = run_scan(load_config(d / "scan.toml"), d / "out", progress=False)
     a, b = results["clean"], results["trended"]
     for case in ("same", "opposite"):
         assert abs(b["chi2_0"][case] / a["chi2_0"][case] - 1) < 0.03, (a["chi2_0"], b["chi2_0"])
@@ -258,7 +258,7 @@ def test_errors_estimated_and_outliers_clipped_out_of_transit_only(tmp_path):
     (tmp_path / "scan.toml").write_text(_scan_text())
     cfg = load_config(tmp_path / "scan.toml")
     assert cfg.lightcurve.errors_estimated
-    from jaxppo.obliquity._scan import scan_windows
+    from jaxppo.obliquity._windows import scan_windows
 
     w = scan_windows(cfg)[0]
     def kept(tt):
@@ -267,9 +267,9 @@ def test_errors_estimated_and_outliers_clipped_out_of_transit_only(tmp_path):
     assert w.clipped == 3 and not any(kept(tt) for tt in t[oot_idx])
     assert kept(t[bump])  # in-transit points are never clipped
     assert abs(w.sigma / 3e-4 - 1) < 0.15
-    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
-    assert "estimated" in res["detrending"]["flux_err"]
-    assert res["multi_transits"][0]["clipped"] == 3
+    res = run_scan(cfg, tmp_path / "out", progress=False)
+    assert "estimated" in res.summary["detrending"]["flux_err"]
+    assert res.summary["multi_transits"][0]["clipped"] == 3
 
 
 def test_in_transit_mask_against_contact_times():
@@ -294,7 +294,7 @@ def test_summary_is_strict_json_and_bayes_factor_never_infinite():
     """A decisive signal (Delta chi^2 of thousands in one range) underflows
     exp(-Delta chi^2 / 2): the Bayes factor comes from log space, and what
     cannot be a float is null, never Infinity (invalid JSON)."""
-    from jaxppo.obliquity._scan import geometry_probabilities
+    from jaxppo.obliquity._stats import geometry_probabilities
 
     alpha = np.arange(0.0, 360.0, 1.0)
     retro = (alpha > 90) & (alpha <= 270)
@@ -316,7 +316,7 @@ def test_no_mirror_block_with_the_other_cases_names(tmp_path):
     same physical geometries, so a case-1 summary may only name case 1's
     geometries (old code printed case 4's names for "case 3")."""
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    res = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "out", progress=False, figures=False)
+    res = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "out", progress=False)
     allowed = {"same": {"prograde, same hemisphere", "retrograde, different hemispheres"},
                "opposite": {"prograde, different hemispheres", "retrograde, same hemisphere"}}
 
@@ -330,7 +330,7 @@ def test_no_mirror_block_with_the_other_cases_names(tmp_path):
             yield obj
 
     for case in ("same", "opposite"):
-        assert set(names(res["cases"][case])) <= allowed[case]
+        assert set(names(res.summary["cases"][case])) <= allowed[case]
 
 
 def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
@@ -352,11 +352,11 @@ def test_buchhave_parameters_show_the_papers_dip_near_26_deg(tmp_path):
         p, i, a, t0, per = table3[pl.name]
         assert (float(pl.radius), float(pl.inc), float(pl.a), float(pl.period)) == (p, i, a, per)
         assert abs(float(pl.t0) - (t0 + 2454000 - 2454833)) < 1e-9
-    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    res = run_scan(cfg, tmp_path / "out", progress=False)
     rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
     low = rows["alpha"][(rows["alpha"] < 90) & (rows["delta_chi2"] < -0.5)]
     assert low.size and np.all((low >= 24) & (low <= 30)), low
-    assert len(res["multi_transits"]) == 7
+    assert len(res.summary["multi_transits"]) == 7
 
 
 # ---- progress bookkeeping -------------------------------------------------------
@@ -383,29 +383,29 @@ def _interrupt_after(monkeypatch, n_blocks):
 
 def test_torn_last_line_is_truncated_before_appending(tmp_path, monkeypatch):
     cfg = _small(tmp_path)
-    ref = run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    ref = run_scan(cfg, tmp_path / "ref", progress=False)
     undo = _interrupt_after(monkeypatch, 3)
     with pytest.raises(KeyboardInterrupt):
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False)
     undo()
     prog = tmp_path / "out" / "scan_progress.jsonl"
     with open(prog, "a") as fh:
         fh.write('{"config_digest": "x", "case": "same", "alpha": [0.0, 12')  # killed mid-write
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)  # and once more: the file stays sound
+        res = run_scan(cfg, tmp_path / "out", progress=False)
+        run_scan(cfg, tmp_path / "out", progress=False)  # and once more: the file stays sound
     for line in prog.read_text().splitlines():
         json.loads(line)  # every line whole: nothing appended onto the torn one
     assert len(prog.read_text().splitlines()) == 1 + 10
     assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
-    assert res["chi2_0"] == ref["chi2_0"]
+    assert res.summary["chi2_0"] == ref.summary["chi2_0"]
     assert any("cut by an interruption" in str(w.message) for w in caught)
 
 
 def test_edited_record_is_rejected_and_recomputed(tmp_path):
     cfg = _small(tmp_path)
-    run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    run_scan(cfg, tmp_path / "out", progress=False)
     good = (tmp_path / "out" / "scan.csv").read_text()
     prog = tmp_path / "out" / "scan_progress.jsonl"
     lines = prog.read_text().splitlines()
@@ -415,17 +415,17 @@ def test_edited_record_is_rejected_and_recomputed(tmp_path):
     prog.write_text("\n".join(lines) + "\n")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False)
     assert (tmp_path / "out" / "scan.csv").read_text() == good
     assert any("line 3: checksum mismatch" in str(w.message) for w in caught)
 
 
 def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
     cfg = _small(tmp_path)
-    run_scan(cfg, tmp_path / "ref", progress=False, figures=False)
+    run_scan(cfg, tmp_path / "ref", progress=False)
     undo = _interrupt_after(monkeypatch, 4)
     with pytest.raises(KeyboardInterrupt):
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False)
     undo()
     prog = tmp_path / "out" / "scan_progress.jsonl"
     lines = prog.read_text().splitlines()
@@ -442,7 +442,7 @@ def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
 
     monkeypatch.setattr(scan_mod, "sweep", counting)
     with pytest.warns(UserWarning, match="header line is damaged"):
-        run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+        run_scan(cfg, tmp_path / "out", progress=False)
     assert calls["n"] == 10 - 4 + 1  # the four good blocks kept (+1: the null model)
     assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
 
@@ -450,18 +450,18 @@ def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
 def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
     cfg = _small(tmp_path)
     out = tmp_path / "out"
-    run_scan(cfg, out, progress=False, figures=False)
+    run_scan(cfg, out, progress=False)
     (out / "fig5_delta_chi2.png").write_bytes(b"old figure")
     cfg2 = _small(tmp_path, scale=1.1, name="other.toml")
     undo = _interrupt_after(monkeypatch, 1)
     with pytest.raises(KeyboardInterrupt):
-        run_scan(cfg2, out, restart=True, progress=False, figures=False)
+        run_scan(cfg2, out, restart=True, progress=False)
     undo()
     # an interrupted restart leaves no result of the old config beside the new one
     for name in ("scan.csv", "summary.json", "fig5_delta_chi2.png"):
         assert not (out / name).exists(), name
     assert json.loads((out / "config.json").read_text())["digest"] == cfg2.digest
-    run_scan(cfg2, out, progress=False, figures=False)  # resumes the restarted scan
+    run_scan(cfg2, out, progress=False)  # resumes the restarted scan
     assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
 
 
@@ -469,11 +469,11 @@ def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
 
 def test_public_scan_matches_the_config_route(tmp_path):
     lc = jp.simulate_kepler20(seed=4, noise=4e-4)
-    via_file = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "cfg", progress=False, figures=False)
+    via_file = run_scan(load_config(_config(tmp_path, lc, step=6.0)), tmp_path / "cfg", progress=False)
     lc_read = jp.load_config(tmp_path / "scan.toml").lightcurve  # the same (CSV-rounded) points
     res = jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0))
     np.testing.assert_array_equal(res.table["chi2"], via_file.table["chi2"])
-    assert res["probabilities"] == via_file["probabilities"]
+    assert res.summary["probabilities"] == via_file.summary["probabilities"]
     assert list(res.table.dtype.names) == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
     a, d = res.delta_chi2("opposite")
     assert a.size == 60 and np.all(d[a < 15] == 0)
@@ -508,7 +508,7 @@ def test_ecsv_table_with_units_and_provenance(tmp_path):
     rows.insert(12, rows[11])
     (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
     cfg = load_config(path)
-    res = run_scan(cfg, tmp_path / "out", progress=False, figures=False)
+    res = run_scan(cfg, tmp_path / "out", progress=False)
     tab = Table.read(tmp_path / "out" / "scan.ecsv")
     csv = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
     assert tab.colnames == ["case", "alpha", "chi2", "delta_chi2", "posterior"]
@@ -516,10 +516,10 @@ def test_ecsv_table_with_units_and_provenance(tmp_path):
     np.testing.assert_array_equal(tab["chi2"], res.table["chi2"])
     np.testing.assert_array_equal(np.asarray(tab["alpha"]), csv["alpha"])
     np.testing.assert_array_equal(np.asarray(tab["case"]), csv["case"])
-    assert tab.meta["config_digest"] == cfg.digest == res["config_digest"]
+    assert tab.meta["config_digest"] == cfg.digest == res.summary["config_digest"]
     assert tab.meta["jaxppo_version"] == jp.__version__ and tab.meta["cases"] == ["same", "opposite"]
     assert tab.meta["alpha_grid_deg"] == {"start": 0.0, "stop": 360.0, "step": 30.0}
-    assert tab.meta["chi2_0"]["same"] == res["chi2_0"]["same"]
+    assert tab.meta["chi2_0"]["same"] == res.summary["chi2_0"]["same"]
     rep = json.loads((tmp_path / "out" / "summary.json").read_text())["data"]
     assert rep["report"]["flagged"] == 2 and rep["report"]["duplicated"] == 1
     assert "dropped: 2 flagged" in rep["loaded"] and "1 repeated time stamps" in rep["loaded"]
@@ -532,7 +532,7 @@ def test_long_cadence_exposure_average_is_converged(tmp_path):
     up to 0.08 (e.g. 0.562 against 0.514 at alpha = 125 deg) because b's
     ingress and a PPO last only 3-9 min."""
     cfg = load_config()
-    res = run_scan(cfg, tmp_path / "o", progress=False, figures=False)
+    res = run_scan(cfg, tmp_path / "o", progress=False)
     windows = res.windows
     t = np.concatenate([w.time for w in windows])
     y = np.concatenate([w.flux for w in windows])
@@ -547,7 +547,7 @@ def test_long_cadence_exposure_average_is_converged(tmp_path):
     a, d = res.delta_chi2("same")
     ours = np.array([d[np.isclose(a, al)][0] for al in alphas[1:]])
     assert np.max(np.abs(ours - dchi2_ref)) < 0.01, (ours, dchi2_ref)
-    assert abs(res["chi2_0"]["same"] - chi2[0]) < 0.01
+    assert abs(res.summary["chi2_0"]["same"] - chi2[0]) < 0.01
 
 
 def test_scan_refuses_float32(tmp_path):
@@ -575,3 +575,44 @@ def test_case_labels_are_canonical():
         scan_cases(system, ["same", "+"])
     with pytest.raises(ValueError, match="sign"):
         system.positions(np.zeros(1), 0.0, (True,))
+
+
+def test_figures_show_the_model_whose_chi2_the_scan_reports():
+    """Figs. 4 and 6 and the choice of Fig. 6's transit average the model
+    over each exposure by the chi^2's own rule (LightCurve.supersampled_times,
+    30-s sub-exposures): the chi^2 of the figures' model summed over the
+    windows is the scan's chi^2. The figures used their own 60-s rule (31
+    instead of 59 sub-exposures of a Kepler long cadence)."""
+    from jaxppo.obliquity._figures import _model
+
+    system = jp.kepler20_system()
+    events = jp.multi_transits(system, 300, 700)
+    t = np.concatenate([np.arange(e.start - 0.08, e.end + 0.08, 0.0204335982) for e in events])
+    sim = jp.simulate(system, t, noise=1e-5, alpha=312.0, case="same", seed=2)
+    lc = jp.LightCurve(sim.time, sim.flux, sim.flux_err, exposure=0.0204335982)
+    alpha = np.arange(0.0, 360.0, 4.0)
+    res = jp.scan(system, lc, alpha=alpha, cases=("same",), detrend="none")
+    chi2 = np.zeros(alpha.size)
+    for w in res.windows:
+        m = _model(system, w.time, alpha, "same", w.exposure)
+        chi2 += np.sum(((w.flux[None, :] - m) / w.flux_err[None, :]) ** 2, axis=1)
+    np.testing.assert_allclose(chi2, res.table["chi2"], rtol=1e-11)
+
+
+def test_scan_result_is_frozen_and_dict_access_is_deprecated(tmp_path):
+    """ScanResult is an immutable dataclass; result["key"], .get and `in`
+    still read its summary for one release, with a DeprecationWarning."""
+    import dataclasses
+
+    lc = jp.simulate_kepler20(seed=1)
+    res = run_scan(load_config(_config(tmp_path, lc, step=30.0)), tmp_path / "out", progress=False)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.table = None
+    assert res.chi2_0 == res.summary["chi2_0"] == json.loads((tmp_path / "out" / "summary.json").read_text())["chi2_0"]
+    with pytest.warns(DeprecationWarning, match=r"ScanResult\['chi2_0'\] is deprecated"):
+        assert res["chi2_0"] == res.chi2_0
+    with pytest.warns(DeprecationWarning):
+        assert res.get("points") == res.summary["points"]
+    with pytest.warns(DeprecationWarning):
+        assert "table5" in res
+    assert "figures" not in res.summary and "ppo_or_spot" not in res.summary  # the scan draws and judges nothing
