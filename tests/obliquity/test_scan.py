@@ -229,13 +229,13 @@ def test_detrending_removes_per_window_levels_slopes_and_curvature(tmp_path):
         results[name] = run_scan(load_config(d / "scan.toml"), d / "out", progress=False)
     a, b = results["clean"], results["trended"]
     for case in ("same", "opposite"):
-        assert abs(b["chi2_0"][case] / a["chi2_0"][case] - 1) < 0.03, (a["chi2_0"], b["chi2_0"])
-        for geo, v in a["probabilities"][case].items():
+        assert abs(b.summary["chi2_0"][case] / a.summary["chi2_0"][case] - 1) < 0.03, (a.summary["chi2_0"], b.summary["chi2_0"])
+        for geo, v in a.summary["probabilities"][case].items():
             if isinstance(v, dict):
-                assert abs(100 * (b["probabilities"][case][geo]["probability"] - v["probability"])) < 0.5
-    n = b["points"]
-    assert 0.8 < b["chi2_0"]["same"] / n < 1.2
-    assert b["detrending"]["order"] == 2
+                assert abs(100 * (b.summary["probabilities"][case][geo]["probability"] - v["probability"])) < 0.5
+    n = b.summary["points"]
+    assert 0.8 < b.summary["chi2_0"]["same"] / n < 1.2
+    assert b.summary["detrending"]["order"] == 2
 
 
 def test_errors_estimated_and_outliers_clipped_out_of_transit_only(tmp_path):
