@@ -31,10 +31,10 @@ def test_default_scan_and_plot(tmp_path):
     # the default is the real long-cadence data: the eight clean b + c double
     # transits of Q1-Q17 (the paper's seven plus 496.77; 160.33 is a b + c + e
     # triple), detrended per window, errors from the out-of-transit scatter
-    mids = [round(m.summary["mid"], 1) for m in summary["multi_transits"]]
+    mids = [round(m["mid"], 1) for m in summary["multi_transits"]]
     assert len(mids) == 8 and mids[0] == 334.0 and mids[1] == 496.8 and 160.3 not in mids
-    assert all(abs(m.summary["mid"] - p) < 0.1 for p in (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
-               for m in [min(summary["multi_transits"], key=lambda m: abs(m.summary["mid"] - p))])
+    assert all(abs(m["mid"] - p) < 0.1 for p in (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
+               for m in [min(summary["multi_transits"], key=lambda m: abs(m["mid"] - p))])
     assert summary["exposure"] == 0.0204335982 and summary["supersampling"] > 1
     assert 0.8 < summary["chi2_0"]["same"] / summary["points"] < 1.3
     assert "estimated" in summary["detrending"]["flux_err"]
@@ -46,7 +46,7 @@ def test_default_scan_and_plot(tmp_path):
     from jaxppo.cli import _demo_events
 
     events, numbers = _demo_events(jp.kepler20_system())
-    by_mid = {round(m.summary["mid"], 2): m.summary["number"] for m in summary["multi_transits"]}
+    by_mid = {round(m["mid"], 2): m["number"] for m in summary["multi_transits"]}
     assert numbers == [by_mid[round(e.mid, 2)] for e in events] == [1, 3, 4, 5, 6, 7, 8]
     assert summary["data"]["report"]["kept"] == 64792 and "64792 of 64792 points kept" in summary["data"]["loaded"]
     assert (out / "scan.ecsv").exists()
@@ -334,3 +334,18 @@ def test_persistent_compilation_cache(tmp_path):
     env = dict(os.environ, JAXPPO_CACHE_DIR=str(tmp_path / "off"), JAXPPO_CACHE="0")
     subprocess.run(cmd, env=env, check=True, capture_output=True)
     assert not (tmp_path / "off").exists()
+
+
+def test_scan_order_and_no_deprecation_notes(tmp_path, capsys):
+    """jaxppo scan runs the scan, then the figures, then the PPO-or-spot
+    step (its block in summary.json), and jaxppo's own code reads results
+    through attributes: no DeprecationWarning note on stderr."""
+    from jaxppo.cli import main
+
+    out = tmp_path / "s"
+    assert main(["scan", str(_synthetic_copy(tmp_path / "cfg")), "--out", str(out), "--alpha", "0", "360", "30", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "deprecated" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(summary)[-3:] == ["table5_files", "figures", "ppo_or_spot"]
+    assert len(summary["figures"]) == 5 and "dips" in summary["ppo_or_spot"]

@@ -161,7 +161,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         and ``figure`` (the PNG's path, if drawn).
     """
     windows = {w.number: w for w in result.windows}
-    dips = [r for r in result["table5"] if r["kind"] == "dip" and r["delta_chi2"] < 0]
+    dips = [r for r in getattr(result, "summary", result)["table5"] if r["kind"] == "dip" and r["delta_chi2"] < 0]
     rows, panels = [], []
     for d in dips:
         entry = {"case": d["case"], "paper_case": d.get("paper_case"), "alpha": d["alpha"],
