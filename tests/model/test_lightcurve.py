@@ -169,7 +169,7 @@ def test_from_lightkurve(tmp_path):
     with pytest.raises(ValueError, match="flux_column 'kspsap_flux' is not a column"):
         jp.LightCurve.from_lightkurve(raw, flux_column="kspsap_flux")
     # jp.scan takes the lightkurve object directly
-    from jaxppo.obliquity._scan import config_from_arguments
+    from jaxppo.obliquity._config import config_from_arguments
 
     cfg = config_from_arguments(jp.kepler20_system(), raw, None, ("same",), 0.05, 2, 0.3, 5.0, None, 60)
     np.testing.assert_array_equal(cfg.lightcurve.time, ref.time)
