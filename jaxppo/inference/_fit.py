@@ -110,8 +110,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     parameters to the light curve; limb darkening stays fixed unless named
     (``"star.u1"``, or Kipping's ``"star.q1"``, ``"star.q2"``); the
     light-curve nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
-    ``"lc.baseline"`` / ``"lc.baseline2"`` are described in the module
-    docstring. ``lightcurve``: a :class:`LightCurve` or a lightkurve
+    ``"lc.baseline"`` / ``"lc.baseline2"`` are described in
+    :mod:`jaxppo.inference._params`. ``lightcurve``: a :class:`LightCurve` or a lightkurve
     LightCurve. ``progress``: one line per stage on stderr. Never raises for
     a failed fit: ``success`` is False and ``message`` says why.
 

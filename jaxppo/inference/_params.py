@@ -1,8 +1,8 @@
-"""Transit fits: optimistix Levenberg-Marquardt and numpyro NUTS over named
-free parameters ("b.t0", "c.radius", "star.u1", ...), in coordinates that keep
-the physics valid: a = 1 + exp(.), p = exp(.), P = exp(.), and the impact
-parameter b = (1 + p) tanh(.) (so |b| < 1 + p and the planet always transits),
-with i = arccos(b / a).
+"""The named free parameters of fits and samplers ("b.t0", "c.radius",
+"star.u1", ...) and the coordinates theta that :class:`._model.Model` maps
+them to, which keep the physics valid: a = 1 + exp(.), p = exp(.),
+P = exp(.), and the impact parameter b = (1 + p) tanh(.) (so |b| < 1 + p and
+the planet always transits), with i = arccos(b / a).
 
 Besides the planets' and the star's parameters:
 
@@ -173,3 +173,4 @@ def is_trend(slot) -> bool:
 def jitter_start(sigma) -> float:
     """Starting jitter [relative flux]: a tenth of the median error (the
     coordinate is log s, so it cannot start at 0)."""
+    return 0.1 * float(np.median(np.asarray(sigma)))
