@@ -21,7 +21,7 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo.inference._fit import Model  # noqa: E402
+from jaxppo.inference._model import Model  # noqa: E402
 
 
 def main() -> None:

@@ -46,9 +46,9 @@ from .model._kepler20 import simulate as simulate
 from .model._kepler20 import simulate_kepler20 as simulate_kepler20
 from .inference._fit import FitResult as FitResult
 from .inference._fit import fit as fit
-from .inference._fit import parameter_names as parameter_names
-from .inference._fit import kipping_q as kipping_q
-from .inference._fit import kipping_u as kipping_u
+from .inference._params import parameter_names as parameter_names
+from .inference._params import kipping_q as kipping_q
+from .inference._params import kipping_u as kipping_u
 from .inference._sample import SampleResult as SampleResult
 from .inference._sample import sample as sample
 from .obliquity._config import ScanConfig as ScanConfig

@@ -1,22 +1,7 @@
-"""Transit fits: optimistix Levenberg-Marquardt and numpyro NUTS over named
-free parameters ("b.t0", "c.radius", "star.u1", ...), in coordinates that keep
-the physics valid: a = 1 + exp(.), p = exp(.), P = exp(.), and the impact
-parameter b = (1 + p) tanh(.) (so |b| < 1 + p and the planet always transits),
-with i = arccos(b / a).
-
-Besides the planets' and the star's parameters:
-
-* ``"star.q1"``, ``"star.q2"`` (quadratic star): Kipping (2013, eqs. 15-16)
-  limb darkening, u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2); q in (0, 1)
-  through a logistic map, so that every draw is a physical profile;
-* ``"lc.offset"``: a multiplicative flux normalisation c, model = (1 + c) F;
-* ``"lc.jitter"``: s [relative flux] added in quadrature to every error,
-  sigma_i^2 -> sigma_i^2 + s^2 (coordinate log s); the objective is then the
-  full -2 ln L, not chi^2;
-* ``"lc.baseline"`` / ``"lc.baseline2"``: a linear / quadratic polynomial per
-  data window (windows: runs of points separated by gaps > ``BASELINE_GAP``),
-  multiplicative, model = F (1 + c0 + c1 x + c2 x^2) with x in [-1, 1] across
-  the window; expands to the names "lc.baseline.w<window>.c<power>".
+"""Least-squares fits: optimistix Levenberg-Marquardt over the named free
+parameters of :mod:`._params` in the coordinates of :class:`Model`, with a
+check that the solution is a minimum (Hessian and Newton step) and the
+linearised covariance there.
 """
 
 from __future__ import annotations
@@ -24,533 +9,25 @@ from __future__ import annotations
 import dataclasses
 import json
 import sys
+import time
 import warnings
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..model._lightcurve import LightCurve
-from ..model._system import Planet, System
+from ..model._system import System
+from ._model import Model, scaled_residuals
+from ._params import as_lightcurve
+from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
-__all__ = ["fit", "FitResult", "Model", "parameter_names", "kipping_u", "kipping_q"]
+__all__ = ["fit", "FitResult", "CONDITION_WARN"]
 
-_PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
-_STAR_PARAMS = {"quadratic": ("u1", "u2"), "nonlinear": ("c1", "c2", "c3", "c4"), "power2": ("c", "alpha")}
-_LC_PARAMS = ("offset", "jitter", "baseline", "baseline2")
-# [d] a gap longer than this starts a new baseline window (Kepler quarters,
-# the multi-transit windows of a scan)
-BASELINE_GAP = 0.5
 # fit warns when the condition number of the scaled Fisher matrix exceeds
 # this: some combination of the free parameters is 1e3 times less determined
 # than the parameters one by one, and the linearised errors mislead
 CONDITION_WARN = 1e6
-
-
-def kipping_u(q1, q2):
-    """(u1, u2) of the quadratic law from Kipping's (2013, eqs. 15-16)
-    q1, q2 in [0, 1]: u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2)."""
-    s = jnp.sqrt(q1)
-    return 2.0 * s * q2, s * (1.0 - 2.0 * q2)
-
-
-def kipping_q(u1, u2):
-    """Inverse of :func:`kipping_u`: q1 = (u1 + u2)^2, q2 = u1 / (2 (u1 + u2))
-    (Kipping 2013, eqs. 17-18); q2 = 0.5 when u1 + u2 = 0."""
-    s = u1 + u2
-    return s**2, jnp.where(s == 0, 0.5, u1 / (2.0 * jnp.where(s == 0, 1.0, s)))
-
-
-def _as_lightcurve(lightcurve) -> LightCurve:
-    """A jaxppo LightCurve from a LightCurve or a lightkurve LightCurve."""
-    if isinstance(lightcurve, LightCurve):
-        return lightcurve
-    from ..model._lightcurve import is_lightkurve
-
-    if is_lightkurve(lightcurve):
-        return LightCurve.from_lightkurve(lightcurve)
-    raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got "
-                     f"{type(lightcurve).__name__} (arrays and astropy Time/Quantity columns: "
-                     "jaxppo.LightCurve(time, flux, flux_err) or LightCurve.from_arrays)")
-
-
-def parameter_names(system: System) -> list[str]:
-    """All names ``fit`` and ``sample`` accept for this system ("lc.baseline"
-    and "lc.baseline2" expand to one name per window and power)."""
-    names = []
-    for i, pl in enumerate(system.planets):
-        label = pl.name or str(i)
-        names += [f"{label}.{p}" for p in _PLANET_PARAMS]
-    names += [f"star.{p}" for p in _STAR_PARAMS.get(system.star.law, ())]
-    if system.star.law == "quadratic":
-        names += ["star.q1", "star.q2"]
-    names += [f"lc.{p}" for p in _LC_PARAMS]
-    return names
-
-
-def _split(name: str, system: System):
-    if not isinstance(name, str) or "." not in name:
-        raise ValueError(f"free parameter {name!r} must look like 'b.t0' or 'star.u1'")
-    owner, par = name.split(".", 1)
-    if owner == "star":
-        pars = _STAR_PARAMS.get(system.star.law, ())
-        if par in ("q1", "q2"):
-            if system.star.law != "quadratic":
-                raise ValueError(f"free parameter {name!r}: Kipping's q1, q2 need a quadratic star, "
-                                 f"this one is {system.star.law}")
-            return "star", par
-        if par not in pars:
-            extra = " (or q1, q2)" if system.star.law == "quadratic" else ""
-            raise ValueError(f"free parameter {name!r}: a {system.star.law} star has {pars}{extra}")
-        return "star", pars.index(par)
-    if owner == "lc":
-        if par not in _LC_PARAMS:
-            raise ValueError(f"free parameter {name!r}: light-curve parameters are {_LC_PARAMS}")
-        return "lc", par
-    idx = None
-    for i, pl in enumerate(system.planets):
-        if (pl.name or str(i)) == owner:
-            idx = i
-    if idx is None:
-        raise ValueError(f"free parameter {name!r}: no planet named {owner!r}; names are {[p.name for p in system.planets]}")
-    if par not in _PLANET_PARAMS:
-        raise ValueError(f"free parameter {name!r}: planet parameters are {_PLANET_PARAMS}")
-    return idx, par
-
-
-def _baseline_windows(time: np.ndarray) -> list[np.ndarray]:
-    """Index arrays of the runs of points separated by gaps > BASELINE_GAP."""
-    cuts = np.nonzero(np.diff(time) > BASELINE_GAP)[0] + 1
-    return np.split(np.arange(time.size), cuts)
-
-
-def _expand(free, system: System, time: np.ndarray):
-    """(names, slots, basis): "lc.baseline[2]" expanded per window and
-    power; ``basis`` [n, m] holds the columns of the multiplicative trend
-    (offset: ones; baseline: x^k per window) in the order of the trend
-    slots."""
-    names, slots, cols = [], [], []
-    windows = None
-    for n in free:
-        owner, par = _split(n, system)
-        if owner == "lc" and par in ("baseline", "baseline2"):
-            windows = _baseline_windows(time) if windows is None else windows
-            order = 1 if par == "baseline" else 2
-            for w, idx in enumerate(windows):
-                tw = time[idx]
-                mid, half = 0.5 * (tw[0] + tw[-1]), 0.5 * (tw[-1] - tw[0])
-                x = (tw - mid) / half if half > 0 else np.zeros(tw.size)
-                for k in range(order + 1):
-                    col = np.zeros(time.size)
-                    col[idx] = x**k
-                    names.append(f"lc.baseline.w{w}.c{k}")
-                    slots.append(("lc", ("baseline", w, k)))
-                    cols.append(col)
-        else:
-            names.append(n)
-            slots.append((owner, par))
-            if (owner, par) == ("lc", "offset"):
-                cols.append(np.ones(time.size))
-    pars = {p for o, p in slots if o == "lc" and not isinstance(p, tuple)}
-    if "offset" in pars and any(isinstance(p, tuple) for o, p in slots if o == "lc"):
-        raise ValueError("free parameters 'lc.offset' and 'lc.baseline' are degenerate (each window's baseline "
-                         "has its own constant term c0): name one of them")
-    if sum(1 for n in free if n.startswith("lc.baseline")) > 1:
-        raise ValueError(f"free parameters name the baseline twice: {[n for n in free if n.startswith('lc.baseline')]}")
-    star = {p for o, p in slots if o == "star"}
-    if star & {"q1", "q2"} and star & {0, 1}:
-        raise ValueError("free parameters name both u1/u2 and q1/q2 of the star: name one pair "
-                         "(q1, q2 is Kipping's 2013 reparameterisation of u1, u2)")
-    basis = np.stack(cols, axis=1) if cols else np.zeros((time.size, 0))
-    return tuple(names), slots, basis
-
-
-def _is_trend(slot) -> bool:
-    owner, par = slot
-    return owner == "lc" and (par == "offset" or isinstance(par, tuple))
-
-
-def _jitter_start(sigma) -> float:
-    """Starting jitter [relative flux]: a tenth of the median error (the
-    coordinate is log s, so it cannot start at 0)."""
-    return 0.1 * float(np.median(np.asarray(sigma)))
-
-
-class Model:
-    """Maps an unconstrained vector theta to a System and a light curve.
-
-    The exposure of the data (if any) is modelled by averaging the flux over
-    ``nsub`` sub-exposures.
-    """
-
-    def __init__(self, system: System, lc: LightCurve, free, alpha: float = 0.0, case: str = "same"):
-        free = (free,) if isinstance(free, str) else tuple(free)
-        if not free:
-            raise ValueError("free must name at least one parameter, e.g. ('b.t0', 'b.radius')")
-        if len(set(free)) != len(free):
-            raise ValueError(f"free parameters repeat: {free}")
-        lc = _as_lightcurve(lc)
-        self.system, self.lc, self.requested = system, lc, free
-        self.alpha, self.case = alpha, case
-        self.union_floor = 0  # see _Data.build
-        # ``free``: the names of the fitted values (baseline expanded)
-        self.free, self.slots, self.basis = _expand(free, system, np.asarray(lc.time))
-        self.jitter0 = _jitter_start(lc.flux_err)
-        t_model, self.nsub = lc.supersampled_times()
-        self.t_model = jnp.asarray(t_model)
-        # Frames where two disks are on the star and within `margin` [R*] of
-        # touching at the starting parameters run the exact union integral;
-        # all others are a sum of one-disk terms. The split is fixed for the
-        # fit (the margin covers the parameter changes of a fit; ``fit``
-        # checks the final geometry and refits with a wider split if needed).
-        self.union_idx = self._union_frames(system, t_model)
-        # Likewise, only frames where a disk is on the star or within
-        # `margin` [R*] of its limb at the start are computed; the others
-        # are exactly 1 (and widened like the union frames).
-        self.active_idx = self._active_frames(system, t_model)
-        self.y = jnp.asarray(lc.flux)
-        self.sigma = jnp.asarray(lc.flux_err)
-
-    def _union_frames(self, system, t_model, margin: float = 0.05):
-        x, y, r = system.positions(t_model, self.alpha, self.case, xp=np)
-        k = x.shape[-1]
-        on = np.hypot(x, y) - r < 1.0 + margin
-        near = np.zeros(t_model.size, bool)
-        for i in range(k):
-            for j in range(i + 1, k):
-                d = np.hypot(x[:, i] - x[:, j], y[:, i] - y[:, j])
-                near |= on[:, i] & on[:, j] & (d < r[:, i] + r[:, j] + margin)
-        return np.nonzero(near)[0]
-
-    def _active_frames(self, system, t_model, margin: float = 0.25):
-        x, y, r = system.positions(t_model, self.alpha, self.case, xp=np)
-        return np.nonzero(np.any((r > 0) & (np.hypot(x, y) < 1.0 + r + margin), axis=-1))[0]
-
-    def widened(self, systems) -> "Model | None":
-        """A new Model (traced anew) whose union-integral frames also cover
-        the frames where any of ``systems`` brings disks within the margin of
-        touching, and whose computed frames cover every frame where they put
-        a disk within 0.05 R* of the star; None when the current frames
-        cover them already."""
-        t = np.asarray(self.t_model)
-        needed = np.unique(np.concatenate([self.union_idx] + [self._union_frames(s, t) for s in systems]))
-        active = np.unique(np.concatenate([self.active_idx] + [self._active_frames(s, t, 0.05) for s in systems]))
-        if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
-            return None
-        wider = Model(self.system, self.lc, self.requested, self.alpha, self.case)
-        wider.union_floor = self.union_floor
-        wider.union_idx = np.union1d(wider.union_idx, needed)
-        wider.active_idx = np.union1d(np.union1d(wider.active_idx, active), wider.union_idx)
-        return wider
-
-    # ---- coordinates ----------------------------------------------------------
-    def to_theta(self, system: System) -> jnp.ndarray:
-        out = []
-        for (owner, par) in self.slots:
-            if owner == "lc":
-                out.append(jnp.log(self.jitter0) if par == "jitter" else 0.0)
-                continue
-            if owner == "star":
-                if par in ("q1", "q2"):
-                    q = kipping_q(system.star.params[0], system.star.params[1])[0 if par == "q1" else 1]
-                    out.append(_logit(q))
-                else:
-                    out.append(system.star.params[par])
-                continue
-            pl = system.planets[owner]
-            if par == "t0":
-                out.append(pl.t0)
-            elif par == "period":
-                out.append(jnp.log(pl.period))
-            elif par == "a":
-                out.append(jnp.log(pl.a - 1.0))
-            elif par == "radius":
-                out.append(jnp.log(pl.radius))
-            else:  # inc -> b = (1 + p) tanh(theta)
-                b = pl.a * jnp.cos(jnp.deg2rad(pl.inc))
-                out.append(jnp.arctanh(jnp.clip(b / (1.0 + pl.radius), -0.999999, 0.999999)))
-        return jnp.stack([jnp.asarray(v, float) for v in out])
-
-    def to_system(self, theta) -> System:
-        return _to_system(theta, self.system, tuple(self.slots))
-
-    def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
-        """Unconstrained theta from parameter values in physical units, except
-        that an inclination may be given either in degrees (``theta_ref``
-        supplies a and p when they are not free) or, with ``theta_ref=None``,
-        as the impact parameter in units of (1 + p) (what ``sample`` draws)."""
-        ref = self.to_system(theta_ref) if theta_ref is not None else None
-        named = {slot: values[k] for k, slot in enumerate(self.slots)}
-        out = []
-        for k, (owner, par) in enumerate(self.slots):
-            v = values[k]
-            if par in ("q1", "q2"):
-                out.append(_logit(v))
-            elif par == "jitter":
-                out.append(jnp.log(v))
-            elif owner in ("star", "lc") or par == "t0":
-                out.append(v)
-            elif par == "period":
-                out.append(jnp.log(v))
-            elif par == "a":
-                out.append(jnp.log(v - 1.0))
-            elif par == "radius":
-                out.append(jnp.log(v))
-            elif ref is None:
-                out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
-            else:
-                pl = ref.planets[owner]
-                a = named.get((owner, "a"), pl.a)
-                p = named.get((owner, "radius"), pl.radius)
-                out.append(jnp.arctanh(a * jnp.cos(jnp.deg2rad(v)) / (1.0 + p)))
-        return jnp.stack(out)
-
-    def physical(self, theta) -> jnp.ndarray:
-        """The free parameters in physical units (days, degrees, R*;
-        q1, q2; offset, jitter [relative flux], baseline coefficients)."""
-        sysm = self.to_system(theta)
-        out = []
-        for k, (owner, par) in enumerate(self.slots):
-            if par in ("q1", "q2"):
-                out.append(jax.nn.sigmoid(theta[k]))
-            elif par == "jitter":
-                out.append(jnp.exp(theta[k]))
-            elif owner == "lc":
-                out.append(theta[k])
-            else:
-                out.append(sysm.star.params[par] if owner == "star" else getattr(sysm.planets[owner], par))
-        return jnp.stack(out)
-
-    def derived_names(self) -> tuple:
-        """Quantities implied by the free parameters: "star.u1", "star.u2"
-        when Kipping's q1 or q2 is free."""
-        return ("star.u1", "star.u2") if any(p in ("q1", "q2") for _, p in self.slots) else ()
-
-    def derived(self, theta) -> jnp.ndarray:
-        """Values of :meth:`derived_names` at theta."""
-        if not self.derived_names():
-            return jnp.zeros(0)
-        return self.to_system(theta).star.params[:2]
-
-    # ---- model ----------------------------------------------------------------
-    def data(self) -> "_Data":
-        """The arrays the compiled model functions take as traced inputs
-        (rebuilt when the frame sets change). Every Model with the same
-        structure and frame counts reuses one compilation."""
-        key = (self.union_idx, self.active_idx)
-        cached = getattr(self, "_data_cache", None)
-        if cached is None or cached[0][0] is not key[0] or cached[0][1] is not key[1]:
-            # concrete arrays even when first asked for inside a trace (a
-            # tracer kept here would leak into later calls)
-            with jax.ensure_compile_time_eval():
-                cached = (key, _Data.build(self))
-            self._data_cache = cached
-        return cached[1]
-
-    def flux(self, theta) -> jnp.ndarray:
-        """Model flux at the data times, with the offset / baseline trend."""
-        d = self.data()
-        return _flux(theta, d) * _trend(theta, d)
-
-    def pointwise_loglike(self, theta) -> jnp.ndarray:
-        """Gaussian log-likelihood of each data point (jitter included)."""
-        return _pointwise_loglike(theta, self.data())
-
-    def residuals(self, theta, args=None) -> jnp.ndarray:
-        return _residuals(theta, self.data())
-
-    def scaled_residuals(self, z, args) -> jnp.ndarray:
-        """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
-        scale)``."""
-        theta_ref, scale = args
-        return _residuals(theta_ref + z / scale, self.data())
-
-    def chi2_batch(self, thetas):
-        """chi^2 at each row of ``thetas`` (one compiled program)."""
-        return _chi2_batch(thetas, self.data())
-
-    def jacobian(self, theta):
-        """(d residuals / d theta, residuals), compiled once per structure."""
-        return _jacobian(theta, self.data())
-
-
-def _bucket(n: int) -> int:
-    """Padded length for n computed frames: steps of 1/16 of a power of two
-    (at most ~6 % extra work), so that widening the frame sets by a few
-    frames usually keeps the compiled programs."""
-    if n <= 64:
-        return max(n, 1)
-    step = 1 << max(int(np.floor(np.log2(n))) - 4, 0)
-    return int(-(-n // step) * step)
-
-
-def _pad(idx: np.ndarray, size: int) -> np.ndarray:
-    # repeat the last entry: a repeated frame is computed twice and written
-    # twice with the same value
-    return np.concatenate([idx, np.full(size - idx.size, idx[-1], idx.dtype)]) if idx.size else idx
-
-
-class _Data(eqx.Module):
-    """Everything the model flux needs, as a pytree: arrays are traced (so a
-    new light curve, start or frame set of the same sizes does not
-    recompile); the structure is static."""
-
-    system: System
-    t: jax.Array          # model times of the computed frames [d]
-    act: jax.Array        # their positions in the supersampled time grid
-    union: jax.Array      # positions (in ``t``) of the union-integral frames
-    y: jax.Array
-    sigma: jax.Array
-    alpha: jax.Array
-    basis: jax.Array      # [n, m] columns of the multiplicative trend
-    slots: tuple = eqx.field(static=True)
-    nsub: int = eqx.field(static=True)
-    n_model: int = eqx.field(static=True)
-    case: object = eqx.field(static=True)
-    eccentric: tuple = eqx.field(static=True, default=())
-
-    @staticmethod
-    def build(model: "Model") -> "_Data":
-        act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
-        union = np.searchsorted(act, model.union_idx).astype(np.int64)
-        act = _pad(act, _bucket(act.size))
-        if model.union_floor and act.size:
-            # ``fit`` pads the union frames to a power of two (at least
-            # ``union_floor``, even when there are none: the union integral
-            # is exact, with exact derivatives, for any frame): they are a
-            # small share of the work, and a fit that brings disks together
-            # adds them at its widenings, which would each recompile
-            size = max(model.union_floor, 1 << int(np.ceil(np.log2(max(union.size, 1)))))
-            union = np.concatenate([union, np.full(size - union.size, union[-1] if union.size else 0, np.int64)])
-        else:
-            union = _pad(union, _bucket(union.size))
-        case = tuple(model.case) if isinstance(model.case, list) else model.case
-        system = jax.tree.map(lambda v: jnp.asarray(v, float) if not isinstance(v, jax.Array) else v, model.system)
-        return _Data(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
-                     model.y, model.sigma, jnp.asarray(model.alpha, float), jnp.asarray(model.basis, float),
-                     tuple(model.slots), int(model.nsub),
-                     int(model.t_model.size), case, tuple(not pl.circular for pl in model.system.planets))
-
-
-def _to_system(theta, base: System, slots, eccentric=None) -> System:
-    """The system at theta. ``eccentric`` (static flags per planet; None: take
-    e and omega of every planet, for a concrete ``base``) says which planets
-    keep their e and omega: inside a traced program ``base``'s leaves are
-    tracers, so a circular planet given its traced e = 0 would take the
-    slower Keplerian path."""
-    planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in base.planets]
-    for k, p in enumerate(base.planets):
-        if eccentric is None or eccentric[k]:
-            planets[k].update(e=p.e, omega=p.omega)
-    star_params = base.star.params
-    b_theta, q = {}, {}
-    for k, (owner, par) in enumerate(slots):
-        v = theta[k]
-        if owner == "lc":
-            continue
-        if par in ("q1", "q2"):
-            q[par] = jax.nn.sigmoid(v)
-        elif owner == "star":
-            star_params = star_params.at[par].set(v)
-        elif par == "t0":
-            planets[owner]["t0"] = v
-        elif par == "period":
-            planets[owner]["period"] = jnp.exp(v)
-        elif par == "a":
-            planets[owner]["a"] = 1.0 + jnp.exp(v)
-        elif par == "radius":
-            planets[owner]["radius"] = jnp.exp(v)
-        else:
-            b_theta[owner] = v
-    for owner, v in b_theta.items():
-        pl = planets[owner]
-        b = (1.0 + pl["radius"]) * jnp.tanh(v)
-        pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
-    if q:
-        q1_0, q2_0 = kipping_q(star_params[0], star_params[1])
-        u1, u2 = kipping_u(q.get("q1", q1_0), q.get("q2", q2_0))
-        star_params = jnp.stack([u1, u2])
-    star = dataclasses.replace(base.star, params=star_params)
-    return System(star, [Planet(**p) for p in planets], base.tilted)
-
-
-def _flux(theta, d: _Data) -> jnp.ndarray:
-    from ..model._terms import exact_frames, separate_frames
-
-    sysm = _to_system(theta, d.system, d.slots, d.eccentric)
-    x, y, r = sysm.positions(d.t, d.alpha, d.case)
-    fa = separate_frames(sysm.star, x, y, r, 24)
-    if d.union.size:
-        u = d.union
-        fa = fa.at[u].set(exact_frames(sysm.star, x[u], y[u], r[u], 24))
-    f = jnp.ones((d.n_model,), fa.dtype).at[d.act].set(fa)
-    return f.reshape(-1, d.nsub).mean(-1)
-
-
-def _logit(q):
-    # q clipped into (0, 1): a start outside Kipping's triangle begins at its edge
-    q = jnp.clip(jnp.asarray(q, float), 1e-9, 1.0 - 1e-9)
-    return jnp.log(q) - jnp.log1p(-q)
-
-
-def _trend(theta, d: _Data) -> jnp.ndarray:
-    """Multiplicative trend 1 + basis @ c of the offset / baseline slots."""
-    idx = [k for k, slot in enumerate(d.slots) if _is_trend(slot)]
-    if not idx:
-        return jnp.ones(())
-    return 1.0 + d.basis @ jnp.stack([theta[k] for k in idx])
-
-
-def _variance(theta, d: _Data):
-    """(sigma^2 + s^2, s^2) with the jitter s when it is free, else (sigma^2, None)."""
-    for k, (owner, par) in enumerate(d.slots):
-        if par == "jitter":
-            s2 = jnp.exp(2.0 * theta[k])
-            return d.sigma**2 + s2, s2
-    return d.sigma**2, None
-
-
-@eqx.filter_jit
-def _residuals(theta, d: _Data) -> jnp.ndarray:
-    """Residuals whose sum of squares is the objective: (y - model) /
-    sigma, and with a free jitter s also sqrt(ln(1 + s^2 / sigma_i^2)) per
-    point, so that the sum of squares is -2 ln L - sum ln(2 pi sigma_i^2):
-    the full likelihood, whose log-variance term keeps s from growing
-    without bound (chi^2 alone would be minimised by s -> infinity)."""
-    var, s2 = _variance(theta, d)
-    model = _flux(theta, d)
-    if any(_is_trend(slot) for slot in d.slots):
-        model = model * _trend(theta, d)
-    if s2 is None:
-        return (d.y - model) / d.sigma
-    return jnp.concatenate([(d.y - model) / jnp.sqrt(var), jnp.sqrt(jnp.log1p(s2 / d.sigma**2))])
-
-
-@eqx.filter_jit
-def _pointwise_loglike(theta, d: _Data) -> jnp.ndarray:
-    var, _ = _variance(theta, d)
-    r = d.y - _flux(theta, d) * _trend(theta, d)
-    return -0.5 * r**2 / var - 0.5 * jnp.log(2.0 * jnp.pi * var)
-
-
-def _scaled_residuals(z, args) -> jnp.ndarray:
-    """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
-    scale, data)``: a module-level function with the data as traced inputs,
-    so optimistix compiles it once per model structure and frame counts
-    (not once per fit, restart or Model)."""
-    theta_ref, scale, d = args
-    return _residuals(theta_ref + z / scale, d)
-
-
-@eqx.filter_jit
-def _chi2_batch(thetas, d: _Data):
-    return jax.lax.map(lambda t: jnp.sum(_residuals(t, d) ** 2), thetas)
-
-
-@eqx.filter_jit
-def _jacobian(theta, d: _Data):
-    return jax.jacfwd(lambda th: (_residuals(th, d),) * 2, has_aux=True)(theta)
 
 
 @dataclasses.dataclass
@@ -627,68 +104,14 @@ class FitResult:
             float(from_jsonable(d["condition"])))
 
 
-def to_jsonable(v):
-    """Floats (nested lists) for strict JSON: NaN -> None, +-inf -> "inf"/"-inf"."""
-    v = np.asarray(v, float) if not isinstance(v, list) else v
-    if isinstance(v, list):
-        return [to_jsonable(x) for x in v]
-    if v.ndim:
-        return [to_jsonable(x) for x in v]
-    x = float(v)
-    return None if np.isnan(x) else ("inf" if x == np.inf else "-inf" if x == -np.inf else x)
-
-
-def from_jsonable(v):
-    if isinstance(v, list):
-        return [from_jsonable(x) for x in v]
-    return np.nan if v is None else float(v)
-
-
-def system_to_dict(system: System) -> dict:
-    """A System as plain JSON-ready values (every field of Star and Planet;
-    :func:`system_from_dict` inverts it exactly)."""
-    star = {}
-    for f in dataclasses.fields(system.star):
-        v = getattr(system.star, f.name)
-        if f.name == "surface" and v is not None:
-            raise ValueError("a Star built from a tabulated surface object cannot be saved as JSON")
-        star[f.name] = v if v is None or isinstance(v, str) else to_jsonable(v)
-    planets = []
-    for pl in system.planets:
-        planets.append({f.name: (getattr(pl, f.name) if f.name == "name" else to_jsonable(getattr(pl, f.name)))
-                        for f in dataclasses.fields(pl)})
-    return {"star": star, "planets": planets, "tilted": int(system.tilted)}
-
-
-def system_from_dict(d: dict) -> System:
-    from ..model._star import Star
-
-    kw = {}
-    for f in dataclasses.fields(Star):
-        if f.name not in d["star"]:
-            continue
-        v = d["star"][f.name]
-        if f.name in ("law", "interpolation") or v is None:
-            kw[f.name] = v
-        elif f.name == "degree":
-            kw[f.name] = int(v)
-        elif f.name == "table_residual":
-            kw[f.name] = float(from_jsonable(v))
-        else:
-            kw[f.name] = jnp.asarray(from_jsonable(v), float)
-    star = Star(**kw)
-    planets = [Planet(**{k: (v if k == "name" else from_jsonable(v)) for k, v in p.items()}) for p in d["planets"]]
-    return System(star, planets, d["tilted"])
-
-
 def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha: float = 0.0, case: str = "same",
         max_steps: int = 200, rtol: float = 1e-6, atol: float = 1e-6, progress: bool = False) -> FitResult:
     """Least-squares fit (optimistix Levenberg-Marquardt) of the named free
     parameters to the light curve; limb darkening stays fixed unless named
     (``"star.u1"``, or Kipping's ``"star.q1"``, ``"star.q2"``); the
     light-curve nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
-    ``"lc.baseline"`` / ``"lc.baseline2"`` are described in the module
-    docstring. ``lightcurve``: a :class:`LightCurve` or a lightkurve
+    ``"lc.baseline"`` / ``"lc.baseline2"`` are described in
+    :mod:`jaxppo.inference._params`. ``lightcurve``: a :class:`LightCurve` or a lightkurve
     LightCurve. ``progress``: one line per stage on stderr. Never raises for
     a failed fit: ``success`` is False and ``message`` says why.
 
@@ -707,22 +130,16 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     single transit): the posterior is then far from Gaussian and
     :func:`jaxppo.sample` gives the errors.
     """
-    import time as _time
-
-    import optimistix as optx
-
-    clock = _time.perf_counter()
+    clock = time.perf_counter()
 
     def say(text):
         if progress:
-            print(f"fit: {text} ({_time.perf_counter() - clock:.1f} s)", file=sys.stderr, flush=True)
+            print(f"fit: {text} ({time.perf_counter() - clock:.1f} s)", file=sys.stderr, flush=True)
 
-    lightcurve = _as_lightcurve(lightcurve)
-    model = Model(system, lightcurve, free, alpha, case)
-    model.union_floor = 128
-    free = model.free
+    lightcurve = as_lightcurve(lightcurve)
+    model = Model(system, lightcurve, free, alpha, case, union_floor=128)
     theta = model.to_theta(system)
-    n, k = lightcurve.time.size, len(free)
+    n, k = lightcurve.time.size, len(model.free)
     problems = _start_problems(model, system, n, k)
     say(f"{n} points, {k} free parameters; compiling the model")
     # from the Jacobian's program, which the minimum check compiles anyway
@@ -732,30 +149,61 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         problems.append(f"chi^2 at the start is {chi2_start} (flux_err as small as {np.min(lightcurve.flux_err):.3g} "
                         "makes the residuals overflow float64, or the model is not finite)")
     if problems:
-        nan = np.full((k, k), np.nan)
-        # the start as given (the coordinates would clip an impossible inclination)
-        ph = np.asarray(model.physical(theta), float)
-        start = np.array([ph[i] if owner == "lc" or par in ("q1", "q2") else float(
-            system.star.params[par] if owner == "star" else getattr(system.planets[owner], par))
-            for i, (owner, par) in enumerate(model.slots)])
-        return FitResult(system, chi2_start, nan, False, "failed: " + "; ".join(problems), tuple(free),
-                         start, np.full(k, np.nan), chi2_start / max(n - k, 1) if n > k else np.nan,
-                         0, model.union_idx)
+        return _failed_start(model, system, theta, chi2_start, n, problems)
     say(f"chi^2 at the start {chi2_start:.6g}")
+    model, theta, optx_problem, steps, verdict = _solve(model, theta, max_steps, rtol, atol, say)
+    problems = ([optx_problem] if optx_problem else []) + verdict["problems"]
+    problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, model.to_system(theta))]
+    ok = not problems
+    message = ("converged: " + verdict["summary"]) if ok else "failed: " + "; ".join(problems)
+    cov, derived = _physical_covariance(model, theta, verdict["cov_theta"])
+    errors = np.sqrt(np.clip(np.diag(cov), 0, None))
+    if ok and not np.all(np.isfinite(errors)):
+        ok = False
+        message = "failed: covariance not finite"
+    _warn_if_degenerate(model.free, verdict)
+    chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
+    say("done")
+    return FitResult(model.to_system(theta), verdict["chi2"], cov, ok, message, tuple(model.free),
+                     np.asarray(model.physical(theta)), errors, chi2_data / (n - k), steps, model.union_idx, derived,
+                     verdict["condition"])
+
+
+def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int, problems) -> FitResult:
+    """The FitResult of a start that cannot be fitted (no steps taken)."""
+    k = len(model.free)
+    nan = np.full((k, k), np.nan)
+    # the start as given (the coordinates would clip an impossible inclination)
+    ph = np.asarray(model.physical(theta), float)
+    start = np.array([ph[i] if owner == "lc" or par in ("q1", "q2") else float(
+        system.star.params[par] if owner == "star" else getattr(system.planets[owner], par))
+        for i, (owner, par) in enumerate(model.slots)])
+    return FitResult(system, chi2_start, nan, False, "failed: " + "; ".join(problems), tuple(model.free),
+                     start, np.full(k, np.nan), chi2_start / max(n - k, 1) if n > k else np.nan,
+                     0, model.union_idx)
+
+
+def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
+    """Levenberg-Marquardt passes until the solution is a minimum of a model
+    whose frame sets cover it. Returns (model, theta, optimistix's failure
+    message or None, steps, the :func:`_assess` verdict).
+
+    The frames that take the union integral are fixed from the starting
+    parameters (with a margin). If the solution brings disks together in
+    other frames, refit from it with those frames added (a new Model, so
+    the residuals are traced anew). Levenberg-Marquardt damps with the
+    identity, so where chi^2 is nearly flat in theta (a radius of 1e-6 R*)
+    its steps are tiny and its step criteria are met far from the minimum;
+    then restart in theta scaled by the Jacobian's columns (same residual
+    function, so no recompilation)."""
+    import optimistix as optx
+
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     steps, restarts = 0, 0
     scale = jnp.ones_like(theta)
-    # The frames that take the union integral are fixed from the starting
-    # parameters (with a margin). If the solution brings disks together in
-    # other frames, refit from it with those frames added (a new Model, so
-    # the residuals are traced anew). Levenberg-Marquardt damps with the
-    # identity, so where chi^2 is nearly flat in theta (a radius of 1e-6
-    # R*) its steps are tiny and its step criteria are met far from the
-    # minimum; then restart in theta scaled by the Jacobian's columns
-    # (same residual function, so no recompilation).
     verdict = None
     for stage in range(10):
-        sol = optx.least_squares(_scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale, model.data()),
+        sol = optx.least_squares(scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale, model.data()),
                                  max_steps=max_steps, throw=False)
         theta = theta + sol.value / scale
         steps += int(sol.stats.get("num_steps", -1))
@@ -773,35 +221,37 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         if verdict["optimum"] or verdict["scale"] is None or restarts == 3:
             break
         scale, restarts = verdict["scale"], restarts + 1
-    optx_ok = bool(sol.result == optx.RESULTS.successful)
     if verdict is None:
         verdict = _assess(model, theta)
-    chi2 = verdict["chi2"]
-    problems = []
-    if not optx_ok:
-        problems.append(str(optx.RESULTS[sol.result]) if hasattr(optx.RESULTS, "__getitem__") else str(sol.result))
-    problems += verdict["problems"]
-    problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, model.to_system(theta))]
-    ok = not problems
-    message = ("converged: " + verdict["summary"]) if ok else "failed: " + "; ".join(problems)
-    phys = model.physical(theta)
+    failure = None
+    if not bool(sol.result == optx.RESULTS.successful):
+        failure = str(optx.RESULTS[sol.result]) if hasattr(optx.RESULTS, "__getitem__") else str(sol.result)
+    return model, theta, failure, steps, verdict
+
+
+def _physical_covariance(model: Model, theta, cov_theta):
+    """(covariance of the free parameters in physical units, derived: name
+    -> (value, 1-sigma error)) from the covariance in theta: cov_q = D
+    cov_theta D^T with D = dq / dtheta; NaN without ``cov_theta``."""
+    k = len(model.free)
     cov = np.full((k, k), np.nan)
     derived = {}
-    if verdict["cov_theta"] is not None:
-        # covariance in physical units: q = q(theta), cov_q = D cov_theta D^T
+    if cov_theta is not None:
         d = np.asarray(jax.jacfwd(model.physical)(theta))
-        cov = d @ verdict["cov_theta"] @ d.T
+        cov = d @ cov_theta @ d.T
         if model.derived_names():
             dd = np.asarray(jax.jacfwd(model.derived)(theta))
-            dcov = dd @ verdict["cov_theta"] @ dd.T
+            dcov = dd @ cov_theta @ dd.T
             derived = {nm: (float(v), float(np.sqrt(max(dcov[i, i], 0.0))))
                        for i, (nm, v) in enumerate(zip(model.derived_names(), np.asarray(model.derived(theta))))}
     elif model.derived_names():
         derived = {nm: (float(v), np.nan) for nm, v in zip(model.derived_names(), np.asarray(model.derived(theta)))}
-    errors = np.sqrt(np.clip(np.diag(cov), 0, None))
-    if ok and not np.all(np.isfinite(errors)):
-        ok = False
-        message = "failed: covariance not finite"
+    return cov, derived
+
+
+def _warn_if_degenerate(free, verdict) -> None:
+    """The UserWarning of :func:`fit` when the linearised covariance is
+    ill-conditioned or chi^2 at its 1 sigma is far from chi^2_min + 1."""
     condition, dchi2 = verdict["condition"], verdict["dchi2_1sigma"]
     why = []
     if condition > CONDITION_WARN:
@@ -817,11 +267,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         warnings.warn(
             f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned ("
             + "; ".join(why) + "): the errors and correlations from the curvature are not reliable (e.g. a and inc "
-            "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=2)
-    chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
-    say("done")
-    return FitResult(model.to_system(theta), chi2, cov, ok, message, tuple(free), np.asarray(phys), errors,
-                     chi2_data / (n - k), steps, model.union_idx, derived, condition)
+            "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=3)
 
 
 def _transit_problems(model: Model, system: System) -> list:
@@ -853,6 +299,7 @@ def _start_problems(model: Model, system: System, n: int, k: int) -> list:
     return out + _transit_problems(model, system)
 
 
+
 def _assess(model: Model, theta) -> dict:
     """Is theta a minimum of chi^2? From the residuals' Jacobian J and the
     full Hessian H of chi^2, both with theta scaled by J's column norms (so
@@ -874,31 +321,57 @@ def _assess(model: Model, theta) -> dict:
         return out
     out["scale"] = jnp.asarray(c)
     grad = 2.0 * (jac.T @ r) / c
-    # Hessian of chi^2 in the scaled coordinates by second differences of
-    # chi^2 itself (2 k^2 forward evaluations in one program; a traced
-    # jax.hessian costs ~8 s of compilation here). The step, 0.3, is a
-    # fraction of the scale on which chi^2 changes by 1: the light curve's
-    # second derivative jumps at contact points, and differences of the
-    # gradient over tiny steps read a 10-parameter Kepler-20 minimum as a
-    # saddle.
-    h, k = 0.3, c.size
-    eye = np.eye(k) * h
-    pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
-    pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
-    pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
-    n_hess = len(pts)
     jtj = (jac / c).T @ (jac / c)
     jitter = any(par == "jitter" for _, par in model.slots)
     try:
         cov_gn = np.linalg.inv(jtj) / np.outer(c, c)
     except np.linalg.LinAlgError:
         cov_gn = None
+    pts, pairs = _hessian_points(c.size)
+    n_hess = len(pts)
     # the same batch also evaluates chi^2 at +-1 sigma along the principal
     # axes of the linearised covariance (see _axis_steps)
     axes = None if jitter else _axis_steps(cov_gn)
     if axes is not None:
         pts += list(axes * c)
     f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(pts)) / c))
+    hess = _second_differences(f, pairs, c.size)
+    if not np.all(np.isfinite(hess)):
+        out["problems"].append("the Hessian of chi^2 at the solution is not finite")
+        return out
+    _judge_minimum(out, hess, grad)
+    _conditioning(out, jtj, model.free)
+    if not jitter:
+        out["cov_theta"] = cov_gn
+        if axes is not None:
+            out["dchi2_1sigma"] = f[n_hess:] - chi2
+        return out
+    return _laplace_with_jitter(out, model, theta, hess, c, n_hess)
+
+
+# Hessian of chi^2 in the scaled coordinates by second differences of chi^2
+# itself (2 k^2 forward evaluations in one program; a traced jax.hessian
+# costs ~8 s of compilation here). The step is a fraction of the scale on
+# which chi^2 changes by 1: the light curve's second derivative jumps at
+# contact points, and differences of the gradient over tiny steps read a
+# 10-parameter Kepler-20 minimum as a saddle.
+_HESSIAN_STEP = 0.3
+
+
+def _hessian_points(k: int):
+    """(points in the scaled coordinates: the centre, +-h along each axis,
+    (+-h, +-h) in each pair of axes; the pairs (i, j), i < j)."""
+    h = _HESSIAN_STEP
+    eye = np.eye(k) * h
+    pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
+    pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
+    pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
+    return pts, pairs
+
+
+def _second_differences(f, pairs, k: int) -> np.ndarray:
+    """The Hessian from chi^2 ``f`` at the points of :func:`_hessian_points`."""
+    h = _HESSIAN_STEP
     hess = np.empty((k, k))
     for i in range(k):
         hess[i, i] = (f[1 + 2 * i] - 2 * f[0] + f[2 + 2 * i]) / h**2
@@ -906,9 +379,12 @@ def _assess(model: Model, theta) -> dict:
     for n, (i, j) in enumerate(pairs):
         fpp, fpm, fmp, fmm = f[base + 4 * n: base + 4 * n + 4]
         hess[i, j] = hess[j, i] = (fpp - fpm - fmp + fmm) / (4 * h**2)
-    if not np.all(np.isfinite(hess)):
-        out["problems"].append("the Hessian of chi^2 at the solution is not finite")
-        return out
+    return hess
+
+
+def _judge_minimum(out: dict, hess, grad) -> None:
+    """Positive definite Hessian and a Newton decrement below 0.01: sets
+    ``out["optimum"]``, ``"summary"`` or adds to ``"problems"``."""
     w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
     # scaled so that the Gauss-Newton part has unit diagonal: eigenvalues
     # near 2 for well-determined parameters; 1e-9 of that is degenerate
@@ -916,31 +392,34 @@ def _assess(model: Model, theta) -> dict:
         out["problems"].append(f"not a minimum: the Hessian of chi^2 is not positive definite (scaled eigenvalues "
                                f"{w[0]:.3g} .. {w[-1]:.3g}, gradient norm {np.linalg.norm(grad):.3g}); the free parameters are "
                                "degenerate, or the fit stopped on a slope or a saddle")
+        return
+    decrement = 0.5 * float(grad @ np.linalg.solve(hess, grad))
+    out["summary"] = f"Newton step would lower chi^2 by {decrement:.2g}"
+    if decrement > 0.01:
+        out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
     else:
-        decrement = 0.5 * float(grad @ np.linalg.solve(hess, grad))
-        out["summary"] = f"Newton step would lower chi^2 by {decrement:.2g}"
-        if decrement > 0.01:
-            out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
-        else:
-            out["optimum"] = True
-    # conditioning of the scaled Fisher matrix (unit diagonal): its smallest
-    # eigenvalue is 1 / (the variance inflation of the worst-determined
-    # combination of parameters over the parameters one at a time)
+        out["optimum"] = True
+
+
+def _conditioning(out: dict, jtj, free) -> None:
+    """Condition number of the scaled Fisher matrix (unit diagonal) and its
+    most degenerate combination: its smallest eigenvalue is 1 / (the
+    variance inflation of the worst-determined combination of parameters
+    over the parameters one at a time)."""
     wj, vj = np.linalg.eigh(jtj)
     out["condition"] = float(wj[-1] / wj[0]) if wj[0] > 0 else np.inf
     v0 = vj[:, 0]
     top = np.argsort(-np.abs(v0))[:3]
-    out["weakest"] = " ".join(f"{v0[i]:+.2f} {model.free[i]}" for i in top if abs(v0[i]) > 0.1)
-    if not jitter:
-        out["cov_theta"] = cov_gn
-        if axes is not None:
-            out["dchi2_1sigma"] = f[n_hess:] - chi2
-        return out
+    out["weakest"] = " ".join(f"{v0[i]:+.2f} {free[i]}" for i in top if abs(v0[i]) > 0.1)
+
+
+def _laplace_with_jitter(out: dict, model: Model, theta, hess, c, n_hess: int) -> dict:
+    """With a free jitter, the Laplace covariance: -2 ln L ~ const +
+    dtheta^T H dtheta, cov = 2 H^-1 (in scaled coordinates, back to theta
+    by the column scales ``c``); the Gauss-Newton form of the augmented
+    residuals misses the jitter's curvature. Then chi^2 at its 1 sigma."""
+    k = c.size
     try:
-        # Laplace: -2 ln L ~ const + dtheta^T H dtheta, cov = 2 H^-1 (in
-        # scaled coordinates, back to theta by the column scales); the
-        # Gauss-Newton form of the augmented residuals misses the jitter's
-        # curvature
         out["cov_theta"] = 2.0 * np.linalg.inv(0.5 * (hess + hess.T)) / np.outer(c, c)
     except np.linalg.LinAlgError:
         return out
@@ -949,7 +428,7 @@ def _assess(model: Model, theta) -> dict:
         # padded to the Hessian's batch size: the compiled program is reused
         steps = list(axes) + [np.zeros(k)] * max(n_hess - len(axes), 0)
         g = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(steps))))
-        out["dchi2_1sigma"] = g[: len(axes)] - chi2
+        out["dchi2_1sigma"] = g[: len(axes)] - out["chi2"]
     return out
 
 

@@ -14,7 +14,10 @@ import jax
 import numpy as np
 
 from ..model._lightcurve import LightCurve
+from ..model._overlap import may_touch
 from ..model._system import System
+from ._diagnostics import rank_diagnostics
+from ._model import Model
 
 __all__ = ["PLANET_PARAMS", "TransitPosterior", "a_from_density", "density_from_a", "check_density",
            "default_density", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
@@ -80,12 +83,10 @@ class TransitPosterior:
     the density is symmetric in v, so a chain may stay on either side, and
     a posterior piled up at b = 0 (planet c) is one smooth mode through
     v = 0 (a logit map would stretch it into an exponential tail). The
-    likelihood is :class:`jaxppo.inference._fit.Model`'s (the windows' Gaussian chi^2)
-    at the tilt ``alpha``."""
+    likelihood is :class:`jaxppo.inference._model.Model`'s (the windows'
+    Gaussian chi^2) at the tilt ``alpha``."""
 
     def __init__(self, system, data, free, density, alpha, case):
-        from ._fit import Model
-
         labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
         slots = []
         for name in free:
@@ -100,11 +101,9 @@ class TransitPosterior:
         self.tied = sorted({i for i, p in slots if p == "a"})
         self.coords = [s for s in slots if s[1] != "a"] + ([("star", "density")] if self.tied else [])
         self.density = density
-        self.model = Model(system, data, free, alpha, case)
         # a posterior spreads further than a fit moves: compute every frame
         # within 1 R* of the limb at the start
-        self.model.active_idx = np.union1d(self.model.active_idx,
-                                           self.model._active_frames(system, np.asarray(self.model.t_model), 1.0))
+        self.model = Model(system, data, free, alpha, case, active_margin=1.0)
         pl = system.planets
         lo, hi, start = [], [], []
         for (i, p) in self.coords:
@@ -168,31 +167,22 @@ class TransitPosterior:
         """Data residuals (at the tilt ``alpha`` [deg] when given, else the
         Model's), and (rho* - mean) / sd appended (the Gaussian prior as one
         more residual) when rho* is sampled."""
-        import equinox as eqx
         import jax.numpy as jnp
 
-        from ._fit import _residuals
-
         theta = self.model.theta_from(self.model_q(u))
-        if alpha is None:
-            r = self.model.residuals(theta)
-        else:
-            r = _residuals(theta, eqx.tree_at(lambda d: d.alpha, self.model.data(), jnp.asarray(alpha, float)))
+        r = self.model.residuals(theta) if alpha is None else self.model.residuals_at(theta, alpha)
         if self.tied:
             r = jnp.concatenate([r, ((jnp.exp(u[-1]) - self.density[0]) / self.density[1])[None]])
         return r
 
-    def exact_overlaps_anywhere(self):
-        """Compute every frame with two disks within 0.05 R* of the star's
-        limb by the exact union integral: the tilt turns an orbit about the
-        star's centre, so these frames (from the untilted geometry) hold
-        every overlap at any alpha; for sampling alpha (:func:`joint_alpha`)."""
-        t = np.asarray(self.model.t_model)
-        x, y, r = self.system.positions(t, 0.0, "same", xp=np)
-        near = np.hypot(x, y) - r < 1.05
-        idx = np.nonzero(near.sum(-1) >= 2)[0]
-        self.model.union_idx = np.union1d(self.model.union_idx, idx)
-        self.model.active_idx = np.union1d(self.model.active_idx, self.model.union_idx)
+    def exact_overlaps_anywhere(self, margin: float = 0.05):
+        """Compute by the exact union integral every frame in which two
+        disks could touch at some tilt, within ``margin`` [R*], at the start
+        (:func:`jaxppo.model._overlap.may_touch` of the untilted geometry:
+        the tilt turns an orbit about the star's centre); for sampling alpha
+        (:func:`joint_alpha`)."""
+        x, y, r = self.system.positions(np.asarray(self.model.t_model), 0.0, "same", xp=np)
+        self.model = self.model.with_frames(union=np.nonzero(may_touch(x, y, r, margin))[0])
 
     def log_density(self, u, alpha=None):
         """log posterior in u (up to a constant): -chi^2 / 2, the rho* prior
@@ -210,39 +200,44 @@ class TransitPosterior:
         return jnp.where(inside, lp, -jnp.inf)
 
 
-def mode_and_cov(post: TransitPosterior, iters: int = 30):
-    """Levenberg-Marquardt on the residuals (data and rho* prior) from the
-    start, then the Laplace covariance there (with the prior widths as
-    curvature): NUTS moves in w with u = u_mode + L w, L L^T = that
-    covariance, so its mass matrix starts close to the identity."""
-    import jax
+def mode_and_cov(post: TransitPosterior, max_steps: int = 256, tol: float = 1e-9):
+    """The mode of the transit posterior and the Laplace covariance there:
+    optimistix Levenberg-Marquardt on the residuals (data and rho* prior)
+    from the start, u kept inside the box (lo, hi) by clipping, then the
+    covariance from the Jacobian with the prior widths as curvature. NUTS
+    moves in w with u = u_mode + L w, L L^T = that covariance, so its mass
+    matrix starts close to the identity.
+
+    Returns (u_mode, L, chi^2 at the mode). ``tol``: optimistix's rtol and
+    atol, on parameters in units of their Laplace width at the start and
+    on chi^2 / 2."""
     import jax.numpy as jnp
+    import optimistix as optx
 
     jac = jax.jit(lambda v: (post.residuals(v), jax.jacfwd(post.residuals)(v)))
-    u = post.u_start.copy()
-    r, J = (np.asarray(x) for x in jac(jnp.asarray(u)))
-    cost, lam = float(r @ r), 1e-3
+    u0 = jnp.asarray(post.u_start, float)
+    r, J = (np.asarray(x) for x in jac(u0))
+    cost = float(r @ r)
     if not np.isfinite(cost):
         raise ValueError(f"the transit model is not finite at the start (chi^2 = {cost})")
-    for _ in range(iters):
-        A, g = J.T @ J, J.T @ r
-        step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
-        trial = np.clip(u + step, post.lo + 1e-9, post.hi - 1e-9)
-        r2, J2 = (np.asarray(x) for x in jac(jnp.asarray(trial)))
-        c2 = float(r2 @ r2)
-        if np.isfinite(c2) and c2 < cost:
-            small = cost - c2 < 1e-6 * max(cost, 1.0)
-            u, r, J, cost, lam = trial, r2, J2, c2, max(lam / 3, 1e-9)
-            if small:
-                break
-        else:
-            lam *= 10
-            if lam > 1e8:
-                break
+    # LM damps with the identity: solve in z = (u - u_start) c, c the
+    # Laplace precision of each coordinate at the start, so that a step of 1
+    # is about one posterior width in every direction (t0 is known to
+    # 1e-4 d, log p to 1e-2)
+    c = jnp.asarray(np.sqrt(np.sum(J**2, axis=0) + 1.0 / post.prior_sd**2))
+    lo, hi = jnp.asarray(post.lo + 1e-9), jnp.asarray(post.hi - 1e-9)
+
+    def to_u(z):
+        return jnp.clip(u0 + z / c, lo, hi)
+
+    sol = optx.least_squares(lambda z, _: post.residuals(to_u(z)), optx.LevenbergMarquardt(rtol=tol, atol=tol),
+                             jnp.zeros_like(u0), max_steps=max_steps, throw=False)
+    u = np.asarray(to_u(sol.value))
+    r, J = (np.asarray(x) for x in jac(jnp.asarray(u)))
     info = J.T @ J + np.diag(1.0 / post.prior_sd**2)
     cov = np.linalg.inv(info)
     cov = 0.5 * (cov + cov.T)
-    return u, np.linalg.cholesky(cov), cost
+    return u, np.linalg.cholesky(cov), float(r @ r)
 
 
 def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, case: str, draws: int,
@@ -250,7 +245,7 @@ def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, ca
     """Draws of the transit parameters ``free`` from their posterior at tilt
     ``alpha`` [deg] (numpyro NUTS, ``chains`` chains vectorised; the mass
     matrix is the Laplace covariance at the posterior mode, found first by
-    Levenberg-Marquardt; :class:`TransitPosterior` for coordinates and priors). a/R* of every
+    Levenberg-Marquardt (optimistix); :class:`TransitPosterior` for coordinates and priors). a/R* of every
     planet with "P.a" in ``free`` is tied to one stellar density with the
     Gaussian prior ``density`` = (mean, sd) [g/cm^3].
 
@@ -260,8 +255,6 @@ def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, ca
     import jax
     import jax.numpy as jnp
     from numpyro.infer import MCMC, NUTS
-
-    from ._sample import rank_diagnostics
 
     post = TransitPosterior(system, data, free, density, alpha, case)
     t0 = time.perf_counter()
@@ -356,8 +349,6 @@ def joint_alpha(system: System, data: LightCurve, free, density, case: str, wind
     "r_hat", "ess", "divergences"}."""
     import jax.numpy as jnp
     from numpyro.infer import MCMC, NUTS
-
-    from ._sample import rank_diagnostics
 
     post = TransitPosterior(system, data, free, density, 0.0, case)
     u_mode, L, _ = mode_and_cov(post)

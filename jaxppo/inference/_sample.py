@@ -29,11 +29,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._fit import Model
 from ..model._lightcurve import LightCurve
 from ..model._system import System
+from ._diagnostics import rank_diagnostics
+from ._model import Model
+from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
-__all__ = ["sample", "SampleResult", "rank_diagnostics"]
+__all__ = ["sample", "SampleResult"]
 
 
 @dataclasses.dataclass
@@ -78,7 +80,6 @@ class SampleResult:
         object and the pointwise log-likelihood function are not saved:
         ``to_arviz`` of a loaded result gives the total log-likelihood.)"""
         from .._version import __version__
-        from ._fit import to_jsonable, system_to_dict
 
         meta = {"format": "jaxppo.SampleResult", "version": __version__, "names": list(self.names or self.chains),
                 "chains": list(self.chains), "stats": list(self.stats), "deviance_min": to_jsonable(self.deviance_min),
@@ -98,8 +99,6 @@ class SampleResult:
     @classmethod
     def load(cls, path) -> "SampleResult":
         """Read a result written by :meth:`save` (or ``jaxppo sample --out``)."""
-        from ._fit import from_jsonable, system_from_dict
-
         try:
             z = np.load(path, allow_pickle=False)
             meta = json.loads(str(z["meta"]))
@@ -332,12 +331,11 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
-    model = Model(system, lightcurve, free, alpha, case)
-    _check_priors(model, system, priors)
     # A posterior spreads further than a fit moves (grazing draws keep a
     # disk near the limb for long): compute the frames within 1 R* of the
     # star at the start, so that sampling again (below) is rarely needed.
-    model.active_idx = np.union1d(model.active_idx, model._active_frames(system, np.asarray(model.t_model), 1.0))
+    model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
+    _check_priors(model, system, priors)
     for _ in range(3):
         result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, priors)
         result.union_frames = model.union_idx
@@ -376,10 +374,8 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
 
     priors = _priors(model, user)
     coords = _Coords(model, priors, user or ())
-    names = model.free
-    k = len(names)
-    q0 = _start_q(model, system)
-    u0 = coords.from_q(q0)
+    k = len(model.free)
+    u0 = coords.from_q(_start_q(model, system))
     log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
 
     def loglike_u(u):
@@ -395,27 +391,7 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
         lp = lp + jnp.linalg.slogdet(jax.jacfwd(coords.to_q)(u))[1]
         return jnp.where(inside, lp, -jnp.inf)
 
-    # eager JAX would compile every primitive on its own (hundreds of small
-    # compilations): the start and the post-processing run as one program each
-    def start_info(u):
-        res = lambda v: model.residuals(model.theta_from(coords.to_q(v)))  # noqa: E731
-        return loglike_u(u), jax.jacfwd(res)(u)
-
-    ll0, jac = (np.asarray(v) for v in jax.jit(start_info)(jnp.asarray(u0)))
-    ll0 = float(ll0)
-    if not np.isfinite(ll0):
-        raise ValueError(f"sample: the log-likelihood at the start is {ll0} (flux_err as small as "
-                         f"{float(np.min(np.asarray(model.sigma))):.3g} overflows float64, or the model is not finite)")
-    # Laplace widths at the start (Fisher information of the data plus the
-    # prior's widths as Gaussian curvature, so that a parameter the data do
-    # not constrain, like P from one transit, keeps its prior's width): NUTS
-    # moves in w = (u - u0) / scale.
-    prior_sd = coords.prior_widths(u0)
-    info = jac.T @ jac + np.diag(1.0 / prior_sd**2)
-    c = np.sqrt(np.diag(info))
-    cov = np.linalg.pinv(info / np.outer(c, c), rcond=1e-12) / np.outer(c, c)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    scale = np.where(np.isfinite(sd) & (sd > 0), np.minimum(sd, prior_sd), prior_sd)
+    scale = _laplace_widths(model, coords, u0, loglike_u)
     u0j, scj = jnp.asarray(u0), jnp.asarray(scale)
 
     @jax.jit  # numpyro evaluates it eagerly while it initialises: one program, not hundreds
@@ -433,7 +409,39 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
              extra_fields=("diverging", "num_steps", "energy", "potential_energy", "accept_prob", "adapt_state.step_size"))
     w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(num_chains, num_samples, k)
     u = u0[None, None] + w * scale[None, None]
-    flat_u = jnp.asarray(u.reshape(-1, k))
+    return _result(model, system, coords, mcmc, u, loglike_u, log_norm)
+
+
+def _laplace_widths(model: Model, coords: _Coords, u0, loglike_u) -> np.ndarray:
+    """The scale of NUTS's coordinates w = (u - u0) / scale: the Laplace
+    widths at the start (Fisher information of the data plus the prior's
+    widths as Gaussian curvature, so that a parameter the data do not
+    constrain, like P from one transit, keeps its prior's width)."""
+
+    # eager JAX would compile every primitive on its own (hundreds of small
+    # compilations): the start and the post-processing run as one program each
+    def start_info(u):
+        res = lambda v: model.residuals(model.theta_from(coords.to_q(v)))  # noqa: E731
+        return loglike_u(u), jax.jacfwd(res)(u)
+
+    ll0, jac = (np.asarray(v) for v in jax.jit(start_info)(jnp.asarray(u0)))
+    ll0 = float(ll0)
+    if not np.isfinite(ll0):
+        raise ValueError(f"sample: the log-likelihood at the start is {ll0} (flux_err as small as "
+                         f"{float(np.min(np.asarray(model.sigma))):.3g} overflows float64, or the model is not finite)")
+    prior_sd = coords.prior_widths(u0)
+    info = jac.T @ jac + np.diag(1.0 / prior_sd**2)
+    c = np.sqrt(np.diag(info))
+    cov = np.linalg.pinv(info / np.outer(c, c), rcond=1e-12) / np.outer(c, c)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return np.where(np.isfinite(sd) & (sd > 0), np.minimum(sd, prior_sd), prior_sd)
+
+
+def _result(model: Model, system: System, coords: _Coords, mcmc, u, loglike_u, log_norm: float) -> SampleResult:
+    """The SampleResult of the draws ``u`` [chain, draw, k] (NUTS's
+    coordinates): physical values, the best draw, intervals, diagnostics
+    and the sample statistics."""
+    num_chains, num_samples, k = u.shape
 
     @jax.jit
     def post(uu):
@@ -444,25 +452,15 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
 
         return jax.lax.map(one, uu, batch_size=256)
 
-    q, phys, loglike = (np.asarray(v) for v in post(flat_u))
+    q, phys, loglike = (np.asarray(v) for v in post(jnp.asarray(u.reshape(-1, k))))
     # free parameters, then the derived u1, u2 of Kipping's q1, q2
-    all_names = tuple(names) + model.derived_names()
+    all_names = tuple(model.free) + model.derived_names()
     samples = {n: phys[:, i] for i, n in enumerate(all_names)}
     chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(all_names)}
     best_i = int(np.argmax(loglike))
     best = model.to_system(model.theta_from(jnp.asarray(q[best_i])))
     intervals = {n: tuple(float(x) for x in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
     diagnostics = {n: rank_diagnostics(chains[n]) for n in all_names}
-    extra = mcmc.get_extra_fields(group_by_chain=True)
-
-    def shaped(v):
-        return np.asarray(v).reshape(num_chains, num_samples)
-
-    n_steps = shaped(extra["num_steps"])
-    stats = {"diverging": shaped(extra["diverging"]).astype(bool), "step_size": shaped(extra["adapt_state.step_size"]),
-             "n_steps": n_steps, "tree_depth": np.floor(np.log2(np.maximum(n_steps, 1))).astype(int) + 1,
-             "energy": shaped(extra["energy"]), "lp": -shaped(extra["potential_energy"]),
-             "acceptance_rate": shaped(extra["accept_prob"])}
 
     def pointwise(vals):
         """[draw, k] physical free parameters -> [draw, time] log-likelihood."""
@@ -471,87 +469,21 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
                                       jnp.asarray(vals), batch_size=64))
 
     return SampleResult(samples, best, intervals, diagnostics, float(-2 * (loglike[best_i] - log_norm)), mcmc,
-                        chains=chains, log_likelihood=loglike.reshape(num_chains, num_samples), stats=stats,
-                        time=np.asarray(model.lc.time), flux=np.asarray(model.lc.flux),
-                        flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise, names=tuple(names))
+                        chains=chains, log_likelihood=loglike.reshape(num_chains, num_samples),
+                        stats=_sample_stats(mcmc, num_chains, num_samples), time=np.asarray(model.lc.time),
+                        flux=np.asarray(model.lc.flux), flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise,
+                        names=tuple(model.free))
 
 
-def rank_diagnostics(x) -> dict:
-    """Rank-normalised split R-hat and bulk / tail effective sample sizes of
-    draws ``x`` [chain, draw] (Vehtari, Gelman, Simpson, Carpenter & Buerkner
-    2021, the definitions arviz uses; equal to arviz's to rounding). Returns {"r_hat", "ess_bulk", "ess_tail", "n_eff"}."""
-    from jax.scipy.special import ndtri
-    x = np.asarray(x, float)
-    n = x.shape[1] // 2
-    if n < 2:
-        nan = float("nan")
-        return {"r_hat": nan, "ess_bulk": nan, "ess_tail": nan, "n_eff": nan}
-    split = np.concatenate([x[:, :n], x[:, -n:]], axis=0)  # [2 chain, n]
+def _sample_stats(mcmc, num_chains: int, num_samples: int) -> dict:
+    """numpyro's extra fields as the sample statistics of ``SampleResult``."""
+    extra = mcmc.get_extra_fields(group_by_chain=True)
 
-    def z(v):
-        # average ranks for ties (a chain repeats its draw when NUTS stays put)
-        flat = v.reshape(-1)
-        order = np.argsort(flat, kind="stable")
-        srt = flat[order]
-        first = np.r_[True, srt[1:] != srt[:-1]]
-        group = np.cumsum(first) - 1
-        starts = np.r_[np.nonzero(first)[0], flat.size]
-        ranks = np.empty(flat.size)
-        ranks[order] = 0.5 * (starts[group] + starts[group + 1] + 1)
-        return np.asarray(ndtri((ranks.reshape(v.shape) - 0.375) / (v.size + 0.25)))
+    def shaped(v):
+        return np.asarray(v).reshape(num_chains, num_samples)
 
-    def rhat(v):
-        m, nn = v.shape
-        w = np.mean(np.var(v, axis=1, ddof=1))
-        b = nn * np.var(np.mean(v, axis=1), ddof=1)
-        return float(np.sqrt(((nn - 1) / nn * w + b / nn) / w)) if w > 0 else float("nan")
-
-    def ess(v):
-        if np.ptp(v) == 0:
-            return float("nan")
-        return _geyer_ess(v)
-
-    zs = z(split)
-    folded = z(np.abs(split - np.median(split)))
-    r_hat = max(rhat(zs), rhat(folded))
-    bulk = ess(zs)
-    # quantiles of every draw (a split drops the middle draw of an odd chain)
-    q05, q95 = np.quantile(x, [0.05, 0.95])
-    halves = lambda v: np.concatenate([v[:, :n], v[:, -n:]], axis=0)
-    tail = min(ess(halves((x <= q05).astype(float))), ess(halves((x <= q95).astype(float))))
-    return {"r_hat": r_hat, "ess_bulk": bulk, "ess_tail": tail, "n_eff": bulk}
-
-
-def _geyer_ess(v: np.ndarray) -> float:
-    """ESS of draws v [chain, draw] (Vehtari et al. 2021, Sect. 3.2; Stan's
-    and arviz's estimator): autocorrelations pooled over chains with the
-    between-chain variance, summed over Geyer's initial positive pairs made
-    monotone, the last positive pair's first term added, and
-    tau >= 1 / log10(N) (an unclamped sum turns negative on short
-    anticorrelated chains)."""
-    m, n = v.shape
-    c = v - v.mean(axis=1, keepdims=True)
-    size = 1 << int(np.ceil(np.log2(2 * n)))
-    spec = np.fft.rfft(c, size, axis=1)
-    acov = np.fft.irfft(spec * np.conj(spec), size, axis=1)[:, :n] / n
-    w = np.mean(acov[:, 0]) * n / (n - 1.0)
-    var_plus = w * (n - 1.0) / n + (np.var(v.mean(axis=1), ddof=1) if m > 1 else 0.0)
-    rho = 1.0 - (w - acov.mean(axis=0)) / var_plus
-    rho[0] = 1.0
-    kept = np.zeros(n)
-    kept[:2] = rho[:2]
-    t = 1
-    even, odd = rho[0], rho[1]
-    while t < n - 3 and even + odd > 0.0:
-        even, odd = rho[t + 1], rho[t + 2]
-        if even + odd >= 0.0:
-            kept[t + 1], kept[t + 2] = even, odd
-        t += 2
-    last = t - 2
-    if even > 0.0:
-        kept[last + 1] = even
-    for t in range(1, last - 1, 2):  # monotone pairs
-        if kept[t + 1] + kept[t + 2] > kept[t - 1] + kept[t]:
-            kept[t + 1] = kept[t + 2] = 0.5 * (kept[t - 1] + kept[t])
-    tau = -1.0 + 2.0 * np.sum(kept[: last + 1]) + np.sum(kept[last + 1: last + 2])
-    return float(m * n / max(tau, 1.0 / np.log10(m * n)))
+    n_steps = shaped(extra["num_steps"])
+    return {"diverging": shaped(extra["diverging"]).astype(bool), "step_size": shaped(extra["adapt_state.step_size"]),
+            "n_steps": n_steps, "tree_depth": np.floor(np.log2(np.maximum(n_steps, 1))).astype(int) + 1,
+            "energy": shaped(extra["energy"]), "lp": -shaped(extra["potential_energy"]),
+            "acceptance_rate": shaped(extra["accept_prob"])}

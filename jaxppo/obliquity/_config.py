@@ -410,7 +410,7 @@ def _fit_from(raw: dict, system: System, source: str):
     if free is not None:
         if not (isinstance(free, list) and free and all(isinstance(v, str) for v in free)):
             raise _err(source, f"[fit] free must be a list of parameter names such as \"b.t0\", got {free!r}")
-        from ..inference._fit import parameter_names
+        from ..inference._params import parameter_names
 
         valid = parameter_names(system)
         bad = [v for v in free if v not in valid]

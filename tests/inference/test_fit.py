@@ -36,15 +36,15 @@ def test_fit_refits_when_the_solution_brings_disks_together():
     """The union-integral frames are fixed from the start; a start that puts
     c 0.15 R* away from where it occults b (outside the 0.05 R* margin) must
     still end with every PPO frame of the solution in the union set."""
-    from jaxppo.inference._fit import Model
+    from jaxppo.inference._model import Model
 
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=5, noise=2e-4, alpha=90.0)
     b, c = truth.planets
     start = truth.replace(planets=(b, c.replace(t0=c.t0 + 0.014)))
     free = ("b.t0", "c.t0")
-    start_frames = Model(start, lc, free, alpha=90.0)._union_frames(start, lc.time)
-    truth_frames = Model(truth, lc, free, alpha=90.0)._union_frames(truth, lc.time)
+    start_frames = Model(start, lc, free, alpha=90.0).union_frames_of(start, lc.time)
+    truth_frames = Model(truth, lc, free, alpha=90.0).union_frames_of(truth, lc.time)
     assert not np.all(np.isin(truth_frames, start_frames))  # the start misses PPO frames
     res = jp.fit(start, lc, free=free, alpha=90.0)
     assert res.success, res.message
@@ -117,14 +117,14 @@ def test_real_kepler20_q1_window_fit():
 def test_sample_widens_the_union_frames_to_the_posterior():
     """As in fit: NUTS started where c misses its PPO frames samples again
     with every PPO frame its posterior reaches integrated exactly."""
-    from jaxppo.inference._fit import Model
+    from jaxppo.inference._model import Model
 
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=5, noise=2e-4, alpha=90.0)
     b, c = truth.planets
     start = truth.replace(planets=(b, c.replace(t0=c.t0 + 0.014)))
     free = ("c.t0",)
-    truth_frames = Model(truth, lc, free, alpha=90.0)._union_frames(truth, lc.time)
+    truth_frames = Model(truth, lc, free, alpha=90.0).union_frames_of(truth, lc.time)
     assert not np.all(np.isin(truth_frames, Model(start, lc, free, alpha=90.0).union_idx))
     post = jp.sample(start, lc, free=free, num_warmup=150, num_samples=150, num_chains=1, alpha=90.0,
                      progress_bar=False)
@@ -175,7 +175,8 @@ def test_fit_reports_what_went_wrong():
 def test_fit_flags_a_point_that_is_not_a_minimum():
     """A fit stopped after two steps from a shifted start is not at a
     minimum: the Newton decrement says so even if the optimiser did not."""
-    from jaxppo.inference._fit import Model, _assess
+    from jaxppo.inference._fit import _assess
+    from jaxppo.inference._model import Model
 
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=11, noise=4e-4)
@@ -192,14 +193,14 @@ def test_fit_computes_every_frame_the_solution_transits():
     star at the start (the rest are exactly 1). A start 0.03 d early (b moves
     ~0.5 R* in that time) must end with every frame of the solution's transit
     computed: chi^2 of the result equals chi^2 of System.flux at it."""
-    from jaxppo.inference._fit import Model
+    from jaxppo.inference._model import Model
 
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=11, noise=4e-4)
     b, c = truth.planets
     start = truth.replace(planets=(b.replace(t0=b.t0 - 0.03), c))
     free = ("b.t0", "b.radius")
-    assert not np.all(np.isin(Model(truth, lc, free)._active_frames(truth, lc.time, 0.0), Model(start, lc, free).active_idx))
+    assert not np.all(np.isin(Model(truth, lc, free).active_frames_of(truth, lc.time, 0.0), Model(start, lc, free).active_idx))
     res = jp.fit(start, lc, free=free)
     assert res.success, res.message
     chi2 = float(np.sum(((lc.flux - np.asarray(res.system.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
@@ -226,7 +227,8 @@ def _one_planet(u=(0.4, 0.25), inc=89.0, radius=0.1, noise=2e-4, seed=0, jitter=
 
 
 def test_kipping_map_is_the_analytic_one():
-    from jaxppo.inference._fit import Model, kipping_q, kipping_u
+    from jaxppo.inference._model import Model
+    from jaxppo.inference._params import kipping_q, kipping_u
 
     # Kipping (2013) eqs. 15-18 by hand: q1 = 0.36, q2 = 0.25 -> u1 = 2 * 0.6 * 0.25, u2 = 0.6 * (1 - 0.5)
     assert np.allclose(kipping_u(0.36, 0.25), (0.3, 0.3), rtol=0, atol=1e-15)
@@ -376,7 +378,7 @@ def test_fit_model_keeps_an_eccentric_orbit():
     """The fit's model is the system's light curve, eccentricity included:
     it used to rebuild every planet circular (e and omega dropped), so an
     eccentric planet was fitted with the wrong transit duration and shape."""
-    from jaxppo.inference._fit import Model
+    from jaxppo.inference._model import Model
 
     truth = jp.System(jp.Star.quadratic(0.4, 0.25),
                       [jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.0, radius=0.1, name="b", e=0.5, omega=30.0)])

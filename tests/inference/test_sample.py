@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 import jaxppo as jp
-from jaxppo.inference._sample import rank_diagnostics
+from jaxppo.inference._diagnostics import rank_diagnostics
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)  # arviz announces its 1.0 refactor on import
@@ -151,7 +151,7 @@ def test_sample_q1_q2_jitter_from_a_lightkurve_lightcurve():
     import lightkurve as lk
     from astropy.time import Time
 
-    from jaxppo.inference._fit import kipping_u
+    from jaxppo.inference._params import kipping_u
 
     s = 4e-4
     truth, lc = _one_planet(jitter=s)
@@ -199,7 +199,7 @@ def test_an_informative_prior_sets_the_posterior_width():
 def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
     import numpyro.distributions as dist
 
-    from jaxppo.inference._fit import Model
+    from jaxppo.inference._model import Model
     from jaxppo.inference._sample import _check_priors, _Coords, _priors, _start_q
 
     truth, lc = _one_planet()
@@ -253,7 +253,7 @@ def test_rank_diagnostics_equal_arviz_and_never_negative():
     N log10 N = 115.6)."""
     import arviz as az
 
-    from jaxppo.inference._sample import rank_diagnostics
+    from jaxppo.inference._diagnostics import rank_diagnostics
 
     rng = np.random.default_rng(1)
     iid = rng.normal(size=(4, 16))

@@ -1,0 +1,433 @@
+"""The transit model of fits and samplers: a vector theta of unconstrained
+coordinates (:mod:`._params` names them) -> a System -> the light curve at
+the data times, the residuals and the likelihood.
+
+The model functions are jitted module-level functions of theta and a
+:class:`ModelData` pytree (the arrays traced, the structure static), so
+every Model of the same structure and frame counts shares one compilation.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..model._lightcurve import LightCurve
+from ..model._overlap import on_star, pairs_in_contact
+from ..model._system import Planet, System
+from ._params import as_lightcurve, expand_free, is_trend, jitter_start, kipping_q, kipping_u, logit
+
+__all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals", "scaled_residuals",
+           "pointwise_loglike", "chi2_batch", "jacobian"]
+
+UNION_MARGIN = 0.05
+"""[R*] Two disks within this distance of touching at the start run the
+exact union integral (fits move less; ``fit`` and ``sample`` widen it)."""
+ACTIVE_MARGIN = 0.25
+"""[R*] Frames with a disk within this distance of the star at the start are
+computed; the rest are exactly 1."""
+
+
+class Model:
+    """Maps an unconstrained vector theta to a System and a light curve.
+
+    The exposure of the data (if any) is modelled by averaging the flux over
+    ``nsub`` sub-exposures.
+    """
+
+    def __init__(self, system: System, lc: LightCurve, free, alpha: float = 0.0, case: str = "same", *,
+                 active_margin: float = ACTIVE_MARGIN, union_floor: int = 0):
+        """``system``: the start (and the values of every parameter not in
+        ``free``); ``lc``: a :class:`LightCurve` or a lightkurve LightCurve;
+        ``free``: names from :func:`parameter_names`; ``alpha`` [deg] and
+        ``case``: the tilt and hemisphere case of the geometry;
+        ``active_margin`` [R*]: the frames computed are those with a disk
+        within this distance of the star at the start (a sampler, whose
+        posterior spreads further than a fit moves, asks for 1);
+        ``union_floor``: pad the union-integral frames to a power of two of
+        at least this many (``fit``: widenings then rarely recompile)."""
+        free = (free,) if isinstance(free, str) else tuple(free)
+        if not free:
+            raise ValueError("free must name at least one parameter, e.g. ('b.t0', 'b.radius')")
+        if len(set(free)) != len(free):
+            raise ValueError(f"free parameters repeat: {free}")
+        if not (np.isfinite(active_margin) and active_margin >= 0):
+            raise ValueError(f"active_margin must be a finite distance >= 0 [R*], got {active_margin!r}")
+        if int(union_floor) != union_floor or union_floor < 0:
+            raise ValueError(f"union_floor must be an integer >= 0, got {union_floor!r}")
+        lc = as_lightcurve(lc)
+        self.system, self.lc, self.requested = system, lc, free
+        self.alpha, self.case = alpha, case
+        self.union_floor = int(union_floor)  # see ModelData.build
+        # ``free``: the names of the fitted values (baseline expanded)
+        self.free, self.slots, self.basis = expand_free(free, system, np.asarray(lc.time))
+        self.jitter0 = jitter_start(lc.flux_err)
+        t_model, self.nsub = lc.supersampled_times()
+        self.t_model = jnp.asarray(t_model)
+        # Frames where two disks are on the star and within UNION_MARGIN
+        # [R*] of touching at the starting parameters run the exact union
+        # integral; all others are a sum of one-disk terms. The split is
+        # fixed for the fit (the margin covers the parameter changes of a
+        # fit; ``fit`` checks the final geometry and refits with a wider
+        # split if needed).
+        self.union_idx = self.union_frames_of(system)
+        # Likewise, only frames where a disk is on the star or within
+        # ``active_margin`` [R*] of its limb at the start are computed; the
+        # others are exactly 1 (and widened like the union frames).
+        self.active_idx = self.active_frames_of(system, margin=active_margin)
+        self.y = jnp.asarray(lc.flux)
+        self.sigma = jnp.asarray(lc.flux_err)
+        self._data_cache = None
+
+    def _positions(self, system: System, t=None):
+        t = np.asarray(self.t_model if t is None else t)
+        return system.positions(t, self.alpha, self.case, xp=np)
+
+    def union_frames_of(self, system: System, t=None, margin: float = UNION_MARGIN) -> np.ndarray:
+        """Indices of the frames (model times, or ``t`` [d]) in which two
+        disks of ``system`` are on the star and within ``margin`` [R*] of
+        touching, at this Model's alpha and case."""
+        return np.nonzero(pairs_in_contact(*self._positions(system, t), margin))[0]
+
+    def active_frames_of(self, system: System, t=None, margin: float = ACTIVE_MARGIN) -> np.ndarray:
+        """Indices of the frames (model times, or ``t`` [d]) in which a disk
+        of ``system`` is within ``margin`` [R*] of the stellar disk."""
+        return np.nonzero(on_star(*self._positions(system, t), margin).any(-1))[0]
+
+    def with_frames(self, union=(), active=()) -> "Model":
+        """A copy (traced anew) whose union-integral frames also include
+        ``union`` and whose computed frames also include ``active`` and every
+        union frame (indices into the model times)."""
+        new = copy.copy(self)
+        new.union_idx = np.union1d(self.union_idx, np.asarray(union, np.int64))
+        new.active_idx = np.union1d(np.union1d(self.active_idx, np.asarray(active, np.int64)), new.union_idx)
+        new._data_cache = None
+        return new
+
+    def widened(self, systems) -> "Model | None":
+        """A new Model (traced anew) whose union-integral frames also cover
+        the frames where any of ``systems`` brings disks within the margin of
+        touching, and whose computed frames cover every frame where they put
+        a disk within 0.05 R* of the star; None when the current frames
+        cover them already."""
+        needed = np.unique(np.concatenate([self.union_idx] + [self.union_frames_of(s) for s in systems]))
+        active = np.unique(np.concatenate([self.active_idx] + [self.active_frames_of(s, margin=0.05) for s in systems]))
+        if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
+            return None
+        return self.with_frames(needed, active)
+
+    # ---- coordinates ----------------------------------------------------------
+    def to_theta(self, system: System) -> jnp.ndarray:
+        out = []
+        for (owner, par) in self.slots:
+            if owner == "lc":
+                out.append(jnp.log(self.jitter0) if par == "jitter" else 0.0)
+                continue
+            if owner == "star":
+                if par in ("q1", "q2"):
+                    q = kipping_q(system.star.params[0], system.star.params[1])[0 if par == "q1" else 1]
+                    out.append(logit(q))
+                else:
+                    out.append(system.star.params[par])
+                continue
+            pl = system.planets[owner]
+            if par == "t0":
+                out.append(pl.t0)
+            elif par == "period":
+                out.append(jnp.log(pl.period))
+            elif par == "a":
+                out.append(jnp.log(pl.a - 1.0))
+            elif par == "radius":
+                out.append(jnp.log(pl.radius))
+            else:  # inc -> b = (1 + p) tanh(theta)
+                b = pl.a * jnp.cos(jnp.deg2rad(pl.inc))
+                out.append(jnp.arctanh(jnp.clip(b / (1.0 + pl.radius), -0.999999, 0.999999)))
+        return jnp.stack([jnp.asarray(v, float) for v in out])
+
+    def to_system(self, theta) -> System:
+        return system_at(theta, self.system, tuple(self.slots))
+
+    def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
+        """Unconstrained theta from parameter values in physical units, except
+        that an inclination may be given either in degrees (``theta_ref``
+        supplies a and p when they are not free) or, with ``theta_ref=None``,
+        as the impact parameter in units of (1 + p) (what ``sample`` draws)."""
+        ref = self.to_system(theta_ref) if theta_ref is not None else None
+        named = {slot: values[k] for k, slot in enumerate(self.slots)}
+        out = []
+        for k, (owner, par) in enumerate(self.slots):
+            v = values[k]
+            if par in ("q1", "q2"):
+                out.append(logit(v))
+            elif par == "jitter":
+                out.append(jnp.log(v))
+            elif owner in ("star", "lc") or par == "t0":
+                out.append(v)
+            elif par == "period":
+                out.append(jnp.log(v))
+            elif par == "a":
+                out.append(jnp.log(v - 1.0))
+            elif par == "radius":
+                out.append(jnp.log(v))
+            elif ref is None:
+                out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
+            else:
+                pl = ref.planets[owner]
+                a = named.get((owner, "a"), pl.a)
+                p = named.get((owner, "radius"), pl.radius)
+                out.append(jnp.arctanh(a * jnp.cos(jnp.deg2rad(v)) / (1.0 + p)))
+        return jnp.stack(out)
+
+    def physical(self, theta) -> jnp.ndarray:
+        """The free parameters in physical units (days, degrees, R*;
+        q1, q2; offset, jitter [relative flux], baseline coefficients)."""
+        sysm = self.to_system(theta)
+        out = []
+        for k, (owner, par) in enumerate(self.slots):
+            if par in ("q1", "q2"):
+                out.append(jax.nn.sigmoid(theta[k]))
+            elif par == "jitter":
+                out.append(jnp.exp(theta[k]))
+            elif owner == "lc":
+                out.append(theta[k])
+            else:
+                out.append(sysm.star.params[par] if owner == "star" else getattr(sysm.planets[owner], par))
+        return jnp.stack(out)
+
+    def derived_names(self) -> tuple:
+        """Quantities implied by the free parameters: "star.u1", "star.u2"
+        when Kipping's q1 or q2 is free."""
+        return ("star.u1", "star.u2") if any(p in ("q1", "q2") for _, p in self.slots) else ()
+
+    def derived(self, theta) -> jnp.ndarray:
+        """Values of :meth:`derived_names` at theta."""
+        if not self.derived_names():
+            return jnp.zeros(0)
+        return self.to_system(theta).star.params[:2]
+
+    # ---- model ----------------------------------------------------------------
+    def data(self) -> "ModelData":
+        """The arrays the compiled model functions take as traced inputs
+        (rebuilt when the frame sets change). Every Model with the same
+        structure and frame counts reuses one compilation."""
+        key = (self.union_idx, self.active_idx)
+        cached = self._data_cache
+        if cached is None or cached[0][0] is not key[0] or cached[0][1] is not key[1]:
+            # concrete arrays even when first asked for inside a trace (a
+            # tracer kept here would leak into later calls)
+            with jax.ensure_compile_time_eval():
+                cached = (key, ModelData.build(self))
+            self._data_cache = cached
+        return cached[1]
+
+    def flux(self, theta) -> jnp.ndarray:
+        """Model flux at the data times, with the offset / baseline trend."""
+        d = self.data()
+        return _flux(theta, d) * _trend(theta, d)
+
+    def pointwise_loglike(self, theta) -> jnp.ndarray:
+        """Gaussian log-likelihood of each data point (jitter included)."""
+        return pointwise_loglike(theta, self.data())
+
+    def residuals(self, theta, args=None) -> jnp.ndarray:
+        """The residuals whose sum of squares is the objective (see
+        :func:`residuals`); ``args`` is ignored (optimistix's signature)."""
+        return residuals(theta, self.data())
+
+    def residuals_at(self, theta, alpha) -> jnp.ndarray:
+        """:meth:`residuals` at the tilt ``alpha`` [deg] instead of the
+        Model's (alpha is traced: one compilation serves every tilt)."""
+        return residuals(theta, eqx.tree_at(lambda d: d.alpha, self.data(), jnp.asarray(alpha, float)))
+
+    def scaled_residuals(self, z, args) -> jnp.ndarray:
+        """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
+        scale)``."""
+        theta_ref, scale = args
+        return residuals(theta_ref + z / scale, self.data())
+
+    def chi2_batch(self, thetas):
+        """chi^2 at each row of ``thetas`` (one compiled program)."""
+        return chi2_batch(thetas, self.data())
+
+    def jacobian(self, theta):
+        """(d residuals / d theta, residuals), compiled once per structure."""
+        return jacobian(theta, self.data())
+
+
+def _bucket(n: int) -> int:
+    """Padded length for n computed frames: steps of 1/16 of a power of two
+    (at most ~6 % extra work), so that widening the frame sets by a few
+    frames usually keeps the compiled programs."""
+    if n <= 64:
+        return max(n, 1)
+    step = 1 << max(int(np.floor(np.log2(n))) - 4, 0)
+    return int(-(-n // step) * step)
+
+
+def _pad(idx: np.ndarray, size: int) -> np.ndarray:
+    # repeat the last entry: a repeated frame is computed twice and written
+    # twice with the same value
+    return np.concatenate([idx, np.full(size - idx.size, idx[-1], idx.dtype)]) if idx.size else idx
+
+
+class ModelData(eqx.Module):
+    """Everything the model flux needs, as a pytree: arrays are traced (so a
+    new light curve, start or frame set of the same sizes does not
+    recompile); the structure is static."""
+
+    system: System
+    t: jax.Array          # model times of the computed frames [d]
+    act: jax.Array        # their positions in the supersampled time grid
+    union: jax.Array      # positions (in ``t``) of the union-integral frames
+    y: jax.Array
+    sigma: jax.Array
+    alpha: jax.Array
+    basis: jax.Array      # [n, m] columns of the multiplicative trend
+    slots: tuple = eqx.field(static=True)
+    nsub: int = eqx.field(static=True)
+    n_model: int = eqx.field(static=True)
+    case: object = eqx.field(static=True)
+    eccentric: tuple = eqx.field(static=True, default=())
+
+    @staticmethod
+    def build(model: "Model") -> "ModelData":
+        act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
+        union = np.searchsorted(act, model.union_idx).astype(np.int64)
+        act = _pad(act, _bucket(act.size))
+        if model.union_floor and act.size:
+            # ``fit`` pads the union frames to a power of two (at least
+            # ``union_floor``, even when there are none: the union integral
+            # is exact, with exact derivatives, for any frame): they are a
+            # small share of the work, and a fit that brings disks together
+            # adds them at its widenings, which would each recompile
+            size = max(model.union_floor, 1 << int(np.ceil(np.log2(max(union.size, 1)))))
+            union = np.concatenate([union, np.full(size - union.size, union[-1] if union.size else 0, np.int64)])
+        else:
+            union = _pad(union, _bucket(union.size))
+        case = tuple(model.case) if isinstance(model.case, list) else model.case
+        system = jax.tree.map(lambda v: jnp.asarray(v, float) if not isinstance(v, jax.Array) else v, model.system)
+        return ModelData(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
+                     model.y, model.sigma, jnp.asarray(model.alpha, float), jnp.asarray(model.basis, float),
+                     tuple(model.slots), int(model.nsub),
+                     int(model.t_model.size), case, tuple(not pl.circular for pl in model.system.planets))
+
+
+def system_at(theta, base: System, slots, eccentric=None) -> System:
+    """The system at theta. ``eccentric`` (static flags per planet; None: take
+    e and omega of every planet, for a concrete ``base``) says which planets
+    keep their e and omega: inside a traced program ``base``'s leaves are
+    tracers, so a circular planet given its traced e = 0 would take the
+    slower Keplerian path."""
+    planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in base.planets]
+    for k, p in enumerate(base.planets):
+        if eccentric is None or eccentric[k]:
+            planets[k].update(e=p.e, omega=p.omega)
+    star_params = base.star.params
+    b_theta, q = {}, {}
+    for k, (owner, par) in enumerate(slots):
+        v = theta[k]
+        if owner == "lc":
+            continue
+        if par in ("q1", "q2"):
+            q[par] = jax.nn.sigmoid(v)
+        elif owner == "star":
+            star_params = star_params.at[par].set(v)
+        elif par == "t0":
+            planets[owner]["t0"] = v
+        elif par == "period":
+            planets[owner]["period"] = jnp.exp(v)
+        elif par == "a":
+            planets[owner]["a"] = 1.0 + jnp.exp(v)
+        elif par == "radius":
+            planets[owner]["radius"] = jnp.exp(v)
+        else:
+            b_theta[owner] = v
+    for owner, v in b_theta.items():
+        pl = planets[owner]
+        b = (1.0 + pl["radius"]) * jnp.tanh(v)
+        pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
+    if q:
+        q1_0, q2_0 = kipping_q(star_params[0], star_params[1])
+        u1, u2 = kipping_u(q.get("q1", q1_0), q.get("q2", q2_0))
+        star_params = jnp.stack([u1, u2])
+    star = dataclasses.replace(base.star, params=star_params)
+    return System(star, [Planet(**p) for p in planets], base.tilted)
+
+
+def _flux(theta, d: ModelData) -> jnp.ndarray:
+    from ..model._terms import exact_frames, separate_frames
+
+    sysm = system_at(theta, d.system, d.slots, d.eccentric)
+    x, y, r = sysm.positions(d.t, d.alpha, d.case)
+    fa = separate_frames(sysm.star, x, y, r, 24)
+    if d.union.size:
+        u = d.union
+        fa = fa.at[u].set(exact_frames(sysm.star, x[u], y[u], r[u], 24))
+    f = jnp.ones((d.n_model,), fa.dtype).at[d.act].set(fa)
+    return f.reshape(-1, d.nsub).mean(-1)
+
+
+def _trend(theta, d: ModelData) -> jnp.ndarray:
+    """Multiplicative trend 1 + basis @ c of the offset / baseline slots."""
+    idx = [k for k, slot in enumerate(d.slots) if is_trend(slot)]
+    if not idx:
+        return jnp.ones(())
+    return 1.0 + d.basis @ jnp.stack([theta[k] for k in idx])
+
+
+def _variance(theta, d: ModelData):
+    """(sigma^2 + s^2, s^2) with the jitter s when it is free, else (sigma^2, None)."""
+    for k, (owner, par) in enumerate(d.slots):
+        if par == "jitter":
+            s2 = jnp.exp(2.0 * theta[k])
+            return d.sigma**2 + s2, s2
+    return d.sigma**2, None
+
+
+@eqx.filter_jit
+def residuals(theta, d: ModelData) -> jnp.ndarray:
+    """Residuals whose sum of squares is the objective: (y - model) /
+    sigma, and with a free jitter s also sqrt(ln(1 + s^2 / sigma_i^2)) per
+    point, so that the sum of squares is -2 ln L - sum ln(2 pi sigma_i^2):
+    the full likelihood, whose log-variance term keeps s from growing
+    without bound (chi^2 alone would be minimised by s -> infinity)."""
+    var, s2 = _variance(theta, d)
+    model = _flux(theta, d)
+    if any(is_trend(slot) for slot in d.slots):
+        model = model * _trend(theta, d)
+    if s2 is None:
+        return (d.y - model) / d.sigma
+    return jnp.concatenate([(d.y - model) / jnp.sqrt(var), jnp.sqrt(jnp.log1p(s2 / d.sigma**2))])
+
+
+@eqx.filter_jit
+def pointwise_loglike(theta, d: ModelData) -> jnp.ndarray:
+    var, _ = _variance(theta, d)
+    r = d.y - _flux(theta, d) * _trend(theta, d)
+    return -0.5 * r**2 / var - 0.5 * jnp.log(2.0 * jnp.pi * var)
+
+
+def scaled_residuals(z, args) -> jnp.ndarray:
+    """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
+    scale, data)``: a module-level function with the data as traced inputs,
+    so optimistix compiles it once per model structure and frame counts
+    (not once per fit, restart or Model)."""
+    theta_ref, scale, d = args
+    return residuals(theta_ref + z / scale, d)
+
+
+@eqx.filter_jit
+def chi2_batch(thetas, d: ModelData):
+    return jax.lax.map(lambda t: jnp.sum(residuals(t, d) ** 2), thetas)
+
+
+@eqx.filter_jit
+def jacobian(theta, d: ModelData):
+    return jax.jacfwd(lambda th: (residuals(th, d),) * 2, has_aux=True)(theta)
+
+

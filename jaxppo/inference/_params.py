@@ -1,0 +1,176 @@
+"""The named free parameters of fits and samplers ("b.t0", "c.radius",
+"star.u1", ...) and the coordinates theta that :class:`._model.Model` maps
+them to, which keep the physics valid: a = 1 + exp(.), p = exp(.),
+P = exp(.), and the impact parameter b = (1 + p) tanh(.) (so |b| < 1 + p and
+the planet always transits), with i = arccos(b / a).
+
+Besides the planets' and the star's parameters:
+
+* ``"star.q1"``, ``"star.q2"`` (quadratic star): Kipping (2013, eqs. 15-16)
+  limb darkening, u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2); q in (0, 1)
+  through a logistic map, so that every draw is a physical profile;
+* ``"lc.offset"``: a multiplicative flux normalisation c, model = (1 + c) F;
+* ``"lc.jitter"``: s [relative flux] added in quadrature to every error,
+  sigma_i^2 -> sigma_i^2 + s^2 (coordinate log s); the objective is then the
+  full -2 ln L, not chi^2;
+* ``"lc.baseline"`` / ``"lc.baseline2"``: a linear / quadratic polynomial per
+  data window (windows: runs of points separated by gaps > ``BASELINE_GAP``),
+  multiplicative, model = F (1 + c0 + c1 x + c2 x^2) with x in [-1, 1] across
+  the window; expands to the names "lc.baseline.w<window>.c<power>".
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..model._lightcurve import LightCurve, is_lightkurve
+from ..model._system import System
+
+__all__ = ["PLANET_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+           "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
+
+PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
+"""The parameters of each planet a fit or a sampler may free."""
+STAR_PARAMS = {"quadratic": ("u1", "u2"), "nonlinear": ("c1", "c2", "c3", "c4"), "power2": ("c", "alpha")}
+"""The limb-darkening coefficients of each law, in ``Star.params`` order."""
+LC_PARAMS = ("offset", "jitter", "baseline", "baseline2")
+"""The light curve's nuisance parameters (module docstring)."""
+# [d] a gap longer than this starts a new baseline window (Kepler quarters,
+# the multi-transit windows of a scan)
+BASELINE_GAP = 0.5
+
+
+def kipping_u(q1, q2):
+    """(u1, u2) of the quadratic law from Kipping's (2013, eqs. 15-16)
+    q1, q2 in [0, 1]: u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2)."""
+    s = jnp.sqrt(q1)
+    return 2.0 * s * q2, s * (1.0 - 2.0 * q2)
+
+
+def kipping_q(u1, u2):
+    """Inverse of :func:`kipping_u`: q1 = (u1 + u2)^2, q2 = u1 / (2 (u1 + u2))
+    (Kipping 2013, eqs. 17-18); q2 = 0.5 when u1 + u2 = 0."""
+    s = u1 + u2
+    return s**2, jnp.where(s == 0, 0.5, u1 / (2.0 * jnp.where(s == 0, 1.0, s)))
+
+
+
+def logit(q):
+    """log(q / (1 - q)), q clipped into (0, 1): a start outside Kipping's
+    triangle begins at its edge."""
+    q = jnp.clip(jnp.asarray(q, float), 1e-9, 1.0 - 1e-9)
+    return jnp.log(q) - jnp.log1p(-q)
+
+
+def as_lightcurve(lightcurve) -> LightCurve:
+    """A jaxppo LightCurve from a LightCurve or a lightkurve LightCurve."""
+    if isinstance(lightcurve, LightCurve):
+        return lightcurve
+    if is_lightkurve(lightcurve):
+        return LightCurve.from_lightkurve(lightcurve)
+    raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got "
+                     f"{type(lightcurve).__name__} (arrays and astropy Time/Quantity columns: "
+                     "jaxppo.LightCurve(time, flux, flux_err) or LightCurve.from_arrays)")
+
+
+def parameter_names(system: System) -> list[str]:
+    """All names ``fit`` and ``sample`` accept for this system ("lc.baseline"
+    and "lc.baseline2" expand to one name per window and power)."""
+    names = []
+    for i, pl in enumerate(system.planets):
+        label = pl.name or str(i)
+        names += [f"{label}.{p}" for p in PLANET_PARAMS]
+    names += [f"star.{p}" for p in STAR_PARAMS.get(system.star.law, ())]
+    if system.star.law == "quadratic":
+        names += ["star.q1", "star.q2"]
+    names += [f"lc.{p}" for p in LC_PARAMS]
+    return names
+
+
+def _split(name: str, system: System):
+    if not isinstance(name, str) or "." not in name:
+        raise ValueError(f"free parameter {name!r} must look like 'b.t0' or 'star.u1'")
+    owner, par = name.split(".", 1)
+    if owner == "star":
+        pars = STAR_PARAMS.get(system.star.law, ())
+        if par in ("q1", "q2"):
+            if system.star.law != "quadratic":
+                raise ValueError(f"free parameter {name!r}: Kipping's q1, q2 need a quadratic star, "
+                                 f"this one is {system.star.law}")
+            return "star", par
+        if par not in pars:
+            extra = " (or q1, q2)" if system.star.law == "quadratic" else ""
+            raise ValueError(f"free parameter {name!r}: a {system.star.law} star has {pars}{extra}")
+        return "star", pars.index(par)
+    if owner == "lc":
+        if par not in LC_PARAMS:
+            raise ValueError(f"free parameter {name!r}: light-curve parameters are {LC_PARAMS}")
+        return "lc", par
+    idx = None
+    for i, pl in enumerate(system.planets):
+        if (pl.name or str(i)) == owner:
+            idx = i
+    if idx is None:
+        raise ValueError(f"free parameter {name!r}: no planet named {owner!r}; names are {[p.name for p in system.planets]}")
+    if par not in PLANET_PARAMS:
+        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS}")
+    return idx, par
+
+
+def _baseline_windows(time: np.ndarray) -> list[np.ndarray]:
+    """Index arrays of the runs of points separated by gaps > BASELINE_GAP."""
+    cuts = np.nonzero(np.diff(time) > BASELINE_GAP)[0] + 1
+    return np.split(np.arange(time.size), cuts)
+
+
+def expand_free(free, system: System, time: np.ndarray):
+    """(names, slots, basis): "lc.baseline[2]" expanded per window and
+    power; ``basis`` [n, m] holds the columns of the multiplicative trend
+    (offset: ones; baseline: x^k per window) in the order of the trend
+    slots."""
+    names, slots, cols = [], [], []
+    windows = None
+    for n in free:
+        owner, par = _split(n, system)
+        if owner == "lc" and par in ("baseline", "baseline2"):
+            windows = _baseline_windows(time) if windows is None else windows
+            order = 1 if par == "baseline" else 2
+            for w, idx in enumerate(windows):
+                tw = time[idx]
+                mid, half = 0.5 * (tw[0] + tw[-1]), 0.5 * (tw[-1] - tw[0])
+                x = (tw - mid) / half if half > 0 else np.zeros(tw.size)
+                for k in range(order + 1):
+                    col = np.zeros(time.size)
+                    col[idx] = x**k
+                    names.append(f"lc.baseline.w{w}.c{k}")
+                    slots.append(("lc", ("baseline", w, k)))
+                    cols.append(col)
+        else:
+            names.append(n)
+            slots.append((owner, par))
+            if (owner, par) == ("lc", "offset"):
+                cols.append(np.ones(time.size))
+    pars = {p for o, p in slots if o == "lc" and not isinstance(p, tuple)}
+    if "offset" in pars and any(isinstance(p, tuple) for o, p in slots if o == "lc"):
+        raise ValueError("free parameters 'lc.offset' and 'lc.baseline' are degenerate (each window's baseline "
+                         "has its own constant term c0): name one of them")
+    if sum(1 for n in free if n.startswith("lc.baseline")) > 1:
+        raise ValueError(f"free parameters name the baseline twice: {[n for n in free if n.startswith('lc.baseline')]}")
+    star = {p for o, p in slots if o == "star"}
+    if star & {"q1", "q2"} and star & {0, 1}:
+        raise ValueError("free parameters name both u1/u2 and q1/q2 of the star: name one pair "
+                         "(q1, q2 is Kipping's 2013 reparameterisation of u1, u2)")
+    basis = np.stack(cols, axis=1) if cols else np.zeros((time.size, 0))
+    return tuple(names), slots, basis
+
+
+def is_trend(slot) -> bool:
+    owner, par = slot
+    return owner == "lc" and (par == "offset" or isinstance(par, tuple))
+
+
+def jitter_start(sigma) -> float:
+    """Starting jitter [relative flux]: a tenth of the median error (the
+    coordinate is log s, so it cannot start at 0)."""
+    return 0.1 * float(np.median(np.asarray(sigma)))

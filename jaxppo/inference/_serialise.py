@@ -1,0 +1,67 @@
+"""Results on disk: strict-JSON floats and a System as plain values."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..model._star import Star
+from ..model._system import Planet, System
+
+__all__ = ["to_jsonable", "from_jsonable", "system_to_dict", "system_from_dict"]
+
+
+def to_jsonable(v):
+    """Floats (nested lists) for strict JSON: NaN -> None, +-inf -> "inf"/"-inf"."""
+    v = np.asarray(v, float) if not isinstance(v, list) else v
+    if isinstance(v, list):
+        return [to_jsonable(x) for x in v]
+    if v.ndim:
+        return [to_jsonable(x) for x in v]
+    x = float(v)
+    return None if np.isnan(x) else ("inf" if x == np.inf else "-inf" if x == -np.inf else x)
+
+
+def from_jsonable(v):
+    """Inverse of :func:`to_jsonable` (None -> NaN, "inf" -> inf)."""
+    if isinstance(v, list):
+        return [from_jsonable(x) for x in v]
+    return np.nan if v is None else float(v)
+
+
+def system_to_dict(system: System) -> dict:
+    """A System as plain JSON-ready values (every field of Star and Planet;
+    :func:`system_from_dict` inverts it exactly)."""
+    star = {}
+    for f in dataclasses.fields(system.star):
+        v = getattr(system.star, f.name)
+        if f.name == "surface" and v is not None:
+            raise ValueError("a Star built from a tabulated surface object cannot be saved as JSON")
+        star[f.name] = v if v is None or isinstance(v, str) else to_jsonable(v)
+    planets = []
+    for pl in system.planets:
+        planets.append({f.name: (getattr(pl, f.name) if f.name == "name" else to_jsonable(getattr(pl, f.name)))
+                        for f in dataclasses.fields(pl)})
+    return {"star": star, "planets": planets, "tilted": int(system.tilted)}
+
+
+def system_from_dict(d: dict) -> System:
+    """The System :func:`system_to_dict` wrote."""
+    kw = {}
+    for f in dataclasses.fields(Star):
+        if f.name not in d["star"]:
+            continue
+        v = d["star"][f.name]
+        if f.name in ("law", "interpolation") or v is None:
+            kw[f.name] = v
+        elif f.name == "degree":
+            kw[f.name] = int(v)
+        elif f.name == "table_residual":
+            kw[f.name] = float(from_jsonable(v))
+        else:
+            kw[f.name] = jnp.asarray(from_jsonable(v), float)
+    star = Star(**kw)
+    planets = [Planet(**{k: (v if k == "name" else from_jsonable(v)) for k, v in p.items()}) for p in d["planets"]]
+    return System(star, planets, d["tilted"])
