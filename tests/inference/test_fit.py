@@ -87,7 +87,7 @@ def test_nuts_intervals_cover_truth():
     hits = np.zeros(len(free))
     for seed in range(4):
         lc = jp.simulate_kepler20(seed=100 + seed, noise=4e-4)
-        res = jp.sample(truth, lc, free=free, num_warmup=60, num_samples=80, seed=seed, num_chains=1,
+        res = jp.sample(truth, lc, free=free, num_warmup=60, num_samples=150, seed=seed, num_chains=1,
                         progress_bar=False)
         tv = _truth_values(truth, free)
         for i, n in enumerate(free):

@@ -401,7 +401,7 @@ def test_wrong_fixed_parameters_with_nuts_draws(tmp_path):
 
     true, lc, wrong, kw, fixed = _fragility()
     c = true.planets[1]
-    m = marginal_scan(wrong, lc, draws=32, free=("b.a", "c.t0"), num_warmup=150, chains=2, fixed=fixed,
+    m = marginal_scan(wrong, lc, draws=64, free=("b.a", "c.t0"), num_warmup=150, chains=2, fixed=fixed,
                       out=tmp_path, progress=False, figures=False, **kw)
     diag = m.summary["sampler"]["diagnostics"]
     assert max(v["r_hat"] for v in diag.values()) < 1.1, diag
