@@ -123,22 +123,16 @@ def transit_mask(time, system, margin: float = 0.1) -> np.ndarray:
     """True where no planet of ``system`` (a jaxppo.System) transits: points
     within half the first-to-last-contact duration plus ``margin`` [d] of a
     mid-transit time are False. The margin covers a long-cadence exposure
-    (0.02 d) and the ephemeris drift over the Kepler mission."""
+    (0.02 d) and the ephemeris drift over the Kepler mission. The negation
+    of :func:`jaxppo.model._overlap.in_transit_mask` (the one in-transit
+    mask) with ``pad = margin``."""
+    from ..model._overlap import in_transit_mask
     from ..model._system import System
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System, got {type(system).__name__}")
     margin = _check_positive("margin", margin, strict=False)
-    t = np.asarray(time, float)
-    out = np.ones(t.shape, bool)
-    for pl in system.planets:
-        half = float(pl.half_duration())
-        if half <= 0:  # never transits: nothing to mask
-            continue
-        period, t0 = float(pl.period), float(pl.t0)
-        dt = (t - t0 + 0.5 * period) % period - 0.5 * period
-        out &= np.abs(dt) > half + margin
-    return out
+    return ~in_transit_mask(system, time, pad=margin)
 
 
 def _segments(time: np.ndarray, gap: float) -> np.ndarray:
