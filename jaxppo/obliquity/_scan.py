@@ -31,7 +31,7 @@ from ._progress import atomic_write, read_progress, record_line
 from ..model._sweep import sweep
 from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._overlap import in_transit_mask, ppo_table
-from ..model._system import MultiTransit, multi_transits
+from ..model._transits import MultiTransit, multi_transits
 from ._tables import table5_rows, write_table5
 
 __all__ = ["scan", "run_scan", "ScanResult", "ScanWindow", "scan_windows", "geometry_probabilities", "jeffreys",
