@@ -179,7 +179,12 @@ def occultation_flux(
     for name, value in (("order", order), ("chunk", chunk)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    x, y, r = _prepare(x, y, r)
+    return _dispatch(star, *_prepare(x, y, r), method, order, chunk, raster, times)
+
+
+def _dispatch(star: Star, x: Array, y: Array, r: Array, method: str, order: int, chunk: int, raster, times) -> Array:
+    """``occultation_flux`` on checked arguments and broadcast [..., disk]
+    arrays: the method for these inputs (concrete or traced, batched or not)."""
     lead = x.shape[:-1]
     k = x.shape[-1]
     if k == 0 or x.size == 0:
