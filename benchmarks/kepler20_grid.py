@@ -48,7 +48,7 @@ def main() -> None:
         warm.append(time.perf_counter() - t0)
     n = flux.size
     print(f"grid: 2 cases x {alpha.size} alphas x {t.size} times = {n} frames "
-          f"({stats['union']} with a planet-planet overlap)")
+          f"({stats.union} with a planet-planet overlap)")
     print(f"wall time: {min(warm):.3f} s warm (best of 3), {cold:.2f} s cold incl. compilation")
     print(f"frames per second: {n / min(warm):,.0f}  (paper: 2.42 frames/s on two Titan Xp GPUs; "
           f"speed-up {n / min(warm) / 2.42:,.0f}x)")

@@ -22,12 +22,12 @@ from .model._flux import occultation_flux as occultation_flux
 from .model._star import Spots as Spots
 from .model._star import Star as Star
 from .model._sweep import sweep as sweep
-from .model._system import MultiTransit as MultiTransit
+from .model._transits import MultiTransit as MultiTransit
 from .model._system import Planet as Planet
 from .model._system import System as System
-from .model._system import alpha_limits as alpha_limits
-from .model._system import multi_transits as multi_transits
-from .model._system import multi_transit_counts as multi_transit_counts
+from .model._transits import alpha_limits as alpha_limits
+from .model._transits import multi_transits as multi_transits
+from .model._transits import multi_transit_counts as multi_transit_counts
 from .model._system import hemisphere_cases as hemisphere_cases
 from .model._system import case_label as case_label
 

@@ -49,6 +49,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..model._exposure import exposure_mean, supersampled_times
+
 __all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model"]
 
 
@@ -60,13 +62,11 @@ def bump_model(t, amplitude, centre, width):
 def _window_models(system, window, alpha, case):
     """Supersampled times and the no-PPO and PPO models (exposure-averaged)
     on one scan window."""
-    from ..model._lightcurve import LightCurve
     from ..model._sweep import sweep
 
-    lc = LightCurve(window.time, window.flux, window.flux_err, window.exposure)
-    tm, nsub = lc.supersampled_times()
-    null = sweep(system, tm, np.zeros(1), cases=(case,), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
-    ppo = sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0].reshape(-1, nsub).mean(-1)
+    tm, nsub = supersampled_times(window.time, window.exposure)
+    null = exposure_mean(sweep(system, tm, np.zeros(1), cases=(case,), no_overlap=True)[0, 0], nsub)
+    ppo = exposure_mean(sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0], nsub)
     return tm, nsub, np.asarray(null), np.asarray(ppo)
 
 
@@ -110,7 +110,7 @@ def _solve_bump(nsub, th0, tm, y, sig, base, bounds):
 
     def resid(th, _):
         a, c, w = _unpack(th, bounds)
-        bump = bump_model(tm, a, c, w).reshape(-1, nsub).mean(-1)
+        bump = exposure_mean(bump_model(tm, a, c, w), nsub)
         return (y - base - bump) / sig
 
     sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10), th0, max_steps=400, throw=False)
@@ -184,7 +184,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             fine = SimpleNamespace(time=np.linspace(w.time.min(), w.time.max(), 300), flux=np.ones(300),
                                    flux_err=np.ones(300), exposure=w.exposure)
             tf, nf, null_f, ppo_f = _window_models(system, fine, d["alpha"], d["case"])
-            bump_f = np.asarray(bump_model(tf, params["amplitude"], params["centre"], params["width"])).reshape(-1, nf).mean(-1)
+            bump_f = exposure_mean(np.asarray(bump_model(tf, params["amplitude"], params["centre"], params["width"])), nf)
             entry["windows"].append({"number": num, "mid": float(w.event.mid), "points": int(y.size),
                                      "chi2_no_ppo": c2_none, "chi2_ppo": c2_ppo, "chi2_spot": c2_spot,
                                      "bump": params, "crossing_planet": planet, "converged": ok})

@@ -35,6 +35,90 @@ def _clean(x):
     return x
 
 
+def _rotation_report(prep, rot, var, bmap, bootstrap, period_min, period_max, bins) -> dict:
+    """The report's rotation, variability and map entries."""
+    return {
+        "n_points": prep.report["points"],
+        "preparation": prep.report,
+        "rotation": {
+            "period_d": rot.period,
+            "period_err_d": rot.period_err,
+            "period_err_method": "half width at half maximum of the GLS peak, P^2 * HWHM_f",
+            "bootstrap_percentiles_16_50_84_d": rot.bootstrap,
+            "bootstrap_draws": bootstrap if rot.bootstrap is not None else 0,
+            "single_sinusoid_peak_d": rot.single_peak,
+            "doubled": rot.doubled,
+            "delta_bic_doubled": rot.delta_bic,
+            "rule": "single-sinusoid GLS peak P1, or the two-harmonic (nterms=2) peak within 10 % of 2 P1 if it lowers the BIC by > 10",
+            "false_alarm_probability": rot.false_alarm,
+            "peaks": [{"period_d": p, "power": w} for p, w in rot.peaks],
+            "period_range_d": [period_min, period_max],
+            "periodogram": "astropy.timeseries.LombScargle (generalised, floating mean)",
+        },
+        "variability_percent": var,
+        "variability_method": "1st-99th percentile of a 25-cadence running median, per quarter",
+        "map": {"period_d": bmap.period, "t_ref": bmap.t_ref, "n_chunks": int(bmap.chunk_start.size),
+                "bins_per_rotation": bins, "repeated_fraction": 0.5},
+    }
+
+
+def _spot_report(prep, bmap, spot_chunk, n_spots, spot_contrast):
+    """Invert the map chunk(s) ``spot_chunk`` with ``n_spots`` spots:
+    (spots for the map, the first chunk's SpotFit, its points, the report's
+    "spots" entry)."""
+    spots, spot_fit, chunk_sel = None, None, None
+    n_chunk = int(bmap.chunk_start.size)
+    if isinstance(spot_chunk, str) and spot_chunk == "all":
+        # chunks with at least 60 % of their phase bins filled
+        own = bmap.counts[:, ~bmap.repeated] >= 3
+        chunks = [k for k in range(n_chunk) if own[k].mean() >= 0.6]
+    elif isinstance(spot_chunk, (int, np.integer)) and not isinstance(spot_chunk, bool) and 0 <= spot_chunk < n_chunk:
+        chunks = [int(spot_chunk)]
+    else:
+        raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1} or 'all', got {spot_chunk!r}")
+    spots, fits = [], []
+    for k in chunks:
+        start = float(bmap.chunk_start[k])
+        sel = (prep.time >= start) & (prep.time < start + bmap.period)
+        if sel.sum() < 50:
+            raise ValueError(f"spot_chunk {k} holds only {int(sel.sum())} points; pick another")
+        fit = fit_spots(prep.time[sel], prep.flux[sel], bmap.period, n_spots=n_spots,
+                        contrast=spot_contrast, t_ref=bmap.t_ref)
+        if spot_fit is None:
+            spot_fit, chunk_sel = fit, sel
+        spots += [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(fit.lon, fit.radius)]
+        fits.append({
+            "chunk": int(k), "chunk_start": start, "n_points": int(sel.sum()),
+            "longitude_deg": fit.lon.tolist(), "latitude_deg": fit.lat.tolist(),
+            "radius_deg": fit.radius.tolist(), "unspotted_level": fit.offset,
+            "chi2": fit.chi2, "sigma": fit.sigma, "success": fit.success,
+        })
+    entry = {
+        "contrast": float(spot_contrast), "inclination_deg": 90.0, "latitude_deg": 0.0, "n_spots": int(n_spots),
+        "phase_of_longitude": "a spot crosses the central meridian at map phase longitude / 360",
+        "note": ("small-spot model, contrast and latitude fixed, star equator-on: radii are lower limits "
+                 "(contrast, latitude and size are degenerate)"),
+        "chunks": fits,
+    }
+    return spots, spot_fit, chunk_sel, entry
+
+
+def _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper) -> None:
+    """activity.json and the figures in ``out`` (created); the figures' names
+    go into ``report["figures"]``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fig_p = plot_periodogram(prep, rot, var, out / "activity_periodogram.png",
+                             PAPER_ROTATION_PERIOD if compare_paper else None)
+    fig_m = plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
+    report["figures"] = [Path(fig_p).name, Path(fig_m).name]
+    if spot_fit is not None:
+        fig_s = plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
+        report["figures"].append(Path(fig_s).name)
+    with open(out / "activity.json", "w") as fh:
+        json.dump(report, fh, indent=2, allow_nan=False)
+
+
 def activity_report(time, flux, out=None, system=None, quarters=None, period_min: float = 2.0,
                     period_max: float = 45.0, bootstrap: int = 50, seed: int = 0,
                     bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
@@ -69,29 +153,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
                           bootstrap=bootstrap if n_quarters > 1 else 0, seed=seed)
     var = quarter_variability(prep)
     bmap = brightness_map(prep.time, prep.flux, rot.period, bins=bins)
-    report = {
-        "n_points": prep.report["points"],
-        "preparation": prep.report,
-        "rotation": {
-            "period_d": rot.period,
-            "period_err_d": rot.period_err,
-            "period_err_method": "half width at half maximum of the GLS peak, P^2 * HWHM_f",
-            "bootstrap_percentiles_16_50_84_d": rot.bootstrap,
-            "bootstrap_draws": bootstrap if rot.bootstrap is not None else 0,
-            "single_sinusoid_peak_d": rot.single_peak,
-            "doubled": rot.doubled,
-            "delta_bic_doubled": rot.delta_bic,
-            "rule": "single-sinusoid GLS peak P1, or the two-harmonic (nterms=2) peak within 10 % of 2 P1 if it lowers the BIC by > 10",
-            "false_alarm_probability": rot.false_alarm,
-            "peaks": [{"period_d": p, "power": w} for p, w in rot.peaks],
-            "period_range_d": [period_min, period_max],
-            "periodogram": "astropy.timeseries.LombScargle (generalised, floating mean)",
-        },
-        "variability_percent": var,
-        "variability_method": "1st-99th percentile of a 25-cadence running median, per quarter",
-        "map": {"period_d": bmap.period, "t_ref": bmap.t_ref, "n_chunks": int(bmap.chunk_start.size),
-                "bins_per_rotation": bins, "repeated_fraction": 0.5},
-    }
+    report = _rotation_report(prep, rot, var, bmap, bootstrap, period_min, period_max, bins)
     if compare_paper:
         report["paper"] = {
             "rotation_period_d": PAPER_ROTATION_PERIOD, "rotation_period_err_d": PAPER_ROTATION_PERIOD_ERR,
@@ -102,50 +164,8 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         }
     spots, spot_fit, chunk_sel = None, None, None
     if spot_chunk is not None:
-        n_chunk = int(bmap.chunk_start.size)
-        if isinstance(spot_chunk, str) and spot_chunk == "all":
-            # chunks with at least 60 % of their phase bins filled
-            own = bmap.counts[:, ~bmap.repeated] >= 3
-            chunks = [k for k in range(n_chunk) if own[k].mean() >= 0.6]
-        elif isinstance(spot_chunk, (int, np.integer)) and not isinstance(spot_chunk, bool) and 0 <= spot_chunk < n_chunk:
-            chunks = [int(spot_chunk)]
-        else:
-            raise ValueError(f"spot_chunk must be a chunk index in 0..{n_chunk - 1} or 'all', got {spot_chunk!r}")
-        spots, fits = [], []
-        for k in chunks:
-            start = float(bmap.chunk_start[k])
-            sel = (prep.time >= start) & (prep.time < start + bmap.period)
-            if sel.sum() < 50:
-                raise ValueError(f"spot_chunk {k} holds only {int(sel.sum())} points; pick another")
-            fit = fit_spots(prep.time[sel], prep.flux[sel], bmap.period, n_spots=n_spots,
-                            contrast=spot_contrast, t_ref=bmap.t_ref)
-            if spot_fit is None:
-                spot_fit, chunk_sel = fit, sel
-            spots += [(start + 0.5 * bmap.period, lon / 360.0, rad) for lon, rad in zip(fit.lon, fit.radius)]
-            fits.append({
-                "chunk": int(k), "chunk_start": start, "n_points": int(sel.sum()),
-                "longitude_deg": fit.lon.tolist(), "latitude_deg": fit.lat.tolist(),
-                "radius_deg": fit.radius.tolist(), "unspotted_level": fit.offset,
-                "chi2": fit.chi2, "sigma": fit.sigma, "success": fit.success,
-            })
-        report["spots"] = {
-            "contrast": float(spot_contrast), "inclination_deg": 90.0, "latitude_deg": 0.0, "n_spots": int(n_spots),
-            "phase_of_longitude": "a spot crosses the central meridian at map phase longitude / 360",
-            "note": ("small-spot model, contrast and latitude fixed, star equator-on: radii are lower limits "
-                     "(contrast, latitude and size are degenerate)"),
-            "chunks": fits,
-        }
+        spots, spot_fit, chunk_sel, report["spots"] = _spot_report(prep, bmap, spot_chunk, n_spots, spot_contrast)
     report = _clean(report)
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        fig_p = plot_periodogram(prep, rot, var, out / "activity_periodogram.png",
-                                 PAPER_ROTATION_PERIOD if compare_paper else None)
-        fig_m = plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
-        report["figures"] = [Path(fig_p).name, Path(fig_m).name]
-        if spot_fit is not None:
-            fig_s = plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
-            report["figures"].append(Path(fig_s).name)
-        with open(out / "activity.json", "w") as fh:
-            json.dump(report, fh, indent=2, allow_nan=False)
+        _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper)
     return report

@@ -123,22 +123,16 @@ def transit_mask(time, system, margin: float = 0.1) -> np.ndarray:
     """True where no planet of ``system`` (a jaxppo.System) transits: points
     within half the first-to-last-contact duration plus ``margin`` [d] of a
     mid-transit time are False. The margin covers a long-cadence exposure
-    (0.02 d) and the ephemeris drift over the Kepler mission."""
+    (0.02 d) and the ephemeris drift over the Kepler mission. The negation
+    of :func:`jaxppo.model._overlap.in_transit_mask` (the one in-transit
+    mask) with ``pad = margin``."""
+    from ..model._overlap import in_transit_mask
     from ..model._system import System
 
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System, got {type(system).__name__}")
     margin = _check_positive("margin", margin, strict=False)
-    t = np.asarray(time, float)
-    out = np.ones(t.shape, bool)
-    for pl in system.planets:
-        half = float(pl.half_duration())
-        if half <= 0:  # never transits: nothing to mask
-            continue
-        period, t0 = float(pl.period), float(pl.t0)
-        dt = (t - t0 + 0.5 * period) % period - 0.5 * period
-        out &= np.abs(dt) > half + margin
-    return out
+    return ~in_transit_mask(system, time, pad=margin)
 
 
 def _segments(time: np.ndarray, gap: float) -> np.ndarray:
@@ -165,6 +159,43 @@ class PreparedLightCurve:
     smooth: np.ndarray
     quarter: np.ndarray
     report: dict
+
+
+def _quarter_labels(t: np.ndarray, quarters, gap: float) -> tuple[np.ndarray, str]:
+    """A label per point (``quarters``, or segments split at gaps > ``gap``
+    [d]) and how they were made."""
+    if quarters is None:
+        order = np.argsort(t, kind="stable")
+        q = np.empty(t.size)
+        q[order] = _segments(t[order], gap)
+        return q, f"segments split at gaps > {gap} d"
+    q = np.asarray(quarters, float)
+    if q.shape != t.shape:
+        raise ValueError(f"quarters must have the shape of time {t.shape}, got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError("quarters must be finite labels")
+    return q, "quarter labels given"
+
+
+def _relative_flux(f: np.ndarray, q: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """f / median - 1 per quarter (its own flux level), NaN where not ``good``."""
+    rel = np.full(f.shape, np.nan)
+    for qv in np.unique(q[good]):
+        m = good & (q == qv)
+        med = np.median(f[m])
+        if not med > 0:
+            raise ValueError(f"flux of quarter {qv:g} has median {med}; fluxes must be positive")
+        rel[m] = f[m] / med - 1.0
+    return rel
+
+
+def _quarter_running_median(y: np.ndarray, q: np.ndarray, smooth: int) -> np.ndarray:
+    """The running median of ``smooth`` cadences within each quarter."""
+    out = np.empty_like(y)
+    for qv in np.unique(q):
+        m = q == qv
+        out[m] = _running_median(y[m], smooth)
+    return out
 
 
 def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: bool = True,
@@ -196,27 +227,10 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
     clip = _check_positive("clip", clip)
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer number of cadences, got {smooth!r}")
-    if quarters is None:
-        order = np.argsort(t, kind="stable")
-        q = np.empty(t.size)
-        q[order] = _segments(t[order], gap)
-        source = f"segments split at gaps > {gap} d"
-    else:
-        q = np.asarray(quarters, float)
-        if q.shape != t.shape:
-            raise ValueError(f"quarters must have the shape of time {t.shape}, got {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise ValueError("quarters must be finite labels")
-        source = "quarter labels given"
+    q, source = _quarter_labels(t, quarters, gap)
     good = np.isfinite(f)
     n_nonfinite = int((~good).sum())
-    rel = np.full(t.shape, np.nan)
-    for qv in np.unique(q[good]):
-        m = good & (q == qv)
-        med = np.median(f[m])
-        if not med > 0:
-            raise ValueError(f"flux of quarter {qv:g} has median {med}; fluxes must be positive")
-        rel[m] = f[m] / med - 1.0
+    rel = _relative_flux(f, q, good)
     if system is None and mask_transits:
         from ..model._kepler20 import kepler20_system
 
@@ -225,11 +239,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
     n_transit = int((good & ~keep).sum())
     order = np.argsort(t[keep], kind="stable")
     tt, ff, qq = t[keep][order], rel[keep][order], q[keep][order]
-    sm = np.empty_like(ff)
-    for qv in np.unique(qq):
-        m = qq == qv
-        sm[m] = _running_median(ff[m], smooth)
-    res = ff - sm
+    res = ff - _quarter_running_median(ff, qq, smooth)
     sigma = 1.4826 * np.median(np.abs(res - np.median(res)))
     ok = np.abs(res - np.median(res)) <= clip * sigma if sigma > 0 else np.ones(res.size, bool)
     report = {
@@ -243,11 +253,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
         raise ValueError(f"only {int(ok.sum())} points left after masking and clipping")
     # re-smooth without the outliers so the variability curve is clean
     t_ok, f_ok, q_ok = tt[ok], ff[ok], qq[ok]
-    sm_ok = np.empty_like(f_ok)
-    for qv in np.unique(q_ok):
-        m = q_ok == qv
-        sm_ok[m] = _running_median(f_ok[m], smooth)
-    return PreparedLightCurve(t_ok, f_ok, sm_ok, q_ok, report)
+    return PreparedLightCurve(t_ok, f_ok, _quarter_running_median(f_ok, q_ok, smooth), q_ok, report)
 
 
 @dataclasses.dataclass(frozen=True)

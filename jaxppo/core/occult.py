@@ -54,6 +54,7 @@ from .geometry import (
     safe_sqrt,
     wrap_angle,
 )
+from .arcs import arc_integrals
 from .quadrature import clustered_rule, gauss_legendre_01
 
 __all__ = ["MAX_RADIUS", "union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
@@ -117,42 +118,6 @@ def _bad_input(*arrays) -> Array:
     return ~(ok & jnp.all(arrays[-1] >= 0) & jnp.all(arrays[-1] <= MAX_RADIUS))
 
 
-def _half_angle_nodes(start: Array, span: Array, u: Array) -> tuple[Array, Array]:
-    """sin and cos of tau / 2 at tau = start + span u (nodes u on a trailing
-    axis, |span| <= pi): one sin and cos per piece, polynomials per node.
-    Half angles keep full relative precision for tau -> 0, where the arc of a
-    huge circle crosses the star."""
-    a = 0.5 * start
-    cu, su = cos_sin(0.5 * span[..., None] * u)
-    sa, ca = jnp.sin(a)[..., None], jnp.cos(a)[..., None]
-    return sa * cu + ca * su, ca * cu - sa * su
-
-
-def _arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: bool):
-    """Integrals over arcs [start, start + span] of circles parametrised by the
-    angle tau from their *near* point (the point closest to the stellar
-    centre), where
-
-        r^2 = (d - p)^2 + 4 p d sin^2(tau / 2),
-        x dy - y dx = (p (p - d) + 2 p d sin^2(tau / 2)) dtau
-
-    (no cancellation for huge circles, d ~ p >> 1, nor for circles through the
-    centre, d ~ p). ``dm2`` = (d - p)^2, ``pd`` = p d, ``ppd`` = p (p - d),
-    broadcasting against ``start``. Returns the Green's-theorem integral of each arc
-    and, with ``shape``, the integrals of I cos tau, I sin tau and I over it
-    (for the shape derivative, see ``union_deficit``)."""
-    u, w = rule
-    u, w = jnp.asarray(u, dtype), jnp.asarray(w, dtype)
-    sh, ch = _half_angle_nodes(start, span, u)
-    sh2 = sh * sh
-    s = dm2[..., None] + 4.0 * pd[..., None] * sh2
-    val = ((g(s) * (ppd[..., None] + 2.0 * pd[..., None] * sh2)) @ w) * span
-    if not shape:
-        return val, None
-    inten = intensity(s)
-    return val, tuple((inten * f) @ w * span for f in (1.0 - 2.0 * sh2, 2.0 * sh * ch, 1.0))
-
-
 def _intensity_from_g(g: Callable[[Array], Array]) -> Callable[[Array], Array]:
     """I(s) = 2 d(s g)/ds for callers that give g only (less accurate at the
     limb than the profile itself, where dg/ds has a removable singularity)."""
@@ -164,14 +129,13 @@ def _intensity_from_g(g: Callable[[Array], Array]) -> Callable[[Array], Array]:
     return intensity
 
 
-def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
-    """The union integral of one frame (see ``union_deficit``), and with
-    ``shape`` the shape derivatives (dF/dx, dF/dy, dF/dr) of every disk."""
+def _planet_pieces(x, y, r, active):
+    """The planet circles of one frame cut at their crossings with the other
+    disks and the limb: (d, ex, ey, starts, ends, keep), with ``keep`` the
+    pieces [disk, piece] that bound the union (inside the star, outside
+    every other disk)."""
     dtype = x.dtype
     k = x.shape[-1]
-    active = ~_duplicates(x, y, r, 64 * float(jnp.finfo(dtype).eps))
-
-    # ---- planet circles: cut at crossings with the other disks and the limb --
     # Each circle's angle tau is measured from its near point, direction e
     # (towards the stellar centre; +x for a circle centred on it).
     d = safe_hypot(x, y)
@@ -222,18 +186,13 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     in_star = jnp.where(crosses[:, None, -1], inside_arc[:, :, -1], on_star[:, None])
     covered = jnp.where(crosses[:, None, :-1], inside_arc[:, :, :-1], nested_planet[:, None, :])
     keep = in_star & ~jnp.any(covered, axis=-1) & (active & ~is_limb)[:, None] & (ends > starts)
+    return d, ex, ey, starts, ends, keep
 
-    # Every piece gets nodes clustered like u^4 at both ends: at a limb
-    # crossing (and at a planet-planet crossing that lies near the limb) the
-    # intensity's mu^q branch point sits at the end of the piece.
-    dm = d - r
-    vals, moments = _arc_integrals(
-        g, intensity, starts, ends - starts, (dm * dm)[:, None], (r * d)[:, None], (-r * dm)[:, None],
-        clustered_rule(order), dtype, shape,
-    )
-    planet_part = jnp.sum(jnp.where(keep, vals, 0.0))
 
-    # ---- stellar limb: arcs inside some disk contribute Phi(1) d(angle) ------
+def _limb_angle(x, y, r, active):
+    """The angle [rad] of the stellar limb inside some disk (those arcs
+    contribute Phi(1) d(angle) to the union integral)."""
+    dtype = x.dtype
     lbase, lhalf, lcross, star_in_disk = circle_intersection_angles(0.0, 0.0, 1.0, x, y, r)
     lcross = lcross & active
     l_lo = jnp.where(lcross, jnp.mod(lbase - lhalf, _TWO_PI), 0.0)
@@ -244,7 +203,25 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     lmid = 0.5 * (lstart + lend)
     loff = jnp.abs(jnp.mod(lmid[:, None] - lbase[None, :] + np.pi, _TWO_PI) - np.pi)
     in_disk = jnp.where(lcross, loff < lhalf, star_in_disk & active)
-    limb_angle = jnp.sum(jnp.where(jnp.any(in_disk, axis=-1), lend - lstart, 0.0))
+    return jnp.sum(jnp.where(jnp.any(in_disk, axis=-1), lend - lstart, 0.0))
+
+
+def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
+    """The union integral of one frame (see ``union_deficit``), and with
+    ``shape`` the shape derivatives (dF/dx, dF/dy, dF/dr) of every disk."""
+    dtype = x.dtype
+    active = ~_duplicates(x, y, r, 64 * float(jnp.finfo(dtype).eps))
+    d, ex, ey, starts, ends, keep = _planet_pieces(x, y, r, active)
+    # Every piece gets nodes clustered like u^4 at both ends: at a limb
+    # crossing (and at a planet-planet crossing that lies near the limb) the
+    # intensity's mu^q branch point sits at the end of the piece.
+    dm = d - r
+    vals, moments = arc_integrals(
+        g, intensity, starts, ends - starts, (dm * dm)[:, None], (r * d)[:, None], (-r * dm)[:, None],
+        clustered_rule(order), dtype, shape,
+    )
+    planet_part = jnp.sum(jnp.where(keep, vals, 0.0))
+    limb_angle = _limb_angle(x, y, r, active)
 
     bad = _bad_input(x, y, r)
     value = jnp.where(bad, jnp.nan, planet_part + phi1 * limb_angle)
@@ -370,7 +347,7 @@ def _disk_parts(d, p, g, intensity, phi1, order: int, shape: bool):
     span = jnp.where(crosses, h_p, np.pi)
     dm = d - p
     # the arc [-h, h] is symmetric about the near point: twice [0, h]
-    vals, moments = _arc_integrals(
+    vals, moments = arc_integrals(
         g, intensity, jnp.zeros_like(span), span, dm * dm, p * d, -p * dm, clustered_rule(order), dtype, shape
     )
     limb = jnp.where(crosses, 2.0 * h_s, 0.0)

@@ -8,7 +8,8 @@ import numpy as np
 from ._lightcurve import LightCurve
 from ._phoenix import kepler20_star
 from ._star import Star
-from ._system import Planet, System, multi_transits
+from ._system import Planet, System
+from ._transits import multi_transits
 
 __all__ = ["kepler20_system", "PAPER_MULTI_TRANSITS", "paper_multi_transits", "simulate", "simulate_kepler20"]
 

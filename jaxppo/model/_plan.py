@@ -255,6 +255,24 @@ UNION_BLOCK = 256
 TERM_BLOCK = 1024
 
 
+@jax.custom_batching.custom_vmap
+def shared_branch(branch: Array) -> Array:
+    """The rule each block of ``_compacted`` runs ([block] ints). Batched by
+    ``vmap``, every member of the batch runs, per block, the highest rule
+    any member needs (the rules are ordered so that a higher one is also
+    exact where a lower one is; free slots hold harmless pads): the switch
+    index stays unbatched, so ``lax.switch`` stays a switch (a batched index
+    would turn it into a select that runs every rule on every block, and
+    one whose derivative JAX cannot transpose, jax-ml/jax#39219)."""
+    return branch
+
+
+@shared_branch.def_vmap
+def _shared_branch_batched(axis_size, in_batched, branch):
+    del axis_size, in_batched
+    return jnp.max(branch, axis=0), False
+
+
 def _compacted(fns, level: Array, args, pads, block: int, dtype) -> Array:
     """``fns[level](*args)`` ([entry, ...] arrays -> [entry]) at the entries
     with ``level`` >= 0 (traced [entry] ints), 0 elsewhere, with static
@@ -264,8 +282,8 @@ def _compacted(fns, level: Array, args, pads, block: int, dtype) -> Array:
     ordered so that a higher one is also exact where a lower one is), or
     nothing past the last entry. Free slots take the harmless ``pads``
     entries (never another entry's value, so that no NaN can leak into a
-    gradient). Under ``vmap`` the switch index is batched and becomes a
-    select: every block then runs every rule (correct, not faster)."""
+    gradient). Under ``vmap`` every member runs the highest rule any member
+    needs in that block (``shared_branch``)."""
     m = level.shape[0]
     block = max(1, min(block, m))
     nb = -(-m // block)
@@ -284,7 +302,7 @@ def _compacted(fns, level: Array, args, pads, block: int, dtype) -> Array:
     for a, pad in zip(args, pads):
         v = jnp.where(valid.reshape((-1,) + (1,) * (a.ndim - 1)), a[take], jnp.asarray(pad, a.dtype))
         packed.append(v.reshape((nb, block) + a.shape[1:]))
-    branch = jnp.max(jnp.where(valid, level[take], -1).reshape(nb, block), axis=1) + 1
+    branch = shared_branch(jnp.max(jnp.where(valid, level[take], -1).reshape(nb, block), axis=1) + 1)
     branches = [lambda b: jnp.zeros(block, dtype)] + [lambda b, f=f: f(*b).astype(dtype) for f in fns]
 
     def body(_, xs):

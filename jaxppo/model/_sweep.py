@@ -11,6 +11,9 @@ run the exact union integral, in bounded chunks, sharded over all devices.
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
+
 import numpy as np
 
 from ._overlap import contact_frames, on_star, untilted_geometry
@@ -20,9 +23,32 @@ from ._system import CASES, System, case_signs
 __all__ = ["sweep", "SweepStats"]
 
 
-class SweepStats(dict):
-    """What a sweep computed: frames in the grid, one-disk evaluations, and
-    frames that needed the union integral."""
+@dataclasses.dataclass(frozen=True)
+class SweepStats:
+    """What a sweep computed.
+
+    Attributes:
+        frames: frames in the [case, alpha, time] grid.
+        single: one-disk evaluations (alpha- and case-independent).
+        union: frames that ran the union integral.
+    """
+
+    frames: int
+    single: int
+    union: int
+
+    def __getitem__(self, key: str) -> int:
+        """``stats["frames"]``: the dict access of jaxppo 0.3, kept one
+        release; use ``stats.frames``."""
+        if key not in ("frames", "single", "union"):
+            raise KeyError(key)
+        warnings.warn(
+            f"SweepStats is a dataclass now: use stats.{key} instead of stats[{key!r}] "
+            "(dict access is deprecated and will be removed in the next release)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(self, key)
 
 
 def sweep(

@@ -1,5 +1,5 @@
-"""Planets on circular or eccentric orbits, the tilt alpha of one orbit, and
-multi-transits.
+"""Planets on circular or eccentric orbits, the tilt alpha of one orbit and
+the hemisphere cases (multi-transits: ``jaxppo.model._transits``).
 
 Frame and equations: docs/conventions.md (sky frame x right, y up, z to the
 observer; Mueller et al. 2021, Sect. 2.5 and Eqs. 2-6; eccentric orbits as
@@ -8,7 +8,6 @@ in Winn 2010).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import warnings
 
@@ -22,10 +21,7 @@ from ._flux import occultation_flux
 from ..core.geometry import conjunction_mean_anomaly, orbit_position
 from ._star import Star
 
-__all__ = ["scan_cases", 
-    "Planet", "System", "alpha_limits", "multi_transits", "MultiTransit", "CASES",
-    "hemisphere_cases", "case_label", "case_signs", "multi_transit_counts",
-]
+__all__ = ["scan_cases", "Planet", "System", "CASES", "hemisphere_cases", "case_label", "case_signs"]
 
 # Named hemisphere cases: every untilted planet in the tilted planet's
 # hemisphere ("same", paper case 1) or every one in the other ("opposite",
@@ -515,176 +511,3 @@ class System(eqx.Module):
             planets if planets is not None else self.planets,
             self.tilted if tilted is None else tilted,
         )
-
-
-def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
-    """(alpha_a, alpha_b, alpha_c, alpha_d) [deg]: the tilt angles between which
-    planet-planet occultations can occur (Mueller et al. 2021, Eqs. 3-6).
-
-    ``other``: the second planet (index or name); default the first planet that
-    is not tilted.
-    """
-    tb = system.planets[system.tilted]
-    if other is None:
-        candidates = [i for i in range(len(system.planets)) if i != system.tilted]
-        if not candidates:
-            raise ValueError("alpha_limits needs a second planet")
-        other = candidates[0]
-    if isinstance(other, str):
-        other = system.index(other)
-    pc = system.planets[other]
-    bb, bc = float(abs(tb.impact)), float(abs(pc.impact))
-    pb, pcr = float(tb.radius), float(pc.radius)
-
-    def asin_deg(v: float) -> float:
-        return math.degrees(math.asin(min(max(v, -1.0), 1.0)))
-
-    alpha_a = abs(asin_deg(bc + pcr) - asin_deg(bb - pb)) - 1.0
-    alpha_b = 180.0 - abs(asin_deg(bc - pcr) + asin_deg(bb - pb)) + 1.0
-    return alpha_a, alpha_b, 360.0 - alpha_b, 360.0 - alpha_a
-
-
-@dataclasses.dataclass(frozen=True)
-class MultiTransit:
-    """Two or more planets on the star at once.
-
-    ``start``/``end``: first contact of the earliest and last contact of the
-    latest of the overlapping transits [d]; ``mid`` their midpoint;
-    ``overlap_start``/``overlap_end``: when all of ``planets`` are on the star;
-    ``transit_mid``: each planet's mid-transit time.
-    """
-
-    number: int
-    planets: tuple[str, ...]
-    start: float
-    end: float
-    mid: float
-    overlap_start: float
-    overlap_end: float
-    transit_mid: tuple[float, ...]
-
-    def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
-
-def _label(system: System, i: int) -> str:
-    return system.planets[i].name or str(i)
-
-
-def _transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
-    """(first contact, last contact, planet index, mid-transit) [d] of every
-    transit that touches [t_start, t_end], sorted by first contact."""
-    windows = []
-    for i in idx:
-        pl = system.planets[i]
-        # first and last contact about conjunction (asymmetric for e > 0)
-        t1, t4 = (float(v) for v in pl.contacts())
-        if t4 <= t1:
-            continue
-        half = max(-t1, t4)
-        period, t0 = float(pl.period), float(pl.t0)
-        n0 = math.floor((t_start - half - t0) / period)
-        n1 = math.ceil((t_end + half - t0) / period)
-        for n in range(n0, n1 + 1):
-            mid = t0 + n * period
-            if mid + t4 >= t_start and mid + t1 <= t_end:
-                windows.append((mid + t1, mid + t4, i, mid))
-    windows.sort()
-    return windows
-
-
-def _simultaneous_sets(windows: list) -> list[list]:
-    """Maximal sets of transit windows that share a common time (all those
-    planets on the stellar disk at once): the maximal cliques of the interval
-    overlap graph, found by sweeping the contact times. Windows that only
-    touch (last contact = first contact) do not overlap."""
-    points = [(w[0], 1, k) for k, w in enumerate(windows)] + [(w[1], 0, k) for k, w in enumerate(windows)]
-    points.sort()  # at equal times, ends (0) before starts (1)
-    active: set[int] = set()
-    grew = False
-    out = []
-    for _, is_start, k in points:
-        if is_start:
-            active.add(k)
-            grew = True
-        else:
-            if grew and len(active) >= 2:
-                out.append([windows[j] for j in sorted(active)])
-            grew = False
-            active.discard(k)
-    return out
-
-
-def multi_transits(
-    system: System, t_start: float, t_end: float, planets: tuple | None = None
-) -> list[MultiTransit]:
-    """Events in [t_start, t_end] in which two or more planets are on the
-    stellar disk at the same time (their first-to-last-contact windows share
-    a common time).
-
-    An event lists exactly the planets that are all on the disk at once: a
-    triple needs a moment with all three in transit; a chain b-c then c-d
-    with no common time is two double transits, not a triple.
-
-    ``planets``: restrict to these planets (names or indices); default all.
-    Windows come from the orbits' contact times (:meth:`Planet.contacts`), so events that fall in
-    data gaps are listed too (see :func:`multi_transit_counts` for observed ones).
-    """
-    for name, v in (("t_start", t_start), ("t_end", t_end)):
-        if not np.isfinite(v):
-            raise ValueError(f"{name} must be finite, got {v!r}")
-    if t_end <= t_start:
-        raise ValueError(f"t_end must be after t_start, got {t_start} .. {t_end}")
-    idx = range(len(system.planets)) if planets is None else [
-        system.index(p) if isinstance(p, str) else int(p) for p in planets
-    ]
-    events: list[MultiTransit] = []
-    for group in _simultaneous_sets(_transit_windows(system, idx, t_start, t_end)):
-        group = sorted(group, key=lambda w: w[2])
-        start = min(w[0] for w in group)
-        end = max(w[1] for w in group)
-        events.append(MultiTransit(
-            number=len(events) + 1,
-            planets=tuple(_label(system, w[2]) for w in group),
-            start=start, end=end, mid=0.5 * (start + end),
-            overlap_start=max(w[0] for w in group), overlap_end=min(w[1] for w in group),
-            transit_mid=tuple(w[3] for w in group),
-        ))
-    return events
-
-
-def multi_transit_counts(
-    system: System, times, exposure: float | None = None, planets: tuple | None = None
-) -> dict[tuple[str, ...], int]:
-    """Number of observed multi-transits for each set of planets (paper
-    Table 2: each event counted once, under all the planets on the disk at
-    once, so a triple is not also counted as three doubles).
-
-    Args:
-        system: the planets.
-        times: observation time stamps [d] (e.g. the cadence mid-times of
-            the light curve), 1D.
-        exposure: cadence length [d]; a cadence covers t +- exposure / 2.
-            None: the time stamps are instants.
-        planets: restrict to these planets (names or indices).
-
-    An event counts as observed when some cadence covers part of the time
-    during which all its planets are on the disk (``overlap_start`` ..
-    ``overlap_end``); events in data gaps do not count.
-    """
-    t = np.sort(np.asarray(times, float).ravel())
-    if t.size == 0:
-        raise ValueError("times must hold at least one time stamp")
-    if not np.all(np.isfinite(t)):
-        raise ValueError(f"times must be finite, got {float(t[~np.isfinite(t)][0])}")
-    half = 0.0 if exposure is None else 0.5 * float(exposure)
-    if not half >= 0:
-        raise ValueError(f"exposure must be >= 0 days, got {exposure!r}")
-    counts: dict[tuple[str, ...], int] = {}
-    # one day of padding: a single time stamp is a valid (empty-width) span
-    for e in multi_transits(system, float(t[0]) - half - 1.0, float(t[-1]) + half + 1.0, planets):
-        # first cadence ending after the overlap starts: does it begin before the overlap ends?
-        j = np.searchsorted(t, e.overlap_start - half, side="right")
-        if j < t.size and t[j] - half < e.overlap_end:
-            counts[e.planets] = counts.get(e.planets, 0) + 1
-    return dict(sorted(counts.items(), key=lambda kv: (len(kv[0]), kv[0])))

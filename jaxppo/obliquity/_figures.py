@@ -83,7 +83,7 @@ def _save(fig, path: Path) -> Path:
 def _fig5(plt, out, summary, table, system, cases, colors):
     """Delta chi^2 (alpha) per case; transit numbers at each PPO run's
     extreme, kept inside the axes."""
-    from ..model._system import alpha_limits
+    from ..model._transits import alpha_limits
 
     fig, ax = plt.subplots(figsize=(8.0, 4.0))
     ymin, ymax = 0.0, 0.0

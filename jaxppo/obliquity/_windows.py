@@ -12,7 +12,7 @@ import numpy as np
 from ._config import ScanConfig
 from ..model._lightcurve import LightCurve
 from ..model._overlap import in_transit_mask
-from ..model._system import MultiTransit, multi_transits
+from ..model._transits import MultiTransit, multi_transits
 
 __all__ = ["ScanWindow", "scan_windows", "windows_and_events", "scan_events", "robust_sigma", "windows_lightcurve"]
 

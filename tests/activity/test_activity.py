@@ -87,6 +87,18 @@ def test_transit_mask_matches_contact_times():
     assert transit_mask(t, jp.kepler20_system()).tolist() == [False, False, True]
 
 
+def test_transit_mask_is_the_one_in_transit_mask():
+    """transit_mask is the negated model-layer mask (pad = margin), not a copy."""
+    from jaxppo.model._overlap import in_transit_mask
+
+    system = jp.kepler20_system()
+    t = np.random.default_rng(3).uniform(120.0, 1600.0, 20000)
+    for margin in (0.0, 0.1):
+        assert np.array_equal(transit_mask(t, system, margin=margin), ~in_transit_mask(system, t, pad=margin))
+    with pytest.raises(ValueError, match="system"):
+        transit_mask(t, "Kepler-20")
+
+
 def test_segments_from_gaps_when_no_quarters():
     t, f, q = _synthetic()
     prep = prepare_light_curve(t, f, mask_transits=False, gap=0.5)

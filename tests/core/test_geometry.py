@@ -267,7 +267,7 @@ def test_eccentric_windows_hold_the_transits():
     b = jp.Planet(period=7.3, t0=0.0, a=25.0, inc=89.3, radius=0.1, e=0.5, omega=30.0, name="b")
     c = jp.Planet(period=11.1, t0=0.05, a=33.0, inc=89.8, radius=0.05, e=0.7, omega=200.0, name="c")
     sysm = jp.System(jp.Star.quadratic(0.4, 0.26), [b, c])
-    wins = jp.model._system._transit_windows(sysm, range(2), 0.0, 200.0)
+    wins = jp.model._transits.transit_windows(sysm, range(2), 0.0, 200.0)
     t = np.linspace(0.0, 200.0, 400001)
     x, y, r = (np.asarray(v) for v in sysm.positions(t, xp=np))
     for i in range(2):

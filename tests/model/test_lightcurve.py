@@ -333,3 +333,29 @@ def test_csv_empty_cells_are_counted(tmp_path):
     (tmp_path / "h.csv").write_text("time,flux\n")
     with pytest.raises(ValueError, match="needs a header and at least one row"):
         jp.LightCurve.from_csv(tmp_path / "h.csv")
+
+
+def test_the_exposure_rule():
+    """One home (jaxppo.model._exposure): LightCurve.supersampled_times is
+    supersampled_times of its time and exposure; exposure_mean averages each
+    cadence's sub-exposures (NumPy and JAX); n and exposure are checked."""
+    import jax.numpy as jnp
+
+    from jaxppo.model._exposure import SUB_EXPOSURE, exposure_mean, sub_exposures, supersampled_times
+
+    t = np.array([1.0, 1.5, 2.25])
+    lc = jp.LightCurve(t, np.ones(3), np.full(3, 1e-4), exposure=0.0204)
+    got, n = lc.supersampled_times()
+    assert n == sub_exposures(0.0204) == 59 and n % 2 == 1 and 0.0204 / n <= SUB_EXPOSURE
+    ref, n_ref = supersampled_times(t, 0.0204)
+    assert n_ref == n and np.array_equal(got, ref)
+    # the midpoint of every cadence is a sub-exposure; the mean of t is t
+    np.testing.assert_allclose(exposure_mean(got, n), t, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(exposure_mean(jnp.asarray(got), n)), t, rtol=0, atol=1e-15)
+    assert np.array_equal(exposure_mean(np.stack([got, 2 * got]), n), np.stack([exposure_mean(got, n),
+                                                                               exposure_mean(2 * got, n)]))
+    assert supersampled_times(t, None)[1] == 1 and lc.supersampled_times(3)[1] == 3
+    with pytest.raises(ValueError, match="n \\(sub-exposures"):
+        lc.supersampled_times(0)
+    with pytest.raises(ValueError, match="exposure"):
+        sub_exposures(-1.0)

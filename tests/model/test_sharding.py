@@ -76,6 +76,15 @@ def results(sharded: bool) -> dict:
         spec = NamedSharding(Mesh(np.array(jax.devices()), ("frames",)), PartitionSpec("frames"))
         args = tuple(jax.device_put(v, spec) for v in args)
     out["jitted"] = np.asarray(jax.jit(lambda a, b, c: jp.occultation_flux(star, a, b, c))(*args))
+    # vmapped (the batch axis sharded): the union integral, and the device
+    # plan's derivatives (jaxppo.model._flux.device_auto)
+    batched = tuple(np.reshape(v, (300, 10, 3)) for v in (x, y, r))
+    if sharded:
+        batched = tuple(jax.device_put(v, spec) for v in batched)
+    one = lambda a, b, c: jp.occultation_flux(star, a, b, c)
+    out["vmapped"] = np.asarray(jax.jit(jax.vmap(one))(*batched))
+    grad = jax.vmap(jax.grad(lambda a, b, c: one(a, b, c).sum()))
+    out["vmapped_grad"] = np.asarray(jax.jit(grad)(*(v[:8] for v in batched)))
     systems, t, alpha = draws_grid()
     chi2, chi2_null, _ = marginal_chi2(systems, t, 1, np.ones(t.size), np.full(t.size, 1e-4), alpha, ("same", "opposite"))
     out["chi2"], out["chi2_null"] = chi2, chi2_null
@@ -96,4 +105,6 @@ def test_four_devices_equal_one(tmp_path):
     # the scene exercised the lens path and the union integral, and the draws
     # grid has planet-planet occultations (chi^2 varies with alpha)
     assert np.max(np.abs(one["auto"] - one["exact"])) > 0
+    # vmapped "auto" is the union integral
+    np.testing.assert_allclose(one["vmapped"].reshape(-1), one["exact"], rtol=0, atol=1e-15)
     assert np.ptp(one["chi2"]) > 0

@@ -26,7 +26,7 @@ def test_sweep_equals_exact(grid):
     system, t, alpha = grid
     flux, stats = jp.sweep(system, t, alpha, return_stats=True)
     assert flux.shape == (2, alpha.size, t.size)
-    assert stats["union"] > 0  # the grid contains PPOs
+    assert stats.union > 0  # the grid contains PPOs
     for ci, case in enumerate(("same", "opposite")):
         exact = np.asarray(system.flux(t, alpha, case=case, method="exact"))
         assert np.max(np.abs(flux[ci] - exact)) < 1e-13
@@ -109,3 +109,24 @@ def test_one_million_frames_stay_under_2gb():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True)
     peak_kb = int(proc.stdout.strip().splitlines()[-1])
     assert peak_kb < 2 * 1024 * 1024, f"peak resident memory {peak_kb / 1024:.0f} MB"
+
+
+def test_sweep_stats_is_a_frozen_dataclass():
+    """SweepStats has fields; dict access still works this release, with a
+    DeprecationWarning, and an unknown key is a KeyError."""
+    import dataclasses
+    import warnings
+
+    from jaxppo.model._sweep import SweepStats
+
+    stats = SweepStats(frames=6, single=2, union=1)
+    assert (stats.frames, stats.single, stats.union) == (6, 2, 1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        stats.union = 3
+    with pytest.warns(DeprecationWarning, match="stats.union"):
+        assert stats["union"] == 1
+    with pytest.raises(KeyError):
+        stats["diverging"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        assert dataclasses.asdict(stats) == {"frames": 6, "single": 2, "union": 1}

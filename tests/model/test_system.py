@@ -291,7 +291,7 @@ def test_triple_only_when_all_on_the_disk_at_once():
     # part of it, not a second one: Table 2 counts each multi-transit once)
     assert [e.planets for e in ev] == [("b", "c", "d")]
     np.testing.assert_allclose([ev[0].overlap_start, ev[0].overlap_end], [10.06, 10.10], atol=1e-9)
-    from jaxppo.model._system import multi_transit_counts
+    from jaxppo.model._transits import multi_transit_counts
 
     # observed only where a cadence covers the time all are on the disk
     assert multi_transit_counts(triple, np.array([10.08])) == {("b", "c", "d"): 1}
@@ -339,7 +339,7 @@ def test_table2_counts_from_real_time_stamps():
     paper's short-cadence span); each difference explained above."""
     from importlib.resources import files
 
-    from jaxppo.model._system import multi_transit_counts
+    from jaxppo.model._transits import multi_transit_counts
 
     system, raw = _five_planets()
     path = files("jaxppo") / "data" / raw["data"]["path"]
