@@ -5,7 +5,7 @@ error where the flux is smooth (one-sided finite differences agree to 1e-6).
 
     python benchmarks/adversarial_table.py [scenes per class, default 16]
 
-The same generators run, with fewer scenes, in tests/test_adversarial.py.
+The same generators run, with fewer scenes, in tests/core/test_adversarial.py.
 float32 columns use the scenes float32 can carry (radii 1e-3 to 100; see
 ``float32_representable``), the reference computed for the rounded inputs.
 """

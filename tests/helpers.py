@@ -201,7 +201,7 @@ def random_configs(rng, n, k, pmin=1e-3, pmax=0.3):
 
 
 # ---------------------------------------------------------------------------
-# Adversarial classes for tests/test_adversarial.py and
+# Adversarial classes for tests/core/test_adversarial.py and
 # benchmarks/adversarial_table.py (issue 16): seeded generators of scenes of
 # up to three disks, each list entry (x, y, r).
 # ---------------------------------------------------------------------------

@@ -296,7 +296,7 @@ def test_activity_command(tmp_path, capsys):
 def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, capsys):
     """--marginalize N runs jp.marginal_scan after the plain scan with the
     config's [fit] free and the fixed scan's result (the marginal scan itself
-    is tested in tests/test_marginal.py); a negative N is one error line."""
+    is tested in tests/obliquity/test_marginal.py); a negative N is one error line."""
     import jaxppo.obliquity._marginal as marginal
     from jaxppo.cli import main
 

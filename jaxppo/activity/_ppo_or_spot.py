@@ -245,12 +245,3 @@ def plot_ppo_or_spot(panels, path):
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
-
-
-def scan_hook(result, system, out) -> dict:
-    """The scan's ``ppo_or_spot`` block: never lets a failure here fail a
-    finished scan (the error is reported in the block instead)."""
-    try:
-        return ppo_or_spot(result, system, out=out)
-    except Exception as exc:  # noqa: BLE001 - a summary block, not the scan's result
-        return {"error": f"{type(exc).__name__}: {exc}"}

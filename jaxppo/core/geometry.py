@@ -145,7 +145,7 @@ _SIN = tuple((-1) ** k / factorial(2 * k + 1) for k in range(14))
 def cos_sin(x: ArrayLike) -> tuple[Array, Array]:
     """(cos x, sin x) for |x| <= pi by their Taylor polynomials of degree 26
     and 27 in Horner form: absolute error <= 1.3e-15 (measured against numpy
-    in tests/test_geometry.py), a few multiply-adds, several times cheaper
+    in tests/core/test_geometry.py), a few multiply-adds, several times cheaper
     than XLA's CPU cos and sin. The quadrature kernels need them at nodes
     along arcs of at most pi and rotate by the arc's start angle."""
     x = jnp.asarray(x)
@@ -167,7 +167,7 @@ def _cos_sin_jvp(primals, tangents):
 
 
 # Markley's (1995, Celest. Mech. 63, 101) Pade starter, then fixed Halley
-# steps: against a 60-digit reference (tests/test_geometry.py) the starter
+# steps: against a 60-digit reference (tests/core/test_geometry.py) the starter
 # plus 2 steps is within 2 ulp x the equation's condition number
 # 1 / (1 - e cos E) for every e up to 0.9999 and |M| from 1e-16 to pi
 # (Danby's starter M + 0.85 e needed > 6 steps at e = 0.999, M -> 0). One

@@ -106,7 +106,7 @@ def _duplicates(x: Array, y: Array, r: Array, tol: float) -> Array:
 # integrated from their near point without cancellation, so what remains is
 # the rounding of the disk's distance from the star (one ulp of d ~ R moves
 # the disk by ~1e-16 R): below 1e-10 of the stellar flux up to R = 1e6
-# (measured in tests/test_occult.py). Larger radii are refused.
+# (measured in tests/core/test_occult.py). Larger radii are refused.
 MAX_RADIUS = 1e6
 
 
@@ -405,7 +405,7 @@ def disk_deficit(
 # A disk with 1 - d - p >= INNER_MARGIN * p is far enough from the limb that
 # its integrand, an analytic even function of t, is integrated to ~1e-15 by
 # the midpoint rule with INNER_ORDER nodes on [0, pi] (geometric convergence
-# of the trapezoid rule for periodic integrands; measured in tests/test_occult.py).
+# of the trapezoid rule for periodic integrands; measured in tests/core/test_occult.py).
 INNER_MARGIN = 1.0
 INNER_ORDER = 8
 
@@ -425,7 +425,7 @@ def inner_disk_deficit(d: Array, p: Array, g: Callable[[Array], Array], order: i
 # Gauss-Legendre nodes per lens arc, and the smallest Bernstein-ellipse
 # parameter (``lens_rho``: of the integrand's branch point on the limb, seen
 # from the arc) at which "auto" uses them: the error ~rho^(-2 n) is below
-# ~3e-14 of the stellar flux at every tier (measured in tests/test_occult.py;
+# ~3e-14 of the stellar flux at every tier (measured in tests/core/test_occult.py;
 # 8 nodes at rho >= 6, 12 at rho >= 3, 16 at rho >= 2). Lenses with rho < 2
 # (at or next to the limb) take the union integral.
 LENS_RULES = ((8, 6.0), (12, 3.0), (16, 2.0))

@@ -2,7 +2,7 @@
 
 batman (Kreidberg 2015) and jaxoplanet add single-disk deficits; gefera (Gordon
 & Agol 2022) is exact for two bodies with a quadratic law. Tolerances are the
-peers' own accuracy, which tests/test_occult.py measures against our
+peers' own accuracy, which tests/core/test_occult.py measures against our
 independent reference: batman's quadratic routine is good to ~5e-9 (its
 elliptic-integral tolerance), its non-linear integrator to ~4e-8 near the limb
 at fac=1e-6; gefera agrees with us to ~1e-12.

@@ -4,7 +4,7 @@
 devices (jaxppo.model._plan._shard); a user's jitted model may shard its own
 inputs. A subprocess with XLA_FLAGS=--xla_force_host_platform_device_count=4
 computes them, and this process (one device) the same; the sweep's own check
-is tests/test_sweep.py::test_sharded_equals_unsharded.
+is tests/model/test_sweep.py::test_sharded_equals_unsharded.
 """
 
 import os
