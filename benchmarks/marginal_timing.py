@@ -46,11 +46,11 @@ def real(n, free, warmup, out):
     t = time.perf_counter()
     m = marginal_scan(cfg, draws=n, out=out, num_warmup=warmup, progress=False, restart=True, free=free)
     total = time.perf_counter() - t
-    s = m["seconds"]
+    s = m.summary["seconds"]
     print(f"marginal scan N = {n} ({len(m['sampler'].get('diagnostics') or [])} free, {warmup} warmup): end to end {total:.1f} s = sampler {s.get('sampler_s', 0):.1f} s "
           f"+ chi^2 of all draws {s['chi2_s']:.1f} s ({1e3 * s['per_draw_chi2']:.0f} ms per draw = "
           f"{s['per_draw_chi2'] / t_scan:.3f} x one warm plain scan) + rest [{load()}]")
-    for case, c in m["cases"].items():
+    for case, c in m.summary["cases"].items():
         geo = c["geometries"]
         names = [k for k in geo if isinstance(geo[k], dict)]
         fx = fixed["probabilities"][case]
@@ -59,8 +59,8 @@ def real(n, free, warmup, out):
             f"-{100 * c['probability_spread_over_draws'][nm]['p84']:.2f}), fixed {100 * fx[nm]['probability']:.2f} %"
             for nm in names) + f"; K = {geo['bayes_factor']:.4f} ({geo['jeffreys']}); importance ESS min "
             f"{c['importance_ess']['min']:.1f} of {n}")
-    if m["sampler"].get("diagnostics"):
-        d = m["sampler"]["diagnostics"]
+    if m.summary["sampler"].get("diagnostics"):
+        d = m.summary["sampler"]["diagnostics"]
         print("  NUTS r_hat max %.3f, n_eff min %.0f" % (max(v["r_hat"] or np.nan for v in d.values()),
                                                          min(v["n_eff"] or np.nan for v in d.values())))
     print(f"  alpha_ref {m['sampler'].get('alpha_ref')}: quiet for {m['alpha_ref_quiet_fraction']} of the draws")
@@ -89,7 +89,7 @@ def fragility(n, free, warmup, out):
               f"{tt['alpha'][i]:g} deg (marginal Delta chi^2 {tt['marginal_delta_chi2'][i]:.1f}); "
               f"p(|alpha - 147| <= 3) = {tt['posterior'][np.abs(tt['alpha'] - 147) <= 3].sum():.3f}")
     print(f"  {total:.1f} s [{load()}]; posterior medians: " +
-          ", ".join(f"{k} {v['median']:.6g}" for k, v in m["parameters"].items() if k in ("b.a", "c.t0")) +
+          ", ".join(f"{k} {v['median']:.6g}" for k, v in m.summary["parameters"].items() if k in ("b.a", "c.t0")) +
           f" (true b.a {float(b.a):.6g}, c.t0 {float(c.t0):.6g})")
 
 

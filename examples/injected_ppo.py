@@ -28,7 +28,7 @@ def main(argv=None):
     # synthetic white noise about exactly 1: nothing to detrend
     res = jp.scan(system, lc, alpha=np.arange(0.0, 360.0, args.step), detrend="none")
     for case in ("same", "opposite"):
-        m = res["cases"][case]["min_delta_chi2"]
+        m = res.summary["cases"][case]["min_delta_chi2"]
         print(f"case {case}: min Delta chi^2 = {m['value']:.1f} at alpha = {m['alpha']:g} deg (injected {args.alpha:g} in case {args.case})")
     return res
 

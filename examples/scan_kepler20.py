@@ -22,8 +22,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     cfg = jp.load_config()  # the bundled default: real Kepler-20 long cadence, Table 3 "This work"
     res = jp.scan(cfg.system, cfg.lightcurve, alpha=np.arange(0.0, 360.0, args.step), out=args.out, figures=True)
-    print(f"{res['points']} points in {len(res['multi_transits'])} multi-transits, chi2_0 = {res['chi2_0']['same']:.1f}")
-    for case, geo in res["probabilities"].items():
+    print(f"{res.summary['points']} points in {len(res.summary['multi_transits'])} multi-transits, chi2_0 = {res.chi2_0['same']:.1f}")
+    for case, geo in res.probabilities.items():
         names = [k for k, v in geo.items() if isinstance(v, dict)]
         print(f"{case}: " + ", ".join(f"{n} {100 * geo[n]['probability']:.2f} %" for n in names)
               + f"; Bayes factor 10^{geo['log10_bayes_factor']:.3f} ({geo['jeffreys']})")

@@ -24,7 +24,7 @@ def largest_probability(scale, noise, step, seed):
     # white noise about exactly 1 and only 0.05 d around each event: no detrending
     res = jp.scan(system, lc, alpha=np.arange(0.0, 360.0, step), detrend="none")
     best = 0.0
-    for geo in res["probabilities"].values():
+    for geo in res.probabilities.values():
         best = max(best, max(v["probability"] for v in geo.values() if isinstance(v, dict)))
     return best
 

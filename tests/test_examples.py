@@ -17,12 +17,12 @@ def _load(name):
 def test_scan_example(tmp_path):
     res = _load("scan_kepler20").main(["--out", str(tmp_path / "o"), "--step", "4"])
     assert (tmp_path / "o" / "scan.csv").exists() and (tmp_path / "o" / "delta_chi2_api.png").exists()
-    assert res["points"] > 100 and 0.8 < res["chi2_0"]["same"] / res["points"] < 1.3  # real data, errors from scatter
+    assert res.summary["points"] > 100 and 0.8 < res.chi2_0["same"] / res.summary["points"] < 1.3  # real data, errors from scatter
 
 
 def test_injected_ppo_example():
     res = _load("injected_ppo").main(["--alpha", "151", "--step", "1"])
-    assert abs(res["cases"]["same"]["min_delta_chi2"]["alpha"] - 151) <= 2
+    assert abs(res.summary["cases"]["same"]["min_delta_chi2"]["alpha"] - 151) <= 2
 
 
 def test_sensitivity_example():
