@@ -195,7 +195,12 @@ def cmd_scan(args) -> int:
         m = marginal_scan(cfg, draws=draws, out=out, fixed=result, free=cfg.fit_free, restart=args.restart,
                           progress=not args.quiet)
         print("\n".join(m.summary_lines()))
-        print(f"wrote {out / 'marginal.csv'}, marginal.json and marginal.png")
+        from jaxppo.obliquity._scan import with_summary
+
+        # summary.json carries the marginal result beside the fixed one
+        # (marginal.json's layout: marginal.cases.<case>.geometries...)
+        with_summary(out, result, marginal=m.summary)
+        print(f"wrote {out / 'marginal.csv'}, marginal.json and marginal.png (and the marginal block of summary.json)")
     return 0
 
 

@@ -303,6 +303,8 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
     seen = {}
 
     class Fake(dict):
+        summary = {"cases": {"same": {"reliable": False}}}
+
         def summary_lines(self):
             return ["marginal: fake"]
 
@@ -315,6 +317,9 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
                  "--marginalize", "3"]) == 0
     assert seen == {"draws": 3, "fixed": True, "free": None}
     assert "marginal: fake" in capsys.readouterr().out
+    # summary.json carries the marginal block (issue 22: marginal.cases.<case>...)
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["marginal"] == Fake.summary and "probabilities" in summary
     with pytest.raises(SystemExit) as exit_:
         main(["scan", "--out", str(tmp_path / "o"), "--marginalize", "-2"])
     assert exit_.value.code == 2 and "--marginalize" in capsys.readouterr().err
