@@ -49,10 +49,19 @@ only below it."""
 
 def kish_ess(logw, axis: int = 0) -> np.ndarray:
     """Kish's effective sample size (sum w)^2 / sum w^2 of the weights
-    exp(logw) along ``axis`` (scale-free: computed from logw - max)."""
+    exp(logw) along ``axis`` (scale-free: computed from logw - max). A weight
+    of exactly 0 (logw = -inf) counts as a draw with no weight; a NaN or
+    infinite weight, or none above 0, gives an ESS of 0: nothing can be
+    trusted."""
     logw = np.asarray(logw, float)
-    w = np.exp(logw - np.max(logw, axis=axis, keepdims=True))
-    return np.sum(w, axis=axis) ** 2 / np.sum(w**2, axis=axis)
+    broken = np.any(np.isnan(logw) | (logw == np.inf), axis=axis)
+    clean = np.where(np.isnan(logw) | (logw == np.inf), -np.inf, logw)
+    top = np.max(clean, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    w = np.exp(clean - top)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ess = np.sum(w, axis=axis) ** 2 / np.sum(w**2, axis=axis)
+    return np.where(broken | ~np.isfinite(ess), 0.0, ess)
 
 
 def khat_threshold(n: int) -> float:
@@ -71,6 +80,13 @@ def _gpd_shape(x: np.ndarray) -> float:
     (2024): (n xi + 10 * 0.5) / (n + 10)."""
     x = np.sort(np.asarray(x, float))
     n = x.size
+    # the grid of theta spans values where log1p(-theta x) is undefined for
+    # some x; those get zero weight (their profile likelihood is NaN)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return _gpd_shape_of(x, n)
+
+
+def _gpd_shape_of(x: np.ndarray, n: int) -> float:
     m = 30 + int(math.sqrt(n))
     j = np.arange(1, m + 1)
     quart = x[max(int(n / 4.0 + 0.5) - 1, 0)]
@@ -91,9 +107,7 @@ def pareto_khat(logw) -> float:
     tail is shorter than 5 draws (fewer than 25 draws: no estimate)."""
     logw = np.asarray(logw, float).ravel()
     s = logw.size
-    if not np.all(np.isfinite(logw)):
-        logw = np.where(np.isnan(logw), -np.inf, logw)
-    if not np.any(np.isfinite(logw)):
+    if np.any(np.isnan(logw) | (logw == np.inf)) or not np.any(np.isfinite(logw)):
         return math.inf
     m = int(math.ceil(min(0.2 * s, 3.0 * math.sqrt(s))))
     if m < 5:
@@ -133,11 +147,14 @@ def importance_reliability(logw, groups: dict, min_ess: float = MIN_IMPORTANCE_E
         if not mask.any():
             continue
         lw = logw[:, mask]
-        top = np.max(lw, axis=1, keepdims=True)
-        lw_draw = np.squeeze(top, 1) + np.log(np.sum(np.exp(lw - top), axis=1))  # log sum over the group's alphas
+        with np.errstate(invalid="ignore", divide="ignore"):
+            top = np.max(np.where(np.isnan(lw), -np.inf, lw), axis=1, keepdims=True)
+            safe = np.where(np.isfinite(top), top, 0.0)
+            # log sum over the group's alphas (NaN stays NaN: kish_ess then gives 0)
+            lw_draw = np.squeeze(safe, 1) + np.log(np.sum(np.exp(lw - safe), axis=1))
         ess, khat = float(kish_ess(lw_draw)), pareto_khat(lw_draw)
         out[name] = {"ess": ess, "khat": None if not math.isfinite(khat) else float(khat)}
-        if ess < min_ess:
+        if not ess >= min_ess:
             bad.append(f"{name}: ESS {ess:.1f} < {min_ess:g}")
         elif n >= KHAT_MIN_DRAWS and ess < NEAR_EQUAL * n and not khat <= kmax:
             bad.append(f"{name}: Pareto k-hat {khat:.2f} > {kmax:.2f}")

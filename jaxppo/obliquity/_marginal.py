@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import numbers
 import os
 import tempfile
 import time
@@ -264,9 +265,13 @@ def _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains):
         if isinstance(draws, bool) or int(draws) != draws or int(draws) < 1:
             raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
         draws = int(draws)
-    if not (isinstance(min_ess, (int, float)) and not isinstance(min_ess, bool) and np.isfinite(min_ess)
-            and min_ess >= 1):
-        raise ValueError(f"min_ess must be a number >= 1, got {min_ess!r}")
+    if not (isinstance(min_ess, numbers.Real) and not isinstance(min_ess, (bool, np.bool_))
+            and np.isfinite(min_ess) and min_ess >= 1):
+        raise ValueError(f"min_ess must be a finite number >= 1 (effective draws), got {min_ess!r}")
+    if samples is None and draws < min_ess:
+        warnings.warn(f"draws = {draws} is below min_ess = {min_ess:g}: the importance weights of fewer draws than "
+                      "that can never carry a probability, peak or rating, so none will be given; draw more",
+                      stacklevel=3)
     for name, v, lo in (("chunk", chunk, 1), ("thin", thin, 1), ("num_warmup", num_warmup, 1), ("chains", chains, 1)):
         if isinstance(v, bool) or int(v) != v or int(v) < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
@@ -383,7 +388,7 @@ def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, o, timing: d
             stored = None
         if stored is None:
             raise ValueError(f"{draws_path.parent} holds draws of a different marginal scan ({draws_path.name}); "
-                             "use another out folder or restart=True")
+                             "use another out folder or restart=True (CLI: --restart)")
     if stored is not None:
         return {k: np.asarray(v, float) for k, v in stored["samples"].items()}, stored["sampler"]
     if o.given is not None:

@@ -86,10 +86,11 @@ class MarginalResult(DeprecatedSummaryAccess):
             k = geo["bayes_factor"]
             kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
             ess = min(g["ess"] for g in imp["groups"].values())
-            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; posterior peak "
-                         f"alpha = {c['peak']['alpha']:g} deg (fixed {c['fixed_peak']['alpha']:g}); importance ESS "
-                         f"of the geometry masses min {ess:.1f} of {self.summary['draws']} (per alpha min "
-                         f"{c['importance_ess']['min']:.1f})")
+            pk = (f"posterior peak alpha = {c['peak']['alpha']:g} deg" if c["peak"] is not None else
+                  f"no posterior peak ({imp.get('peak_withheld', 'withheld')})")
+            lines.append(f"  case {case}: {kt} ({geo['jeffreys']}), favoured {geo['favoured']}; {pk} (fixed "
+                         f"{c['fixed_peak']['alpha']:g}); importance ESS of the geometry masses min {ess:.1f} of "
+                         f"{self.summary['draws']} (per alpha min {c['importance_ess']['min']:.1f})")
         sec = self.summary.get("seconds") or {}
         if sec:
             lines.append(f"  {sec['total']:.1f} s (sampler {sec.get('sampler_s', 0.0):.1f} s, chi^2 of "
@@ -148,14 +149,25 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)
         fx_a, fx_d = fixed.delta_chi2(case)
+        ok = check["reliable"]
+        # the peak is the density at one alpha: its own weights must be sound too
+        top = int(np.argmin(dm))
+        check["peak_ess"] = float(ess[top])
+        peak = None
+        if ok and ess[top] >= min_ess:
+            peak = {"alpha": float(cfg.alpha[top]), "marginal_delta_chi2": float(dm[top]),
+                    "importance_ess": float(ess[top])}
+        elif ok:
+            check["peak_withheld"] = (f"the importance ESS at the peak alpha is {ess[top]:.1f} < {min_ess:g}: "
+                                      "a few draws carry it, so no peak is given")
         cases[case] = {
             "geometries": geo, "probability_spread_over_draws": spread,
-            "reliable": check["reliable"], "importance": check,
-            "peak": ({"alpha": float(cfg.alpha[np.argmax(post)]), "marginal_delta_chi2": float(dm.min())}
-                     if check["reliable"] else None),
+            "reliable": ok, "importance": check, "peak": peak,
             "fixed_peak": {"alpha": float(fx_a[np.argmin(fx_d)]), "delta_chi2": float(fx_d.min())},
-            "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())},
-            "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())},
+            "min_delta_chi2": ({"alpha": float(cfg.alpha[np.argmin(dm)]), "value": float(dm.min())}
+                               if peak is not None else None),
+            "max_delta_chi2": ({"alpha": float(cfg.alpha[np.argmax(dm)]), "value": float(dm.max())}
+                               if ok else None),
             "importance_ess": {"min": float(ess.min()), "alpha_at_min": float(cfg.alpha[np.argmin(ess)]),
                                "median": float(np.median(ess))},
             "chi2_0": {"median": float(np.median(c0[:, ci])), "min": float(c0[:, ci].min()),
@@ -163,7 +175,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         }
         for j, a in enumerate(cfg.alpha):
             rows.append((case, float(a), float(post[j]), float(dm[j]), float(med[j]), float(lo[j]), float(hi[j]),
-                         float(fx_d[j])))
+                         float(fx_d[j]), float(ess[j])))
     pstats = {n: {"median": float(np.median(v)), "p16": float(np.percentile(v, 15.865)),
                   "p84": float(np.percentile(v, 84.135))} for n, v in samples.items()}
     summary = dict(
@@ -181,7 +193,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
 
 MARGINAL_DTYPE = [("case", "U16"), ("alpha", float), ("posterior", float), ("marginal_delta_chi2", float),
           ("delta_chi2_median", float), ("delta_chi2_p16", float), ("delta_chi2_p84", float),
-          ("fixed_delta_chi2", float)]
+          ("fixed_delta_chi2", float), ("importance_ess", float)]
 
 
 def marginal_csv(table) -> str:

@@ -55,3 +55,21 @@ def test_reliability_per_group():
     r = importance_reliability(heavy, {"pro": pro})
     assert r["groups"]["total"]["ess"] > 25 and r["groups"]["total"]["khat"] > 0.7
     assert not r["reliable"] and "k-hat" in r["reason"]
+
+
+def test_broken_weights_are_never_reliable():
+    """A NaN or +inf weight gives ESS 0 (the old check `ess < min_ess` let a
+    NaN ESS through); a draw of zero weight (-inf) is a draw without weight."""
+    lw = np.random.default_rng(2).normal(0, 0.1, (40, 12))
+    pro = np.arange(12) < 6
+    assert importance_reliability(lw, {"pro": pro, "ret": ~pro})["reliable"]
+    for bad in (np.nan, np.inf):
+        lw2 = lw.copy()
+        lw2[3, 4] = bad
+        r = importance_reliability(lw2, {"pro": pro, "ret": ~pro})
+        assert not r["reliable"] and r["groups"]["pro"]["ess"] == 0.0
+    lw3 = lw.copy()
+    lw3[3] = -np.inf
+    r = importance_reliability(lw3, {"pro": pro, "ret": ~pro})
+    assert r["reliable"] and r["groups"]["total"]["ess"] == pytest.approx(39.0, rel=0.01)
+    assert kish_ess(np.full(5, -np.inf)) == 0.0

@@ -451,3 +451,39 @@ def test_guard_refuses_bad_min_ess(real):
     with pytest.raises(ValueError, match="min_ess"):
         marginal_scan(system, lc, samples={"b.t0": np.full(30, float(system.planets[0].t0))}, min_ess=0,
                       progress=False, figures=False, **KW)
+
+
+def test_guard_withholds_a_peak_one_draw_carries(real, tmp_path, monkeypatch):
+    """The geometry masses may be sound while the density at the peak rests
+    on one draw: 30 draws with flat curves but draw 0 with Delta chi^2 = -6
+    at alpha = 130 deg. The probabilities stay (geometry-mass ESS ~29 of 30)
+    but no peak is given (its ESS is 5.6 < 25); the CSV carries the ESS of
+    every alpha. (The old guard gave peak = 130 deg.)"""
+    import jaxppo.obliquity._marginal as mod
+
+    system, lc = real
+    real_chi2 = mod.marginal_chi2
+
+    def stub(systems, tm, nsub, y, sig, alpha, cases):
+        _, _, ppo = real_chi2(systems[:1], tm, nsub, y, sig, alpha, cases)
+        n = len(systems)
+        chi2 = np.full((n, len(cases), alpha.size), 1000.0)
+        first = stub.next
+        stub.next += n
+        if first == 0:
+            chi2[0, :, alpha == 130.0] -= 6.0
+        return chi2, np.full(n, 1000.0), np.zeros((n, len(cases), alpha.size), bool)
+
+    stub.next = 0
+    monkeypatch.setattr(mod, "marginal_chi2", stub)
+    b, c = system.planets
+    samples = {"b.t0": np.full(30, float(b.t0)), "c.t0": float(c.t0) + np.linspace(-1e-4, 1e-4, 30)}
+    m = marginal_scan(system, lc, samples=samples, out=tmp_path, progress=False, figures=False, **KW)
+    for case in ("same", "opposite"):
+        cc = m.cases[case]
+        assert cc["reliable"] and cc["geometries"]["favoured"] is not None
+        assert cc["peak"] is None and "peak" in cc["importance"]["peak_withheld"]
+        assert cc["importance"]["peak_ess"] < 6.0 and cc["min_delta_chi2"] is None
+    t = m.table[m.table["case"] == "same"]
+    assert t["importance_ess"][t["alpha"] == 130.0][0] < 6.0 and t["importance_ess"].max() == pytest.approx(30.0)
+    assert "no posterior peak" in "\n".join(m.summary_lines())
