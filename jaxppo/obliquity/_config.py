@@ -502,11 +502,6 @@ def config_template() -> str:
     of the real Kepler-20 long-cadence data, the data path absolute so that
     the file loads wherever it is written."""
     data = data_path("kepler20_kic6850504_llc_q1-q17_pdcsap.csv.gz")
-    # the event selection and density prior of the bundled default, read from
-    # it: "ready to run" must scan what `jaxppo scan` scans
-    default = tomllib.loads(default_config_path().read_text())
-    events, density = default["scan"]["multi_transits"], default["fit"]["stellar_density"]
-    source = json.dumps(default["fit"]["stellar_density_source"])
     return f"""# jaxppo scan config; every key with units and defaults: docs/config.md.
 # Run it:  jaxppo scan THIS_FILE.toml --out scan_out
 # Unknown keys are errors (a typo never runs with a default).
@@ -559,7 +554,17 @@ exposure = 0.0204335982
 quality_bitmask = "default"
 # mission = "kepler"   # "kepler" or "tess": the meaning of a CSV file's quality bits
 #                      # (FITS files: from TELESCOP; a CSV without it: every flag drops the point)
+""" + _template_scan_fit()
 
+
+def _template_scan_fit() -> str:
+    """[scan] and [fit] of the template, with the event selection and density
+    prior read from the bundled default: "ready to run" must scan what
+    `jaxppo scan` scans."""
+    default = tomllib.loads(default_config_path().read_text())
+    events, density = default["scan"]["multi_transits"], default["fit"]["stellar_density"]
+    source = json.dumps(default["fit"]["stellar_density_source"])
+    return f"""
 [scan]
 alpha = [0.0, 360.0, 1.0]      # [deg] start, stop, step; must span 360 deg, step dividing 360
 cases = ["same", "opposite"]   # hemisphere cases (paper cases 1 and 4)
