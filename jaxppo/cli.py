@@ -249,6 +249,19 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+_DEFAULT_FREE = ("b.t0", "b.radius", "c.t0", "c.radius")
+
+
+def _free_names(args) -> tuple:
+    """The --free names of ``fit`` / ``sample``, every option's together."""
+    if args.free is None:
+        return _DEFAULT_FREE
+    twice = sorted({n for n in args.free if args.free.count(n) > 1})
+    if twice:
+        raise ValueError(f"--free names {', '.join(twice)} more than once: {' '.join(args.free)}")
+    return tuple(args.free)
+
+
 def _fit_inputs(args):
     """(config, light curve) of ``fit`` / ``sample``: the config's data, or
     with ``--windows`` the scan's per-window detrended, outlier-cleaned
@@ -274,11 +287,12 @@ def cmd_fit(args) -> int:
 
     if args.out:
         _out_file(args.out)
+    free = _free_names(args)
     cfg, lc = _fit_inputs(args)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
-        res = jp.fit(cfg.system, lc, free=tuple(args.free), progress=not args.quiet)
+        res = jp.fit(cfg.system, lc, free=free, progress=not args.quiet)
     for w in caught:
         print(f"jaxppo fit: warning: {w.message}", file=sys.stderr)
     print(res.table())
@@ -305,9 +319,9 @@ def cmd_sample(args) -> int:
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
-    priors = _cli_priors(args.prior or [])
+    priors, free = _cli_priors(args.prior or []), _free_names(args)
     cfg, lc = _fit_inputs(args)
-    res = jp.sample(cfg.system, lc, free=tuple(args.free), num_warmup=args.warmup, num_samples=args.samples,
+    res = jp.sample(cfg.system, lc, free=free, num_warmup=args.warmup, num_samples=args.samples,
                     seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet, priors=priors or None)
     for n, (med, lo, hi) in res.intervals.items():
         d = res.diagnostics[n]
@@ -445,9 +459,11 @@ def _add_fit_sample(sub) -> None:
         p.add_argument("config", nargs="?", default=str(_SYNTHETIC), metavar="CONFIG",
                        help="scan config (TOML; docs/config.md) whose system is the start and whose data are fitted "
                        "(default: the bundled synthetic Kepler-20 set)")
-        p.add_argument("--free", nargs="+", default=["b.t0", "b.radius", "c.t0", "c.radius"], metavar="NAME",
-                       help="free parameters, e.g. b.t0 b.radius b.a b.inc star.q1 star.q2 lc.jitter "
-                       "(units above; default: b.t0 b.radius c.t0 c.radius)")
+        # extend, not store: "--free b.t0 --free c.t0" frees both (a repeated
+        # option replaced the earlier ones); None so the default is not extended
+        p.add_argument("--free", nargs="+", action="extend", default=None, metavar="NAME",
+                       help="free parameters, e.g. b.t0 b.radius b.a b.inc star.q1 star.q2 lc.jitter; "
+                       "repeatable (units above; default: " + " ".join(_DEFAULT_FREE) + ")")
         p.add_argument("--windows", action="store_true",
                        help="fit only the multi-transit windows, detrended as by `jaxppo scan` (each divided by its "
                        "out-of-transit polynomial, outliers clipped); needed for real data with stellar variability "

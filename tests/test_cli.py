@@ -85,6 +85,29 @@ def test_fit_and_sample_commands(tmp_path, capsys):
     assert post.names == ("c.radius",) and post.chains["c.radius"].shape == (4, 20)
 
 
+@pytest.mark.parametrize("cmd", ["fit", "sample"])
+def test_repeated_free_options_add_up(cmd, monkeypatch, capsys):
+    """Issue 24 item 4: "--free b.t0 --free c.t0" fitted only c.t0 (the
+    second option replaced the first)."""
+    import jaxppo as jp
+
+    seen = []
+
+    def fake(system, lc, free, **kw):
+        seen.append(free)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(jp, cmd, fake)
+    for argv, free in ((["--free", "b.t0", "--free", "c.t0"], ("b.t0", "c.t0")),
+                       (["--free", "b.t0", "c.t0", "--free", "b.radius"], ("b.t0", "c.t0", "b.radius")),
+                       (["--free", "b.t0", "c.t0"], ("b.t0", "c.t0")),
+                       ([], ("b.t0", "b.radius", "c.t0", "c.radius"))):
+        assert main([cmd, *argv]) == 2 and seen[-1] == free, argv
+    n = len(seen)
+    assert main([cmd, "--free", "b.t0", "--free", "b.t0", "c.t0"]) == 2 and len(seen) == n
+    assert "--free names b.t0 more than once" in capsys.readouterr().err
+
+
 def test_sample_prior_option(monkeypatch, capsys):
     import numpyro.distributions as dist
 

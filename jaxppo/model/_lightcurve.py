@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._exposure import supersampled_times
+from ._system import from_quantity
 from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, kepler_exposure, lightkurve_columns,
                        plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
@@ -23,7 +24,8 @@ __all__ = ["LightCurve", "QUALITY_FLAGS", "QUALITY_BITMASKS", "quality_bitmask",
 class LightCurve:
     """Time [d], relative flux and its 1-sigma error; ``exposure`` [d] is the
     integration time of each point (e.g. 0.0204 for Kepler long cadence), used
-    to average the model over the exposure. ``report`` says what loading
+    to average the model over the exposure (a time Quantity or TimeDelta is
+    converted to days and stored as a float). ``report`` says what loading
     dropped (:meth:`report_line` in words). ``errors_estimated``: the file had
     no errors and ``flux_err`` is an estimate from the scatter (the scan
     re-estimates it per window).
@@ -59,8 +61,15 @@ class LightCurve:
                                  "(LightCurve.from_arrays drops them and reports it)")
         if np.any(e <= 0):
             raise ValueError(f"flux_err must be > 0, found {e[e <= 0][0]}")
-        if self.exposure is not None and not (np.isfinite(self.exposure) and self.exposure > 0):
-            raise ValueError(f"exposure must be > 0 days, got {self.exposure}")
+        if self.exposure is not None:
+            # a time Quantity or TimeDelta becomes days here, where it is
+            # stored: the model code downstream does arithmetic in days
+            exposure = np.asarray(from_quantity("exposure", self.exposure, "d"), float)
+            if exposure.shape != ():
+                raise ValueError(f"exposure must be one number of days, got shape {exposure.shape}: {self.exposure!r}")
+            if not (np.isfinite(exposure) and exposure > 0):
+                raise ValueError(f"exposure must be > 0 days, got {self.exposure}")
+            object.__setattr__(self, "exposure", float(exposure))
         order = np.argsort(t, kind="stable")
         t = t[order]
         dup = np.diff(t) == 0

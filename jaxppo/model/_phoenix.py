@@ -163,10 +163,15 @@ def truncate_limb(mu: np.ndarray, inten: np.ndarray, method: str = "rescale") ->
 def phoenix_star(path: str | Path, response=None, limb: str = "rescale", interpolation: str = "sqrt-poly") -> Star:
     """A tabulated Star from a PHOENIX SPECINT file: passband-integrated
     (Kepler by default, photon-weighted), limb treated by ``truncate_limb``,
-    normalised to I(mu = 1) = 1."""
+    normalised to I(mu = 1) = 1. A file whose mu grid stops short of 0 gets a
+    node at mu = 0: I = 0 with ``limb="cut"`` (the cut limb is dark), the
+    outermost intensity with ``limb="none"`` (``"rescale"`` ends at mu = 0)."""
     model = read_specint(path)
     mu, band = band_intensity(model, response)
     mu, band, _ = truncate_limb(mu, band, limb)
+    if mu[0] > 0.0:
+        band = np.concatenate([[0.0 if limb == "cut" else band[0]], band])
+        mu = np.concatenate([[0.0], mu])
     if mu[-1] < 1.0:
         band = np.concatenate([band, [band[-1]]])
         mu = np.concatenate([mu, [1.0]])

@@ -19,6 +19,24 @@ LAWS = ("uniform", "quadratic", "nonlinear", "power2", "tabulated")
 _INTERPOLATIONS = ("sqrt-poly", "linear", "cubic")
 
 
+def _check_mu_nodes(mu_np: np.ndarray, pad_ends: bool) -> None:
+    """The nodes of a tabulated profile (see :meth:`Star.tabulated`)."""
+    if mu_np.size < 3:
+        raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
+    _check_finite("mu", mu_np)
+    if np.any(mu_np < 0) or np.any(mu_np > 1):
+        raise ValueError(f"mu must lie in [0, 1], got values from {mu_np.min()} to {mu_np.max()}")
+    if np.any(np.diff(mu_np) <= 0):
+        raise ValueError("mu must be strictly increasing (sort the table and drop repeats)")
+    if (mu_np[0] > 0 or mu_np[-1] < 1) and not pad_ends:
+        raise ValueError(
+            f"mu must reach 0 and 1 (the whole disk), got a table from mu = {mu_np[0]:g} to {mu_np[-1]:g}: "
+            "beyond it I(mu) would be invented by the interpolation. Extend the table with the intensity you "
+            "assume there (e.g. a node at mu = 0), or pass pad_ends=True to repeat the end values at mu = 0 "
+            "and 1 (flat beyond the table only with interpolation='linear')"
+        )
+
+
 def _check_finite(name: str, value) -> None:
     if isinstance(value, jax.core.Tracer):
         return
@@ -245,12 +263,21 @@ class Star(eqx.Module):
         max_degree: int = 12,
         rtol: float = 1e-6,
         degree: int | None = None,
+        pad_ends: bool = False,
     ) -> "Star":
         """A star from a table of specific intensities I(mu).
 
         ``mu`` must be strictly increasing in [0, 1] (at least 3 points) and the
-        intensities finite and >= 0. A table that stops short of mu = 0 or 1 is
-        held flat to the ends (documented; PHOENIX tables cover both).
+        intensities finite and >= 0. The table must reach mu = 0 and mu = 1:
+        the flux integrates I over the whole disk, and outside the table the
+        interpolation would invent the limb (a 3-node sqrt-poly table from
+        mu = 0.2 gave I(0.05) = 0.18 and I(0) = 0.3 for I(0.2) = 0.3). A
+        table that stops short raises ValueError unless ``pad_ends=True``,
+        which adds a node at mu = 0 (and 1) repeating the nearest intensity;
+        the profile is then flat beyond the table only with
+        ``interpolation="linear"`` ("sqrt-poly" and "cubic" curve between the
+        added node and the table). PHOENIX tables (:func:`phoenix_star`)
+        reach both ends.
 
         ``degree`` fixes the degree of the "sqrt-poly" fit (default: the
         smallest that meets ``rtol``, chosen from the values). The
@@ -273,13 +300,7 @@ class Star(eqx.Module):
             raise ValueError(
                 f"mu and intensity must be 1D of equal length, got shapes {mu_np.shape} and {i_in.shape}"
             )
-        if mu_np.size < 3:
-            raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
-        _check_finite("mu", mu_np)
-        if np.any(mu_np < 0) or np.any(mu_np > 1):
-            raise ValueError(f"mu must lie in [0, 1], got values from {mu_np.min()} to {mu_np.max()}")
-        if np.any(np.diff(mu_np) <= 0):
-            raise ValueError("mu must be strictly increasing (sort the table and drop repeats)")
+        _check_mu_nodes(mu_np, pad_ends)
         if degree is not None and (
             isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 1 <= degree < mu_np.size
         ):

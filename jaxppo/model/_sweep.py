@@ -18,7 +18,7 @@ import numpy as np
 
 from ._overlap import contact_frames, on_star, untilted_geometry
 from ._plan import one_disk_sum, overlap_flux
-from ._system import CASES, System, case_signs
+from ._system import CASES, System, case_signs, from_quantity
 
 __all__ = ["sweep", "SweepStats"]
 
@@ -66,8 +66,9 @@ def sweep(
 
     Args:
         system: the planets; ``system.tilted`` is rotated by alpha.
-        t: times [d], 1D.
-        alpha: tilt angles [deg], 1D.
+        t: times [d], 1D (a time Quantity or TimeDelta is converted; an
+            absolute astropy Time is refused, see :meth:`System.flux`).
+        alpha: tilt angles [deg], 1D (an angle Quantity is converted).
         cases: sequence of hemisphere cases: "same", "opposite" or tuples of
             +-1 signs of the untilted planets (see ``hemisphere_cases``).
         method: "auto" (default; see module doc), "exact" (union integral for
@@ -76,8 +77,8 @@ def sweep(
         no_overlap: model every frame as if no two disks overlapped (the null
             model of the obliquity scan: each planet's own transit only).
     """
-    t = np.asarray(t, float)
-    alpha = np.atleast_1d(np.asarray(alpha, float))
+    t = np.asarray(from_quantity("t", t, "d"), float)
+    alpha = np.atleast_1d(np.asarray(from_quantity("alpha", alpha, "deg"), float))
     if t.ndim != 1 or alpha.ndim != 1:
         raise ValueError(f"t and alpha must be 1D, got shapes {t.shape} and {alpha.shape}")
     if not np.all(np.isfinite(t)) or not np.all(np.isfinite(alpha)):

@@ -142,15 +142,33 @@ def _is_quantity(value) -> bool:
     return hasattr(value, "unit") and hasattr(value, "to")
 
 
-def _from_quantity(name: str, value, unit: str):
+_WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}
+
+
+def _is_time_class(value, name: str) -> bool:
+    # astropy.time classes by name, so that plain inputs need no astropy import
+    return any(c.__name__ == name for c in type(value).__mro__)
+
+
+def from_quantity(name: str, value, unit: str):
     """Convert an astropy Quantity to the plain number the API expects:
     ``unit`` "deg" (angles), "d" (times) or "" (dimensionless ratios).
-    Plain numbers pass unchanged (their units are the documented ones)."""
-    if type(value).__name__ == "Time":
+    Plain numbers pass unchanged (their units are the documented ones). For
+    times, an astropy ``TimeDelta`` is converted to days; an absolute
+    astropy ``Time`` is refused: it has no day count of its own, and
+    the zero point of the planets' t0 is the caller's to choose."""
+    if _is_time_class(value, "Time"):
         raise ValueError(
-            f"{name} must be a number of days or a time Quantity, got an astropy Time ({value!r}); "
-            "subtract your zero point first, e.g. (time - Time(2454833, format='jd')).to(u.day) for BKJD"
+            f"{name} must be a number of days, a time Quantity or a TimeDelta, got an absolute astropy Time "
+            f"({value!r}); pass the days since the zero point of the planets' t0, e.g. t.jd - 2454833.0 "
+            "(BKJD), or the TimeDelta t - Time(2454833.0, format='jd')"
         )
+    if _is_time_class(value, "TimeDelta"):
+        if unit != "d":
+            raise ValueError(f"{name} must be {_WANT[unit]}, got the TimeDelta {value!r}")
+        import astropy.units as u
+
+        return np.asarray(value.to_value(u.day), float)
     if not _is_quantity(value):
         return value
     import astropy.units as u
@@ -165,8 +183,7 @@ def _from_quantity(name: str, value, unit: str):
             f"{name} must be in stellar radii (a plain number or a dimensionless Quantity), got {value!r}: "
             f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
         )
-    want = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}[unit]
-    raise ValueError(f"{name} must be {want}, got the Quantity {value!r}")
+    raise ValueError(f"{name} must be {_WANT[unit]}, got the Quantity {value!r}")
 
 
 class Planet(eqx.Module):
@@ -205,13 +222,13 @@ class Planet(eqx.Module):
     name: str = eqx.field(static=True, default="")
 
     def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0):
-        period = _from_quantity("period", period, "d")
-        t0 = _from_quantity("t0", t0, "d")
-        a = _from_quantity("a", a, "")
-        inc = _from_quantity("inc", inc, "deg")
-        radius = _from_quantity("radius", radius, "")
-        e = _from_quantity("e", e, "")
-        omega = _from_quantity("omega", omega, "deg")
+        period = from_quantity("period", period, "d")
+        t0 = from_quantity("t0", t0, "d")
+        a = from_quantity("a", a, "")
+        inc = from_quantity("inc", inc, "deg")
+        radius = from_quantity("radius", radius, "")
+        e = from_quantity("e", e, "")
+        omega = from_quantity("omega", omega, "deg")
         _positive("period", period)
         _positive("t0", t0, strict=False, lower=-np.inf)
         _positive("a", a, lower=1.0)
@@ -442,7 +459,8 @@ class System(eqx.Module):
         """Sky positions (x, y, r) with the disks on the last axis; planets
         behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
         ``xp=numpy`` computes on the host without tracing (fast geometry for
-        concrete inputs).
+        concrete inputs). ``t`` and ``alpha`` may be astropy Quantities (and
+        ``t`` a TimeDelta), converted as in :meth:`flux`.
 
         Hemispheres come from |b| only (transits cannot measure the sign of
         cos i): before the tilt every planet crosses y > 0 (y uses |cos i|);
@@ -452,8 +470,8 @@ class System(eqx.Module):
         So i -> 180 - i of any planet changes nothing.
         """
         signs = case_signs(len(self.planets), self.tilted, case)
-        t = xp.asarray(t, dtype=float)
-        alpha_rad = xp.deg2rad(xp.asarray(alpha, dtype=float))
+        t = xp.asarray(from_quantity("t", t, "d"), dtype=float)
+        alpha_rad = xp.deg2rad(xp.asarray(from_quantity("alpha", alpha, "deg"), dtype=float))
         shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
         xs, ys, rs = [], [], []
         for i, pl in enumerate(self.planets):
@@ -473,16 +491,22 @@ class System(eqx.Module):
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d].
 
+        ``t`` may be a time Quantity or an astropy ``TimeDelta`` (converted
+        to days); an absolute astropy ``Time`` is refused, because the
+        planets' t0 are days since a zero point only the caller knows:
+        pass ``t.jd - JD0`` or the TimeDelta ``t - Time(JD0, format="jd")``
+        with JD0 the zero point of t0 (2454833.0 for BKJD).
+
         ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
         [alpha, time]. ``case``: "same", "opposite" or a tuple of +-1 signs
         of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
         """
-        t = jnp.asarray(t, float)
+        t = jnp.asarray(from_quantity("t", t, "d"), float)
         if not isinstance(t, jax.core.Tracer):
             bad = ~np.isfinite(np.asarray(t))
             if bad.any():
                 raise ValueError(f"t must be finite, got {float(np.asarray(t)[bad][0])} at index {np.argwhere(bad)[0].tolist()}")
-        alpha = _from_quantity("alpha", alpha, "deg")
+        alpha = from_quantity("alpha", alpha, "deg")
         alpha = jnp.asarray(alpha, float)
         if not isinstance(alpha, jax.core.Tracer):
             bad = ~np.isfinite(np.asarray(alpha))

@@ -554,7 +554,17 @@ exposure = 0.0204335982
 quality_bitmask = "default"
 # mission = "kepler"   # "kepler" or "tess": the meaning of a CSV file's quality bits
 #                      # (FITS files: from TELESCOP; a CSV without it: every flag drops the point)
+""" + _template_scan_fit()
 
+
+def _template_scan_fit() -> str:
+    """[scan] and [fit] of the template, with the event selection and density
+    prior read from the bundled default: "ready to run" must scan what
+    `jaxppo scan` scans."""
+    default = tomllib.loads(default_config_path().read_text())
+    events, density = default["scan"]["multi_transits"], default["fit"]["stellar_density"]
+    source = json.dumps(default["fit"]["stellar_density_source"])
+    return f"""
 [scan]
 alpha = [0.0, 360.0, 1.0]      # [deg] start, stop, step; must span 360 deg, step dividing 360
 cases = ["same", "opposite"]   # hemisphere cases (paper cases 1 and 4)
@@ -563,14 +573,18 @@ detrend = 2                    # order of each event's out-of-transit polynomial
 baseline = 0.3                 # [d] baseline fitted on each side of an event (> margin)
 clip = 5.0                     # drop out-of-transit points beyond this many robust sigmas, or "none"
 block = 60                     # alphas per progress record (resume granularity)
-# multi_transits = [334.02, 670.45]   # [d] only the events with these mid-times (within 0.1 d)
+# [d] only the events with these mid-times (within 0.1 d; omit for all): the eight
+# b + c double transits with no other planet on the disk. BKJD 160.33 is left out:
+# planet e transits then too (a b + c + e triple), and e is not in this model.
+multi_transits = {json.dumps(events)}
 marginalize = 0                # draws of the scan marginalised over the transit posterior (0: off)
 
 [fit]
 # free = ["b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius"]
 #   parameters the marginalised scan samples with NUTS (default: these five of every planet;
 #   the a/R* named here are tied to one stellar density by Kepler's third law)
-# stellar_density = [1.53, 0.15]   # [g/cm^3] mean, sd: Gaussian prior on rho* (default: the
-#                                  # density the planets' a/R* imply, 10 % wide)
-# stellar_density_source = "..."   # where the value comes from (copied to marginal.json)
+# [g/cm^3] mean, sd: Gaussian prior on rho* (omitted: the density the planets'
+# a/R* imply, 10 % wide); its source is copied to marginal.json
+stellar_density = {json.dumps(density)}
+stellar_density_source = {source}
 """

@@ -47,6 +47,7 @@ import jax
 import numpy as np
 
 from ._config import ScanConfig, check_alpha_grid, config_from_arguments
+from ._keywords import Default, refuse_with_config, resolved
 from ._marginal_result import MarginalResult, analyse_draws, marginal_csv, plot_marginal
 from ._progress import atomic_write, read_progress, record_line
 from ._scan import run_scan
@@ -251,9 +252,9 @@ def _config(system, lightcurve, kw) -> ScanConfig:
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
+        refuse_with_config(kw, system, "jaxppo.marginal_scan")
         return system
-    cfg = config_from_arguments(system, lightcurve, kw["alpha"], kw["cases"], kw["margin"], kw["detrend"],
-                                kw["baseline"], kw["clip"], kw["multi_transits"], 60)
+    cfg = config_from_arguments(system, lightcurve, **resolved(kw), block=60)
     check_alpha_grid(cfg.alpha)
     return cfg
 
@@ -300,9 +301,10 @@ def _density_prior(system, sysm: System, free, given, stellar_density):
 def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=None, samples=None,
                   num_warmup: int = 300, thin: int = 1, seed: int = 0, chains: int = 4, stellar_density=None,
                   chunk: int = 16, fixed=None,
-                  restart: bool = False, progress: bool = True, figures: bool = True, alpha=None,
-                  cases=("same", "opposite"), margin: float = 0.05, detrend=2, baseline: float = 0.3,
-                  clip=5.0, multi_transits=None, min_ess: float = MIN_IMPORTANCE_ESS) -> MarginalResult:
+                  restart: bool = False, progress: bool = True, figures: bool = True, alpha=Default(None),
+                  cases=Default(("same", "opposite")), margin: float = Default(0.05), detrend=Default(2),
+                  baseline: float = Default(0.3), clip=Default(5.0), multi_transits=Default(None),
+                  min_ess: float = MIN_IMPORTANCE_ESS) -> MarginalResult:
     """The obliquity scan marginalised over the transit parameters (issue 11;
     the paper's proposal at the end of Sect. 4.2). docs/marginal.md.
 
@@ -338,7 +340,8 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
             (:func:`jaxppo.inference._importance.importance_reliability`); otherwise
             they are None and the case says why.
         alpha, cases, margin, detrend, baseline, clip, multi_transits: as
-            :func:`jaxppo.scan` (only with a System).
+            :func:`jaxppo.scan`: only with a System; with a ScanConfig they
+            are refused (the config's own settings are used; set them there).
 
     Returns:
         :class:`MarginalResult`: ``summary`` (marginal.json), ``table``

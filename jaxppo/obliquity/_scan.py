@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ._config import ScanConfig
+from ._keywords import Default, refuse_with_config, resolved
 from ._progress import atomic_write, read_progress, record_line
 from ._stats import geometry_probabilities
 from ._summary import DeprecatedSummaryAccess
@@ -414,14 +415,17 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     return result
 
 
-def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out=None, margin: float = 0.05,
-         detrend: int | str | None = 2, baseline: float = 0.3, clip: float | str | None = 5.0,
-         multi_transits=None, block: int = 60, restart: bool = False, progress: bool = False,
-         figures: bool = False) -> ScanResult:
+def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same", "opposite")), out=None,
+         margin: float = Default(0.05), detrend: int | str | None = Default(2), baseline: float = Default(0.3),
+         clip: float | str | None = Default(5.0), multi_transits=Default(None), block: int = Default(60),
+         restart: bool = False, progress: bool = False, figures: bool = False) -> ScanResult:
     """The orbital obliquity scan (Mueller et al. 2021, Sects. 2.1 and 3.3).
 
     ``jp.scan(system, lightcurve, alpha=np.arange(0, 360, 1.0))`` or
-    ``jp.scan(jp.load_config(path))`` (a config carries its own settings).
+    ``jp.scan(jp.load_config(path))``. A config carries its own settings:
+    with one, alpha, cases, margin, detrend, baseline, clip, multi_transits
+    and block are refused (ValueError naming them; set them in the file, the
+    alpha grid also by ``jp.load_config(path, alpha=[start, stop, step])``).
 
     Args:
         system: :class:`System` (``system.tilted`` is rotated by alpha), or a
@@ -441,7 +445,7 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
         margin [d], detrend (order or "none"), baseline [d], clip (robust
             sigmas or "none"), multi_transits (mid-times [d]), block: as the
             config keys of the same names (docs/config.md), checked by the
-            same rules (:func:`check_scan_settings`).
+            same rules (:func:`check_scan_settings`); only with a System.
 
     Returns:
         :class:`ScanResult`: ``summary`` (summary.json), ``table``,
@@ -451,12 +455,15 @@ def scan(system, lightcurve=None, *, alpha=None, cases=("same", "opposite"), out
 
     from ._config import check_alpha_grid, config_from_arguments
 
+    kw = dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend, baseline=baseline, clip=clip,
+              multi_transits=multi_transits, block=block)
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
+        refuse_with_config(kw, system, "jaxppo.scan")
         cfg = system
     else:
-        cfg = config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits, block)
+        cfg = config_from_arguments(system, lightcurve, **resolved(kw))
         check_alpha_grid(cfg.alpha)
     if out is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_scan_") as tmp:

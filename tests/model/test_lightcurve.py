@@ -216,6 +216,28 @@ def test_astropy_time_and_quantity_columns():
         jp.LightCurve.from_arrays(bkjd * u.m, [1.0] * 3, [1e-3] * 3)
 
 
+def test_exposure_quantity_is_stored_in_days():
+    """Issue 24 item 6: exposure=30 * u.min was stored as the Quantity and
+    the fit then failed with an unrelated TypeError; it is 30 / 1440 d."""
+    import astropy.units as u
+    from astropy.time import TimeDelta
+
+    t = np.linspace(0.0, 1.0, 5)
+    for exp in (30 * u.min, TimeDelta(1800.0 * u.s), 0.5 * u.h):
+        lc = jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=exp)
+        assert type(lc.exposure) is float and abs(lc.exposure - 30 / 1440) < 1e-15
+        times, n = lc.supersampled_times()
+        np.testing.assert_allclose(np.ptp(times.reshape(5, n), axis=1), 30 / 1440 * (n - 1) / n, rtol=1e-12)
+    lc = jp.LightCurve.from_arrays(t, np.ones(5), np.full(5, 1e-3), exposure=30 * u.min)
+    assert type(lc.exposure) is float and abs(lc.exposure - 30 / 1440) < 1e-15
+    with pytest.raises(ValueError, match="exposure must be a time, got the Quantity"):
+        jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=30 * u.m)
+    with pytest.raises(ValueError, match="exposure must be > 0 days"):
+        jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=-1 * u.min)
+    with pytest.raises(ValueError, match="exposure must be one number of days"):
+        jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=[1, 2] * u.min)
+
+
 def test_repeated_time_stamps_are_never_silent():
     """The old constructor accepted the same cadence twice (it would count
     twice in chi^2); now it refuses, and the loaders drop and count it."""

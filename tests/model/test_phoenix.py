@@ -72,6 +72,18 @@ def test_spherical_limb_is_truncated_and_rescaled(tmp_path):
     assert abs(np.sqrt(1 - mu_cri**2) - r_cri) < 1e-12
 
 
+def test_grid_short_of_mu_0_loads_with_every_limb_method(tmp_path):
+    """Star.tabulated refuses tables short of mu = 0 (issue 24 item 5);
+    phoenix_star closes the gap as its limb method says."""
+    mu = np.linspace(0.05, 1, 40)
+    _write_specint(tmp_path / "m.fits", mu)
+    for limb, at0 in (("none", 1 - 0.6 * 0.95), ("cut", 0.0), ("rescale", None)):
+        star = jp.phoenix_star(tmp_path / "m.fits", limb=limb)
+        assert float(star.mu_nodes[0]) == 0.0, limb
+        if at0 is not None:
+            np.testing.assert_allclose(float(star.params[0]), at0, rtol=1e-12)
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [(dict(wcs=False), "wavelength axis"), (dict(extname=None), "no mu axis")],

@@ -112,6 +112,20 @@ def test_bad_tables(kwargs, match):
         jp.Star.tabulated(**kwargs)
 
 
+def test_table_short_of_the_limb_is_refused_unless_padded():
+    """Issue 24 item 5: a table from mu = 0.2 was extended without a word, and
+    not flat as documented: sqrt-poly gave I(0.05) = 0.18 for I(0.2) = 0.3."""
+    mu, inten = [0.2, 0.6, 1.0], [0.3, 0.7, 1.0]
+    for m in (mu, [0.0, 0.5, 0.9]):
+        with pytest.raises(ValueError, match=r"mu must reach 0 and 1 .*pad_ends=True"):
+            jp.Star.tabulated(m, inten)
+    lin = jp.Star.tabulated(mu, inten, interpolation="linear", pad_ends=True)
+    np.testing.assert_allclose(np.asarray(lin.intensity(np.array([0.0, 0.05, 0.2]))), 0.3, rtol=0, atol=1e-15)
+    sp = jp.Star.tabulated(mu, inten, pad_ends=True)  # asked for: the padded node is at mu = 0
+    assert float(sp.mu_nodes[0]) == 0.0 and float(sp.mu_nodes[-1]) == 1.0
+    # PHOENIX tables: tests/model/test_phoenix.py (test_grid_short_of_mu_0_loads_with_every_limb_method)
+
+
 def test_unknown_law():
     with pytest.raises(ValueError, match="unknown limb-darkening law 'squareroot'"):
         jp.Star.from_law("squareroot", [0.1, 0.2])
@@ -146,12 +160,12 @@ def test_gradient_through_tabulated_intensities(interpolation):
     """Star.tabulated with traced intensities (a fit of the table's values)
     raised TracerArrayConversionError; the gradient now matches central
     differences, and jit gives the concrete table's value."""
-    mu = np.linspace(0.05, 1, 30)
+    mu = np.linspace(0.05, 1, 30)  # padded at mu = 0: the traced concatenation too
     i0 = 1 - 0.6 * (1 - mu) - 0.1 * (1 - mu) ** 2
-    kw = {"degree": jp.Star.tabulated(mu, i0).degree} if interpolation == "sqrt-poly" else {}
+    kw = {"degree": jp.Star.tabulated(mu, i0, pad_ends=True).degree} if interpolation == "sqrt-poly" else {}
 
     def f(v):
-        st = jp.Star.tabulated(mu, v, interpolation=interpolation, **kw)
+        st = jp.Star.tabulated(mu, v, interpolation=interpolation, pad_ends=True, **kw)
         return jp.occultation_flux(st, jnp.array([0.3, 0.33]), jnp.array([0.1, 0.1]), jnp.array([0.05, 0.03]), method="exact")
 
     g = np.asarray(jax.grad(f)(jnp.asarray(i0)))
@@ -164,7 +178,7 @@ def test_gradient_through_tabulated_intensities(interpolation):
     assert abs(float(jax.jit(f)(jnp.asarray(i0))) - float(f(i0))) < 1e-15
     if interpolation == "sqrt-poly":
         with pytest.raises(ValueError, match="needs degree="):
-            jax.grad(lambda v: jp.occultation_flux(jp.Star.tabulated(mu, v), 0.3, 0.1, 0.05))(jnp.asarray(i0))
+            jax.grad(lambda v: jp.occultation_flux(jp.Star.tabulated(mu, v, pad_ends=True), 0.3, 0.1, 0.05))(jnp.asarray(i0))
 
 
 def test_non_physical_laws():

@@ -255,6 +255,31 @@ def test_planet_accepts_quantities():
     np.testing.assert_allclose(np.asarray(sysm.flux(t, alpha=(313 * u.deg).to(u.rad))), np.asarray(sysm.flux(t, alpha=313.0)), atol=1e-15)
 
 
+def test_flux_positions_sweep_convert_time_quantities():
+    """Issue 24 item 1: a time Quantity in hours was taken as days (the
+    points at +-1.2 h, in transit, came out as 1 = out of transit), and an
+    astropy Time / TimeDelta crashed with "setting an array element with a
+    sequence"."""
+    import astropy.units as u
+    from astropy.time import Time, TimeDelta
+
+    s = jp.System(jp.Star.quadratic(0.4, 0.2), [jp.Planet(period=10.0, t0=0.0, a=20.0, inc=90.0, radius=0.05)])
+    hours = np.array([-1.2, 0.0, 1.2])
+    ref = np.asarray(s.flux(hours / 24.0))
+    assert np.all(ref < 0.9975)  # all three in transit (half duration 3.97 h)
+    for t in (hours * u.h, TimeDelta(hours * u.h), (hours * u.h).to(u.s)):
+        np.testing.assert_allclose(np.asarray(s.flux(t)), ref, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(np.asarray(s.positions(t)[0]), np.asarray(s.positions(hours / 24.0)[0]), atol=1e-15)
+    grid = np.asarray(jp.sweep(s, hours * u.h, (30.0 * u.deg).to(u.rad), cases=("same",)))
+    np.testing.assert_allclose(grid[0, 0], ref, atol=1e-15)
+    with pytest.raises(ValueError, match=r"t must be a number of days.*absolute astropy Time.*t.jd - 2454833.0"):
+        s.flux(Time(2454833.0 + hours / 24.0, format="jd"))
+    with pytest.raises(ValueError, match="t must be a time, got the Quantity"):
+        s.flux(hours * u.m)
+    with pytest.raises(ValueError, match="alpha must be an angle, got the TimeDelta"):
+        s.flux(hours / 24.0, alpha=TimeDelta(1.0 * u.h))
+
+
 def test_planet_that_never_transits_warns():
     with pytest.warns(UserWarning, match=r"inc = 1.53 deg gives \|b\| = a \|cos i\| = 10.6"):
         jp.Planet(period=3.0, t0=0.0, a=10.6, inc=1.53, radius=0.02, name="b")

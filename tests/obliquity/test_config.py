@@ -145,6 +145,32 @@ def test_init_writes_a_template_that_loads_and_names_every_key(tmp_path, capsys)
     assert main(["init", str(path), "--force"]) == 0
 
 
+def test_init_template_scans_what_the_default_config_scans(tmp_path):
+    """Issue 24 item 3: the template of `jaxppo init` lacked the default's
+    multi_transits line, so it scanned 9 events (the b + c + e triple of BKJD
+    160.33 included, 125 points) instead of the default's 8 (111 points)."""
+    from jaxppo.cli import main
+    from jaxppo.obliquity._windows import windows_and_events
+
+    path = tmp_path / "mine.toml"
+    assert main(["init", str(path)]) == 0
+    mine, default = load_config(path), load_config()
+    assert mine.events == default.events and len(default.events) == 8
+    for f in ("cases", "margin", "block", "detrend", "baseline", "clip", "marginalize", "fit_free"):
+        assert getattr(mine, f) == getattr(default, f), f
+    np.testing.assert_array_equal(mine.alpha, default.alpha)
+    assert mine.raw["fit"] == default.raw["fit"]  # the marginalised scan's density prior too
+    assert repr(mine.system) == repr(default.system)
+    np.testing.assert_array_equal(mine.lightcurve.time, default.lightcurve.time)
+    wm, wd = windows_and_events(mine)[0], windows_and_events(default)[0]
+    assert [w.event.mid for w in wm] == [w.event.mid for w in wd] and len(wd) == 8
+    assert sum(w.time.size for w in wm) == sum(w.time.size for w in wd) == 111
+    for a, b in zip(wm, wd):
+        np.testing.assert_array_equal(a.time, b.time)
+        np.testing.assert_array_equal(a.flux, b.flux)
+        np.testing.assert_array_equal(a.flux_err, b.flux_err)
+
+
 def test_every_key_is_documented():
     from pathlib import Path
 

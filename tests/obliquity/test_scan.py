@@ -489,6 +489,36 @@ def test_public_scan_matches_the_config_route(tmp_path):
         jp.scan(jp.kepler20_system(), lc_read, alpha=np.arange(0.0, 360.0, 6.0), cases=("sideways",))
 
 
+@pytest.mark.parametrize("name,value", [("alpha", np.arange(0.0, 360.0, 10.0)), ("margin", 0.1), ("detrend", 0),
+                                        ("baseline", 0.5), ("clip", "none"), ("multi_transits", [334.02]),
+                                        ("cases", ("same",)), ("margin", 0.05), ("block", 30)])
+def test_scan_settings_with_a_config_are_refused_not_ignored(name, value, monkeypatch):
+    """Issue 24 item 2: jp.scan(config, alpha=36 alphas) scanned the config's
+    360 and used its margin and detrend order, without a word; so did
+    jp.marginal_scan. A setting given with a config is refused, even one equal
+    to the default (it may still differ from the config's)."""
+    from jaxppo.obliquity import _marginal, _scan
+
+    def ran(*args, **kwargs):  # a regression fails here at once, not after a whole scan
+        raise AssertionError(f"the scan ran with the config's settings, {name} ignored")
+
+    for module, attr in ((_scan, "run_scan"), (_marginal, "run_scan"), (_marginal, "nuts_draws")):
+        monkeypatch.setattr(module, attr, ran)
+    cfg = jp.load_config()
+    match = rf"jaxppo.scan: {name} must not be given with a ScanConfig.*{name} = .*the config has"
+    with pytest.raises(ValueError, match=match):
+        jp.scan(cfg, **{name: value})
+    if name != "block":
+        with pytest.raises(ValueError, match=match.replace("scan", "marginal_scan", 1)):
+            jp.marginal_scan(cfg, draws=2, **{name: value})
+    if name == "alpha":
+        with pytest.raises(ValueError, match=r"360 alphas, 0 to 359 deg.*jp.load_config\(path, alpha="):
+            jp.scan(cfg, alpha=value)
+    elif name == "margin":
+        with pytest.raises(ValueError, match=r"\[scan\] margin in the config file"):
+            jp.scan(cfg, margin=value)
+
+
 # ---- results out and the load report ------------------------------------------------
 
 def test_ecsv_table_with_units_and_provenance(tmp_path):
