@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 import warnings
@@ -81,68 +80,17 @@ def _enable_x64() -> None:
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
-def _demo_events(system):
-    """The paper's seven double transits and their numbers as `jaxppo scan`
-    of the bundled real data gives them (1, 2, ... over the multi-transits
-    with data, summary.json ``multi_transits``), so that "transit 4" is the
-    same event in the demo and in the scan's figures."""
-    from jaxppo.obliquity._config import load_config
-    from jaxppo.model._kepler20 import paper_multi_transits
-    from jaxppo.obliquity._windows import scan_windows
-
-    events = paper_multi_transits(system)
-    by_mid = {round(w.event.mid, 2): w.number for w in scan_windows(load_config())}
-    return events, [by_mid[round(ev.mid, 2)] for ev in events]
-
-
 def cmd_demo(args) -> int:
     """Light curves of the seven Kepler-20 b + c double transits for a few tilt
     angles, both hemisphere cases; writes a CSV and a figure."""
     _enable_x64()
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    import jaxppo as jp
+    from jaxppo.obliquity._demo import double_transit_demo
 
     out = _out_folder(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    from jaxppo.model._kepler20 import kepler20_system
-
-    system = kepler20_system()
-    events, number = _demo_events(system)
-    alphas = np.array([0.0, 90.0, 151.0, 212.0, 249.0, 313.0, 322.0])
-    t0 = time.perf_counter()
-    rows = []
-    fig, axes = plt.subplots(2, len(events), figsize=(3.0 * len(events), 5.5), sharey=True)
-    for ci, case in enumerate(("same", "opposite")):
-        for ei, ev in enumerate(events):
-            t = np.arange(ev.start - 0.05, ev.end + 0.05, 1.0 / 1440.0)
-            flux = np.asarray(system.flux(t, alpha=alphas, case=case))
-            ax = axes[ci, ei]
-            for ai, a in enumerate(alphas):
-                ax.plot((t - ev.mid) * 24, (flux[ai] - 1) * 1e6, lw=0.8, label=f"{a:.0f}" if ei == 0 else None)
-                rows += [(case, number[ei], a, ti, fi) for ti, fi in zip(t, flux[ai])]
-            ax.set_title(f"{case}: transit {number[ei]}, BKJD {ev.mid:.2f}", fontsize=8)
-            ax.set_xlabel("hours from mid")
-    axes[0, 0].set_ylabel("flux - 1 [ppm]")
-    axes[1, 0].set_ylabel("flux - 1 [ppm]")
-    axes[0, 0].legend(title="alpha [deg]", fontsize=6)
-    fig.tight_layout()
-    fig.savefig(out / "kepler20_double_transits.png", dpi=110)
-    elapsed = time.perf_counter() - t0
-    with open(out / "kepler20_double_transits.csv", "w") as fh:
-        fh.write("case,event,alpha,time,flux\n")
-        for r in rows:
-            fh.write(f"{r[0]},{r[1]},{r[2]:.1f},{r[3]:.6f},{r[4]:.12f}\n")
-    summary = {"events": [dict(e.as_dict(), number=n) for e, n in zip(events, number)],
-               "event_numbers": "as in jaxppo scan of the bundled real data (summary.json multi_transits)",
-               "alphas": alphas.tolist(), "seconds": elapsed,
-               "alpha_limits": list(jp.alpha_limits(system))}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    print(f"wrote {out}/kepler20_double_transits.png, .csv and summary.json ({len(rows)} model points, {elapsed:.2f} s)")
+    summary = double_transit_demo(out)
+    print(f"wrote {out}/kepler20_double_transits.png, .csv and summary.json ({summary['points']} model points, "
+          f"{summary['seconds']:.2f} s)")
     return 0
 
 
@@ -197,9 +145,7 @@ def cmd_scan(args) -> int:
         print("\n".join(m.summary_lines()))
         from jaxppo.obliquity._scan import with_summary
 
-        # summary.json carries the marginal result beside the fixed one
-        # (marginal.json's layout: marginal.cases.<case>.geometries...)
-        with_summary(out, result, marginal=m.summary)
+        with_summary(out, result, marginal=m.summary)  # marginal.json's layout, beside the fixed scan's
         print(f"wrote {out / 'marginal.csv'}, marginal.json and marginal.png (and the marginal block of summary.json)")
     return 0
 

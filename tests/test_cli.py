@@ -43,7 +43,7 @@ def test_default_scan_and_plot(tmp_path):
     assert (out / "fig5_delta_chi2.png").exists()
     # the demo numbers its seven events as this scan does
     import jaxppo as jp
-    from jaxppo.cli import _demo_events
+    from jaxppo.obliquity._demo import demo_events as _demo_events
 
     events, numbers = _demo_events(jp.kepler20_system())
     by_mid = {round(m["mid"], 2): m["number"] for m in summary["multi_transits"]}
