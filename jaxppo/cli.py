@@ -34,6 +34,18 @@ def _finite(text: str) -> float:
     return v
 
 
+def _seed(text: str) -> int:
+    """argparse type: a random seed, an integer in [0, 2**32) (numpy's and
+    JAX's generators refuse others with a message that names neither)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if not 0 <= v < 2**32:
+        raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**32), got {v}")
+    return v
+
+
 def _out_folder(path, option="--out") -> Path:
     """An output folder that may be created (its parents too), or a clear
     error when a file stands in the way."""
@@ -427,7 +439,7 @@ def _add_fit_sample(sub) -> None:
                            help="draws kept per chain (default: 1000)")
             p.add_argument("--chains", type=int, default=4, metavar="N",
                            help="chains, run vectorised (default: 4)")
-            p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+            p.add_argument("--seed", type=_seed, default=0, help="random seed, 0 <= SEED < 2**32 (default: 0)")
             p.add_argument("--prior", nargs=4, action="append", default=None, metavar=("NAME", "KIND", "A", "B"),
                            help="replace the default prior of a free parameter, in its units: KIND normal (A mean, "
                            "B sd), uniform or loguniform (A low, B high), e.g. --prior b.t0 normal 131.5 1e-4; "
@@ -477,7 +489,8 @@ def _add_tools(sub) -> None:
                        description="Synthetic 1-minute photometry of the seven Kepler-20 b + c double transits "
                        "(paper parameters), white Gaussian noise; columns time [BKJD], flux, flux_err.")
     p.add_argument("--out", required=True, metavar="FILE", help="CSV file to write; its folder must exist (required)")
-    p.add_argument("--seed", type=int, default=2021, help="random seed of the noise (default: 2021)")
+    p.add_argument("--seed", type=_seed, default=2021,
+                   help="random seed of the noise, 0 <= SEED < 2**32 (default: 2021)")
     p.add_argument("--noise", type=_finite, default=4e-4,
                    help="white-noise standard deviation per point [relative flux], > 0 (default: 4e-4)")
     p.add_argument("--alpha", type=_finite, default=None,

@@ -263,7 +263,7 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
     (["simulate", "--out", "d.csv", "--radius-scale", "0"], "error: --radius-scale must be > 0"),
     (["simulate", "--out", "missing/d.csv"], "the folder missing does not exist"),
     (["simulate", "--out", "."], "is a folder; give a file name"),
-    (["simulate", "--out", "d.csv", "--seed", "1.5"], "argument --seed: invalid int value: '1.5'"),
+    (["simulate", "--out", "d.csv", "--seed", "1.5"], "argument --seed: must be an integer, got '1.5'"),
     (["plot", "nowhere"], "error: DIR nowhere: no such folder"),
     (["plot", "a_file"], "error: DIR a_file is a file"),
     (["plot", "."], "holds no finished scan (summary.json missing)"),
@@ -377,3 +377,26 @@ def test_scan_order_and_no_deprecation_notes(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert list(summary)[-3:] == ["table5_files", "figures", "ppo_or_spot"]
     assert len(summary["figures"]) == 5 and "dips" in summary["ppo_or_spot"]
+
+
+def test_bad_input_is_a_usage_error_naming_the_option(tmp_path, capsys):
+    """A tilt grid of 3.6e11 angles ended in "internal error: MemoryError"
+    (exit 1); a negative seed named neither the option nor the value."""
+    assert main(["scan", "--out", str(tmp_path / "o"), "--alpha", "0", "360", "1e-9"]) == 2
+    err = capsys.readouterr().err
+    assert "--alpha" in err and "at most 360000" in err and "MemoryError" not in err
+    with pytest.raises(SystemExit) as exit_:
+        main(["simulate", "--out", str(tmp_path / "d.csv"), "--seed", "-5"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and "--seed" in err and "-5" in err
+
+
+def test_plot_names_a_truncated_scan_csv(tmp_path, capsys):
+    assert main(["scan", "--out", str(tmp_path / "o"), "--quiet", "--alpha", "0", "360", "10"]) == 0
+    csv_path = tmp_path / "o" / "scan.csv"
+    lines = csv_path.read_text().splitlines()
+    csv_path.write_text("\n".join(lines[:5]) + "\n" + lines[5].split(",")[0] + ",12\n")
+    capsys.readouterr()
+    assert main(["plot", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "scan.csv" in err and "rerun" in err

@@ -143,7 +143,7 @@ class LightCurve:
             report["time"] = time_note
         report.update(extra or {})
         if not keep.any():
-            raise ValueError(f"{source}: no usable points ({report['flagged']} flagged, {report['non_finite']} non-finite of {t.size})")
+            raise ValueError(f"{source}: no usable points ({report['flagged']} flagged, {report['non_finite']} non-finite or with error <= 0, of {t.size})")
         seg = np.zeros(t.size) if segment is None else np.asarray(segment, float)
         t, f, e, seg = t[keep], f[keep], e[keep], seg[keep]
         flux, err = f.copy(), e.copy()

@@ -258,7 +258,8 @@ def read_csv_columns(path: Path, columns: dict):
 
     try:
         opener = gzip.open if path.name.lower().endswith(".gz") else open
-        with opener(path, "rt", newline="") as fh:
+        # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first name
+        with opener(path, "rt", newline="", encoding="utf-8-sig") as fh:
             text = fh.read()
     except (OSError, UnicodeDecodeError, EOFError) as err:
         raise ValueError(f"cannot read {path}: {err}") from err

@@ -149,6 +149,11 @@ def check_alpha_grid(alpha) -> float:
     return step
 
 
+MAX_ALPHAS = 360_000
+"""The most tilts one scan takes (0.001 deg over the circle): a finer grid
+would only exhaust memory (the chi^2 table is cases x alphas x points)."""
+
+
 def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
     """The tilt grid [deg] of ``[start, stop, step]`` (stop exclusive),
     checked by :func:`check_alpha_grid`; errors name ``name`` (the config key
@@ -165,6 +170,9 @@ def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
         raise ValueError(f"{name} must be finite, got {list(grid)!r}")
     if not step > 0:
         raise ValueError(f"{name} step must be > 0, got {step:g}")
+    if (stop - start) / step > MAX_ALPHAS:
+        raise ValueError(f"{name} = [{start:g}, {stop:g}, {step:g}] asks for {(stop - start) / step:.3g} tilts; at most "
+                         f"{MAX_ALPHAS} (a step of {360.0 / MAX_ALPHAS:g} deg over the circle) are scanned")
     alpha = np.arange(start, stop, step)
     if alpha.size == 0:
         raise ValueError(f"{name} grid [{start:g}, {stop:g}) with step {step:g} is empty")

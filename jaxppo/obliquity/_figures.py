@@ -35,9 +35,18 @@ _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", 
 
 
 def read_scan_csv(path) -> dict:
-    """{case: {"alpha", "chi2", "delta_chi2", "posterior"}} from a scan.csv."""
-    rows = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding=None)
-    rows = np.atleast_1d(rows)
+    """{case: {"alpha", "chi2", "delta_chi2", "posterior"}} from a scan.csv;
+    a file that is not a whole scan.csv is a ValueError naming it."""
+    try:
+        rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding=None))
+        missing = [k for k in ("case", "alpha", "chi2", "delta_chi2", "posterior") if k not in (rows.dtype.names or ())]
+    except (ValueError, OSError) as err:
+        raise ValueError(f"{path}: not a readable scan.csv ({' '.join(str(err).split())[:200]}); rerun the scan") from None
+    if missing or rows.size == 0:
+        raise ValueError(f"{path}: not a complete scan.csv (missing columns {missing} or no rows); rerun the scan")
+    for k in ("alpha", "chi2", "delta_chi2", "posterior"):
+        if not np.all(np.isfinite(np.asarray(rows[k], float))):
+            raise ValueError(f"{path}: column {k} has empty or non-finite values (a truncated file?); rerun the scan")
     out = {}
     for case in dict.fromkeys(rows["case"].tolist()):  # file order
         sel = rows["case"] == case

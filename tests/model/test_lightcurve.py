@@ -381,3 +381,12 @@ def test_the_exposure_rule():
         lc.supersampled_times(0)
     with pytest.raises(ValueError, match="exposure"):
         sub_exposures(-1.0)
+
+
+def test_csv_with_a_byte_order_mark(tmp_path):
+    """A spreadsheet's UTF-8 export starts with a byte-order mark: it was read
+    as part of the first column's name ("no time column ... '\\ufefftime'")."""
+    path = tmp_path / "bom.csv"
+    path.write_bytes("time,flux,flux_err\n1.0,1.0,0.001\n1.1,0.999,0.001\n".encode("utf-8-sig"))
+    lc = jp.LightCurve.from_csv(path)
+    np.testing.assert_array_equal(lc.time, [1.0, 1.1])
