@@ -400,3 +400,26 @@ def test_plot_names_a_truncated_scan_csv(tmp_path, capsys):
     assert main(["plot", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "scan.csv" in err and "rerun" in err
+
+
+def test_outputs_are_what_the_scan_says(tmp_path, monkeypatch, capsys):
+    """The scan printed "5 figures" and wrote 6 (ppo_or_spot.png); summary.json
+    held paths relative to the working directory; --restart kept the old
+    ppo_or_spot.png. Now the count is the files, every path resolves from
+    anywhere, and a restart with no dip to judge leaves no stale figure."""
+    import json as _json
+    from pathlib import Path
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["scan", "--out", "o", "--quiet", "--alpha", "0", "360", "10"]) == 0
+    said = capsys.readouterr().out
+    pngs = sorted(p.name for p in (tmp_path / "o").glob("*.png"))
+    assert f"and {len(pngs)} figures" in said and "ppo_or_spot.png" in pngs
+    summary = _json.loads((tmp_path / "o" / "summary.json").read_text())
+    paths = summary["figures"] + summary["table5_files"] + [summary["ppo_or_spot"]["figure"]]
+    assert all(Path(p).is_absolute() and Path(p).is_file() for p in paths), paths
+    (tmp_path / "o" / "ppo_or_spot.png").write_bytes(b"stale")
+    from jaxppo.obliquity._scan import _clear_outputs
+
+    _clear_outputs(tmp_path / "o")
+    assert not (tmp_path / "o" / "ppo_or_spot.png").exists()

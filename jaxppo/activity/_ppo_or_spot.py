@@ -213,7 +213,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         "dips": rows,
     }
     if out is not None and figure and panels:
-        summary["figure"] = str(plot_ppo_or_spot(panels, Path(out) / "ppo_or_spot.png"))
+        summary["figure"] = str(plot_ppo_or_spot(panels, Path(out) / "ppo_or_spot.png").resolve())
     return summary
 
 

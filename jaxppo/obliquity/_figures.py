@@ -385,4 +385,4 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
         _fig7(plt, out, summary, table, system, cases),
         _fig_probabilities(plt, out, summary, cases, colors),
     ]
-    return [str(f) for f in files]
+    return [str(Path(f).resolve()) for f in files]  # absolute: summary.json is read from anywhere

@@ -51,5 +51,5 @@ def scan_report(summary: dict, cfg, out, seconds: float) -> str:
     lines += probability_lines(summary)
     text = "\n".join(lines) + "\n" + table5_text(summary["table5"], cfg.cases)
     verb = "results in" if res.get("finished_before") else "wrote"
-    return text + (f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and "
-                   f"{len(summary.get('figures', []))} figures\n")
+    n_fig = len(summary.get("figures", [])) + bool((summary.get("ppo_or_spot") or {}).get("figure"))
+    return text + f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {n_fig} figures\n"

@@ -226,7 +226,7 @@ def _clear_outputs(out: Path) -> None:
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
     names = ["summary.json", "scan.csv", "scan.ecsv", "table5.csv", "table5.md", "marginal.csv", "marginal.json",
-             "marginal.png", "marginal_draws.json", "marginal_progress.jsonl"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+             "marginal.png", "marginal_draws.json", "marginal_progress.jsonl", "ppo_or_spot.png"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
     for name in dict.fromkeys(names):
         p = out / name
         if p.is_file():

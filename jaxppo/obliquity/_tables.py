@@ -264,5 +264,5 @@ def write_table5(out, table: dict, summary: dict | None = None, cases=None, thre
         tmp = p.with_name(p.name + ".tmp")
         tmp.write_text(text)
         tmp.replace(p)
-        paths.append(str(p))
+        paths.append(str(p.resolve()))
     return paths
