@@ -26,6 +26,7 @@ from .model._transits import MultiTransit as MultiTransit
 from .model._system import Planet as Planet
 from .model._system import System as System
 from .model._transits import alpha_limits as alpha_limits
+from .model._transits import transit_times as transit_times
 from .model._transits import multi_transits as multi_transits
 from .model._transits import multi_transit_counts as multi_transit_counts
 from .model._system import hemisphere_cases as hemisphere_cases

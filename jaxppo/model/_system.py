@@ -9,6 +9,7 @@ in Winn 2010).
 from __future__ import annotations
 
 import math
+import os
 import warnings
 
 import equinox as eqx
@@ -186,6 +187,22 @@ def from_quantity(name: str, value, unit: str):
     raise ValueError(f"{name} must be {_WANT[unit]}, got the Quantity {value!r}")
 
 
+def user_stacklevel() -> int:
+    """The ``stacklevel`` that points a warning at the first frame outside
+    jaxppo and equinox (a Planet's checks run inside equinox's module
+    machinery, so a fixed level pointed into equinox)."""
+    import inspect
+
+    level, frame = 1, inspect.currentframe()
+    inside = ("jaxppo" + os.sep, "equinox" + os.sep)
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if level > 1 and not any(part in name for part in inside) and not name.startswith("<frozen"):
+            return level - 1
+        frame, level = frame.f_back, level + 1
+    return 2
+
+
 class Planet(eqx.Module):
     """A planet on a Keplerian orbit (circular by default).
 
@@ -269,7 +286,7 @@ class Planet(eqx.Module):
                 warnings.warn(
                     f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {'a |cos i|' if self.circular else 'a |cos i| (1 - e^2) / (1 + e sin omega)'} = {np.max(b):.4g} >= 1 + radius, "
                     "so it never transits (inc is in degrees; a Quantity in radians is converted)",
-                    UserWarning, stacklevel=2,
+                    UserWarning, stacklevel=user_stacklevel(),
                 )
 
     @property
@@ -535,3 +552,10 @@ class System(eqx.Module):
             planets if planets is not None else self.planets,
             self.tilted if tilted is None else tilted,
         )
+
+    def transit_times(self, t_start, t_end):
+        """The predicted mid-transit times in [t_start, t_end] [d]: a table
+        (planet, epoch, tc); :func:`jaxppo.transit_times`."""
+        from ._transits import transit_times  # _transits builds on System
+
+        return transit_times(self, t_start, t_end)

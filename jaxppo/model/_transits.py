@@ -11,8 +11,36 @@ import numpy as np
 
 from ._system import System
 
-__all__ = ["alpha_limits", "MultiTransit", "multi_transits", "multi_transit_counts", "transit_windows",
+__all__ = ["transit_times", "alpha_limits", "MultiTransit", "multi_transits", "multi_transit_counts", "transit_windows",
            "simultaneous_sets", "planet_label"]
+
+
+def transit_times(system: System, t_start, t_end):
+    """The mid-transit times [d] the model predicts in [t_start, t_end]: an
+    astropy Table with columns ``planet`` (name, or index when unnamed),
+    ``epoch`` (0 is the transit at the planet's t0) and ``tc`` [d], sorted by
+    time. Every planet's transits are its conjunctions t0 + n P (t0 is the
+    time of inferior conjunction, eccentric orbits included); a planet that
+    never crosses the stellar disk has none. The question every orbit model
+    answers alike, so users and checks can compare them.
+    """
+    from astropy.table import Table
+
+    t_start, t_end = float(t_start), float(t_end)
+    if not (math.isfinite(t_start) and math.isfinite(t_end) and t_end >= t_start):
+        raise ValueError(f"need finite t_start <= t_end [d], got t_start = {t_start!r}, t_end = {t_end!r}")
+    rows = []
+    for i, pl in enumerate(system.planets):
+        t1, t4 = (float(v) for v in pl.contacts())
+        if t4 <= t1:
+            continue  # never on the stellar disk
+        period, t0 = float(pl.period), float(pl.t0)
+        for n in range(math.ceil((t_start - t0) / period), math.floor((t_end - t0) / period) + 1):
+            rows.append((planet_label(system, i), n, t0 + n * period))
+    rows.sort(key=lambda r: r[2])
+    table = Table(rows=rows or None, names=("planet", "epoch", "tc"), dtype=(str, int, float))
+    table["tc"].unit = "d"
+    return table
 
 
 def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
@@ -30,6 +58,11 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
         other = candidates[0]
     if isinstance(other, str):
         other = system.index(other)
+    if isinstance(other, bool) or not isinstance(other, (int, np.integer)) or not 0 <= other < len(system.planets):
+        raise ValueError(f"other must be a planet name or an index in [0, {len(system.planets)}), got {other!r}")
+    if other == system.tilted:
+        raise ValueError(f"other = {other!r} is the tilted planet itself; alpha_limits needs the second planet of "
+                         "the pair (default: the first untilted one)")
     pc = system.planets[other]
     bb, bc = float(abs(tb.impact)), float(abs(pc.impact))
     pb, pcr = float(tb.radius), float(pc.radius)
