@@ -93,6 +93,9 @@ def scan_cases(system: "System", cases) -> tuple[str, ...]:
     cases = list(cases)
     if not cases:
         raise ValueError("cases must not be empty")
+    if len(system.planets) < 2:
+        raise ValueError(f"an obliquity scan needs two or more planets (one is tilted against the others); this "
+                         f"system has one ({system.planets[0].name or 0!r})")
     out = []
     for c in cases:
         if not isinstance(c, str):
@@ -101,7 +104,8 @@ def scan_cases(system: "System", cases) -> tuple[str, ...]:
         # canonical label: "+" of a two-planet system is "same", "-+" stays "-+"
         label = case_label(tuple(int(v) for i, v in enumerate(signs) if i != system.tilted))
         if label in out:
-            raise ValueError(f"case {c!r} is listed twice")
+            raise ValueError(f"case {c!r} is listed twice (it is the configuration {label!r} of this system, "
+                             f"given as {[x for x in cases if x != c] or [c]})")
         out.append(label)
     return tuple(out)
 
@@ -158,6 +162,8 @@ def from_quantity(name: str, value, unit: str):
     times, an astropy ``TimeDelta`` is converted to days; an absolute
     astropy ``Time`` is refused: it has no day count of its own, and
     the zero point of the planets' t0 is the caller's to choose."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ValueError(f"{name} must be {_WANT[unit]}, got {type(value).__name__} {value!r}")
     if _is_time_class(value, "Time"):
         raise ValueError(
             f"{name} must be a number of days, a time Quantity or a TimeDelta, got an absolute astropy Time "
@@ -460,8 +466,13 @@ class System(eqx.Module):
         names = [pl.name for pl in planets if pl.name]
         if len(names) != len(set(names)):
             raise ValueError(f"planet names must be unique, got {names}")
-        if not (0 <= int(tilted) < len(planets)):
-            raise ValueError(f"tilted must index a planet (0..{len(planets) - 1}), got {tilted!r}")
+        labels = [pl.name for pl in planets]
+        if isinstance(tilted, str) and tilted in labels:
+            tilted = labels.index(tilted)  # the tilted planet by name
+        if isinstance(tilted, (bool, np.bool_)) or not isinstance(tilted, (int, np.integer)) \
+                or not 0 <= int(tilted) < len(planets):
+            raise ValueError(f"tilted must be a planet's index (0..{len(planets) - 1}) or name "
+                             f"({[n for n in labels if n]}), got {tilted!r}")
         self.star = star
         self.planets = planets
         self.tilted = int(tilted)

@@ -477,3 +477,24 @@ def test_alpha_limits_refuses_the_tilted_planet_as_the_other():
         jp.alpha_limits(system, other=system.tilted)
     with pytest.raises(ValueError, match="other"):
         jp.alpha_limits(system, other=7)
+
+
+def test_clear_refusals_of_odd_inputs():
+    """Planet(period="3.7") and Planet(radius=True) were accepted,
+    System(tilted="b") said "invalid literal for int()", a one-planet scan
+    said "case 'opposite' is listed twice"."""
+    from jaxppo.model._system import scan_cases
+
+    with pytest.raises(ValueError, match="period"):
+        jp.Planet(period="3.7", t0=0.0, a=10.0, inc=89.0, radius=0.02)
+    with pytest.raises(ValueError, match="radius"):
+        jp.Planet(period=3.7, t0=0.0, a=10.0, inc=89.0, radius=True)
+    system = jp.kepler20_system()
+    assert jp.System(system.star, system.planets, tilted="c").tilted == 1
+    with pytest.raises(ValueError, match="tilted must be a planet's index .* or name"):
+        jp.System(system.star, system.planets, tilted="z")
+    with pytest.raises(ValueError, match="tilted"):
+        jp.System(system.star, system.planets, tilted=True)
+    one = system.replace(planets=system.planets[:1])
+    with pytest.raises(ValueError, match="two or more planets"):
+        scan_cases(one, ("same", "opposite"))
