@@ -6,14 +6,19 @@ one run.
 
 The reference model is what a jaxoplanet user writes: numpyro sample sites
 with the priors of ``jp.sample`` (t0 uniform +-0.05 d, P uniform +-0.1 %,
-a uniform in [1, 4 a], b / (1 + p) uniform in (-1, 1), p log-uniform in
+a uniform in [1, 4 a], b / (1 + p) uniform in [0, 1), p log-uniform in
 [1e-4, 0.5]) on a circular orbit (the geometry of CONVENTIONS), flux from
 ``jaxoplanet.core.limb_dark.light_curve``; started at the same point.
 
 Times are wall-clock for the whole call (compilation, warmup and sampling);
 ESS is arviz's bulk and tail ESS, the minimum over the five parameters.
 
-    python benchmarks/sample_vs_jaxoplanet.py [--warmup 300 --samples 300 --chains 4]
+Both start from the same point: the truth (``--start truth``) or off it
+(``--start off``: t0 ``--t0-off`` minutes late, a/R* and the radius 5 %
+high, b 0.05 higher). ``--cadence`` 1 or 2 [min], ``--window`` the half
+span around mid-transit [d].
+
+    python benchmarks/sample_vs_jaxoplanet.py [--warmup 300 --samples 300 --chains 4 --start off --cadence 1]
 """
 
 from __future__ import annotations
@@ -32,16 +37,16 @@ import jaxppo as jp  # noqa: E402
 FREE = ("b.t0", "b.period", "b.a", "b.inc", "b.radius")
 
 
-def data(seed: int = 3, noise: float = 2e-4):
-    """One transit of a Kepler-20 b-like planet with b = 0.3, 2-minute
-    cadence over +-0.25 d, generated with jaxoplanet's light curve."""
+def data(seed: int = 3, noise: float = 2e-4, cadence: float = 2.0, window: float = 0.25):
+    """One transit of a Kepler-20 b-like planet with b = 0.3, ``cadence``
+    [min] over +-``window`` [d], generated with jaxoplanet's light curve."""
     from jaxoplanet.core.limb_dark import light_curve
 
     star = jp.Star.quadratic(0.4, 0.26)
     pl = jp.kepler20_system().planets[0]
     inc = float(np.rad2deg(np.arccos(0.3 / float(pl.a))))
     planet = jp.Planet(period=float(pl.period), t0=float(pl.t0), a=float(pl.a), inc=inc, radius=float(pl.radius), name="b")
-    t = np.arange(float(pl.t0) - 0.25, float(pl.t0) + 0.25, 2.0 / 1440.0)
+    t = np.arange(float(pl.t0) - window, float(pl.t0) + window, cadence / 1440.0)
     x, y, r = jp.System(star, [planet]).positions(t, xp=np)
     f = 1.0 + np.asarray(light_curve(jnp.array([0.4, 0.26]), np.hypot(x[:, 0], y[:, 0]), float(pl.radius)))
     f = np.where(r[:, 0] > 0, f, 1.0)
@@ -65,7 +70,7 @@ def jaxoplanet_sample(system, lc, warmup, samples, chains, seed):
         t0 = numpyro.sample("t0", dist.Uniform(t00 - 0.05, t00 + 0.05))
         period = numpyro.sample("period", dist.Uniform(p00 * (1 - 1e-3), p00 * (1 + 1e-3)))
         a = numpyro.sample("a", dist.Uniform(1.0, 4.0 * a00))
-        bn = numpyro.sample("bn", dist.Uniform(-1.0, 1.0))
+        bn = numpyro.sample("bn", dist.Uniform(0.0, 1.0))  # |b| / (1 + p): the sign is not measurable
         p = numpyro.sample("radius", dist.LogUniform(1e-4, 0.5))
         cosi = bn * (1.0 + p) / a
         phi = 2.0 * jnp.pi * (t - t0) / period
@@ -106,15 +111,30 @@ def report(label, chains, wall, steps):
     return min(bulk, tail) / wall
 
 
+def off_start(system, minutes: float):
+    """The start ``--start off``: t0 ``minutes`` late, a/R* and radius 5 %
+    high, b 0.05 higher (inc recomputed at the new a)."""
+    pl = system.planets[0]
+    a, p = 1.05 * float(pl.a), 1.05 * float(pl.radius)
+    b = float(pl.a * np.cos(np.deg2rad(pl.inc))) + 0.05
+    new = pl.replace(t0=float(pl.t0) + minutes / 1440.0, a=a, radius=p, inc=float(np.rad2deg(np.arccos(b / a))))
+    return system.replace(planets=(new,))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--warmup", type=int, default=300)
     ap.add_argument("--samples", type=int, default=300)
     ap.add_argument("--chains", type=int, default=4)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--start", choices=("truth", "off"), default="truth")
+    ap.add_argument("--t0-off", type=float, default=3.0, help="[min] t0 offset of --start off (1 to 5)")
+    ap.add_argument("--cadence", type=float, choices=(1.0, 2.0), default=2.0, help="[min]")
+    ap.add_argument("--window", type=float, default=0.25, help="[d] half span of the data around mid-transit")
     args = ap.parse_args()
-    system, lc = data()
-    print(f"{len(lc)} points, free {FREE}, {args.chains} chains x ({args.warmup} warmup + {args.samples} draws), "
+    truth, lc = data(cadence=args.cadence, window=args.window)
+    system = truth if args.start == "truth" else off_start(truth, args.t0_off)
+    print(f"start {args.start}, cadence {args.cadence:g} min, {len(lc)} points, free {FREE}, {args.chains} chains x ({args.warmup} warmup + {args.samples} draws), "
           f"{jax.device_count()} {jax.default_backend()} device(s)")
     t_start = time.perf_counter()
     res = jp.sample(system, lc, free=FREE, num_warmup=args.warmup, num_samples=args.samples, num_chains=args.chains,

@@ -105,7 +105,8 @@ class FitResult:
 
 
 def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha: float = 0.0, case: str = "same",
-        max_steps: int = 200, rtol: float = 1e-6, atol: float = 1e-6, progress: bool = False) -> FitResult:
+        max_steps: int = 200, rtol: float = 1e-6, atol: float = 1e-6, progress: bool = False,
+        fold_inc: bool = True) -> FitResult:
     """Least-squares fit (optimistix Levenberg-Marquardt) of the named free
     parameters to the light curve; limb darkening stays fixed unless named
     (``"star.u1"``, or Kipping's ``"star.q1"``, ``"star.q2"``); the
@@ -129,6 +130,12 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     chi^2_min + 1 by more than a factor 4 (e.g. a and inc of a grazing or
     single transit): the posterior is then far from Gaussian and
     :func:`jaxppo.sample` gives the errors.
+
+    ``fold_inc``: the light curve depends on |cos i| only (the sign of cos i
+    cannot be measured, docs/conventions.md), so a fitted inclination is
+    reported folded into [0, 90] deg (the same chi^2 and errors; the
+    correlations of inc change sign). ``fold_inc=False`` keeps the side of
+    90 deg the fit ended on.
     """
     clock = time.perf_counter()
 
@@ -152,6 +159,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         return _failed_start(model, system, theta, chi2_start, n, problems)
     say(f"chi^2 at the start {chi2_start:.6g}")
     model, theta, optx_problem, steps, verdict = _solve(model, theta, max_steps, rtol, atol, say)
+    if fold_inc:
+        theta, verdict["cov_theta"] = _fold_inc(model, theta, verdict["cov_theta"])
     problems = ([optx_problem] if optx_problem else []) + verdict["problems"]
     problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, model.to_system(theta))]
     ok = not problems
@@ -227,6 +236,15 @@ def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     if not bool(sol.result == optx.RESULTS.successful):
         failure = str(optx.RESULTS[sol.result]) if hasattr(optx.RESULTS, "__getitem__") else str(sol.result)
     return model, theta, failure, steps, verdict
+
+
+def _fold_inc(model: Model, theta, cov_theta):
+    """(theta, cov_theta) with every inclination's coordinate (b = (1 + p)
+    tanh theta) made >= 0: i -> 180 deg - i, the identical light curve."""
+    flip = np.array([-1.0 if par == "inc" and float(theta[k]) < 0 else 1.0 for k, (_, par) in enumerate(model.slots)])
+    if cov_theta is not None:
+        cov_theta = cov_theta * np.outer(flip, flip)
+    return jnp.asarray(theta) * jnp.asarray(flip), cov_theta
 
 
 def _physical_covariance(model: Model, theta, cov_theta):

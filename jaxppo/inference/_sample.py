@@ -10,9 +10,22 @@ of unit width, so that its dense mass matrix only has to learn what is left:
    from P, T14, b and p for a circular orbit, Winn 2010, eq. 14): transit
    data constrain T14 and b nearly independently where a and i form a
    curved ridge;
-2. then shifted by the start and divided by the 1-sigma widths of the
-   Laplace approximation there (numpyro regularises its mass matrix towards
-   1e-3 x identity, which is far too wide for a mid-time known to 1e-4 d).
+2. then shifted by the posterior mode (found from the user's start) and
+   whitened by the Cholesky factor of the Laplace covariance there, so
+   that NUTS's dense mass matrix starts right (numpyro starts it at the
+   identity and regularises it towards 1e-3 x identity, far too wide for a
+   mid-time known to 1e-4 d), and warm-up starts at the mode instead of
+   fighting a metric taken on a slope.
+
+The impact parameter is folded: the light curve depends on |cos i| only
+(docs/conventions.md), so i and 180 deg - i are two identical modes, and a
+chain that visits both reports an interval of i that straddles 90 deg
+around neither. NUTS moves a signed coordinate s = b / (1 + p) in (-1, 1)
+and the model takes |s| (the idea of ``_posterior.TransitPosterior``): the
+density is symmetric in s, so a posterior piled up at b = 0 is one smooth
+mode through s = 0, and every reported inclination is in [0, 90] deg.
+``fold_inc=False`` keeps the signed s (inc in (0, 180) deg, the two
+mirrored modes).
 
 The log-density in these coordinates is the likelihood plus the prior plus
 log |det d(prior parameters)/d(coordinates)|, so the posterior is the one
@@ -33,6 +46,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
+from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["sample", "SampleResult"]
@@ -55,7 +69,11 @@ class SampleResult:
     coordinates, see the module docstring); ``union_frames``: the model
     frames integrated exactly as overlaps (from the start with a margin,
     widened and sampled again when the posterior brings disks together
-    elsewhere); ``time``, ``flux``, ``flux_err``: the data [d, relative]."""
+    elsewhere); ``time``, ``flux``, ``flux_err``: the data [d, relative];
+    ``start``: where the chains started: {"optimised": bool, "converged":
+    bool or None, "message": str} (``converged`` False: the optimiser did
+    not find the posterior mode from the given system; a UserWarning said
+    so)."""
 
     samples: dict
     best: System
@@ -72,6 +90,7 @@ class SampleResult:
     flux_err: np.ndarray | None = None
     pointwise: object = None  # callable: [draw, k] physical -> [draw, time] log-likelihood
     names: tuple = ()  # the free parameters (``chains`` also holds derived u1, u2)
+    start: dict = dataclasses.field(default_factory=dict)  # how the start was found (see ``sample``)
 
     def save(self, path) -> str:
         """Write the draws, log-likelihood, sample stats, data, intervals,
@@ -85,7 +104,7 @@ class SampleResult:
                 "chains": list(self.chains), "stats": list(self.stats), "deviance_min": to_jsonable(self.deviance_min),
                 "intervals": {k: to_jsonable(list(v)) for k, v in self.intervals.items()},
                 "diagnostics": {k: {m: to_jsonable(x) for m, x in v.items()} for k, v in self.diagnostics.items()},
-                "best": system_to_dict(self.best)}
+                "best": system_to_dict(self.best), "start": dict(self.start)}
         arrays = {f"chain_{i}": np.asarray(v) for i, v in enumerate(self.chains.values())}
         arrays.update({f"stat_{i}": np.asarray(v) for i, v in enumerate(self.stats.values())})
         for k in ("log_likelihood", "time", "flux", "flux_err", "union_frames"):
@@ -113,7 +132,8 @@ class SampleResult:
                    {k: {m: from_jsonable(x) for m, x in v.items()} for k, v in meta["diagnostics"].items()},
                    from_jsonable(meta["deviance_min"]), None,
                    union_frames=z["union_frames"] if "union_frames" in z.files else np.zeros(0, int), chains=chains,
-                   stats={n: z[f"stat_{i}"] for i, n in enumerate(meta["stats"])}, names=tuple(meta["names"]), **opt)
+                   stats={n: z[f"stat_{i}"] for i, n in enumerate(meta["stats"])}, names=tuple(meta["names"]),
+                   start=dict(meta.get("start", {})), **opt)
 
     def to_arviz(self, pointwise: bool = True):
         """An arviz InferenceData: ``posterior`` (the free parameters in
@@ -214,9 +234,10 @@ class _Coords:
     inclination is free too: then u places log T14 [d] between its values
     at a = 4 a_start and a = 1 + p by the logistic function (so the prior
     on a is kept on (1 + p, 4 a_start): orbits that graze the star at every
-    phase are left out)."""
+    phase are left out). With ``fold`` the inclination's q is |s|, s the
+    signed b / (1 + p) of its map (module docstring)."""
 
-    def __init__(self, model: Model, priors, user=()):
+    def __init__(self, model: Model, priors, user=(), fold: bool = True):
         from numpyro.distributions.transforms import biject_to
 
         self.model = model
@@ -230,6 +251,7 @@ class _Coords:
                          and self.index[(o, par)] not in self.user}
         self.plain = sorted({o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index} - self.duration)
         self.maps = [biject_to(pr.support) for pr in priors]
+        self.folded = [k for k, (_, par) in enumerate(self.slots) if par == "inc"] if fold else []
         self.priors = list(priors)
         self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
                       if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}
@@ -251,6 +273,10 @@ class _Coords:
 
     def to_q(self, u):
         q = [None if self._is_duration(k) else self.maps[k](u[k]) for k in range(len(self.slots))]
+        for k in self.folded:
+            # |s| with the derivative -1 or +1 (jnp.abs has 0 at s = 0, which
+            # would put log |det dq/du| = -inf at a head-on start)
+            q[k] = jnp.where(q[k] < 0, -q[k], q[k])
         for owner in self.duration:
             ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
             p, period = self._other(q, owner, "radius"), self._other(q, owner, "period")
@@ -262,7 +288,8 @@ class _Coords:
         return jnp.stack(q)
 
     def from_q(self, q) -> np.ndarray:
-        q = np.asarray(q, float)
+        q = np.asarray(q, float).copy()
+        q[self.folded] = np.abs(q[self.folded])
         u = np.array([0.0 if self._is_duration(k) else float(self.maps[k].inv(q[k])) for k in range(len(self.slots))])
         for owner in self.duration:
             ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
@@ -291,6 +318,8 @@ class _Coords:
 
 
 def _start_q(model: Model, system: System) -> np.ndarray:
+    """The prior parameters q (``_Coords``) of ``system``: the inclination
+    as the signed b / (1 + p) (``_Coords`` folds it)."""
     q = []
     phys = np.asarray(model.physical(model.to_theta(system)), float)  # q1, q2, lc.* at the start
     for k, (owner, par) in enumerate(model.slots):
@@ -312,10 +341,11 @@ def _start_q(model: Model, system: System) -> np.ndarray:
 
 def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), num_warmup: int = 1000,
            num_samples: int = 1000, seed: int = 0, num_chains: int = 4, alpha: float = 0.0, case: str = "same",
-           progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None) -> SampleResult:
+           progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None, optimise: bool = True,
+           fold_inc: bool = True) -> SampleResult:
     """NUTS over the named free parameters with physical priors: t0 within
     +-0.05 d and P within +-0.1 % of the start, a in [1, 4 a], p log-uniform in
-    [1e-4, 0.5], the impact parameter uniform in |b| < 1 + p, limb-darkening
+    [1e-4, 0.5], the impact parameter uniform in 0 <= |b| < 1 + p, limb-darkening
     coefficients within +-1 of the start, Kipping's q1, q2 uniform in [0, 1],
     "lc.offset" and baseline coefficients uniform in [-0.05, 0.05], the
     jitter log-uniform in [1e-3, 10] x the median error. ``priors``: name ->
@@ -325,9 +355,26 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     UserWarning says so). ``lightcurve``: a :class:`LightCurve` or a
     lightkurve LightCurve. ``num_chains`` chains run vectorised (one
     program), with a dense mass matrix (``dense_mass``) in the coordinates
-    of the module docstring. Returns samples (and the implied u1, u2 when
-    q1 or q2 is free), the lowest-deviance solution (as the paper reports),
-    68.3 % intervals and rank-normalised R-hat and bulk / tail ESS."""
+    of the module docstring.
+
+    ``optimise``: first find the posterior mode from ``system``
+    (optimistix BFGS in NUTS's coordinates; the priors stay centred on
+    ``system``) and start the chains there, in coordinates whitened by the
+    Laplace covariance at the mode (:mod:`._start`). ``result.start`` says
+    how: {"optimised", "converged", "message"}; when the mode was not found
+    (``converged`` False) a UserWarning says so and the chains start at the
+    better of ``system`` and the optimiser's last point.
+    ``optimise=False``: start at ``system`` with the Laplace covariance there.
+
+    ``fold_inc``: the sign of cos i cannot be measured (the model uses
+    |cos i|, docs/conventions.md), so inclinations are reported folded into
+    [0, 90] deg. ``fold_inc=False`` samples the signed b (the old
+    behaviour): the posterior of inc is then two mirrored modes, i and
+    180 deg - i, of equal height, and its intervals mean nothing.
+
+    Returns samples (and the implied u1, u2 when q1 or q2 is free), the
+    lowest-deviance solution (as the paper reports), 68.3 % intervals,
+    rank-normalised R-hat and bulk / tail ESS, and ``start``."""
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
@@ -336,12 +383,15 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     # star at the start, so that sampling again (below) is rarely needed.
     model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
     _check_priors(model, system, priors)
+    q0, start = _start_q(model, system), None
     for _ in range(3):
-        result = _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, priors)
+        result, q0 = _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
+                               priors, fold_inc, system, optimise and start is None)
+        start = result.start = start or result.start
         result.union_frames = model.union_idx
         # The union-integral frames were fixed from the start (with a margin);
         # if the posterior brings disks together elsewhere, sample again with
-        # those frames exact.
+        # those frames exact (from the mode found the first time).
         thin = np.unique(np.linspace(0, len(result.samples[model.free[0]]) - 1, 200).astype(int))
         ref = model.to_theta(system)
         draws = np.stack([result.samples[n][thin] for n in model.free], axis=1)  # physical units
@@ -350,6 +400,10 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         if wider is None:
             break
         model = wider
+    if start["converged"] is False:
+        warnings.warn(f"sample: the optimiser did not find the posterior mode from the given system ({start['message']});"
+                      " the chains started there with the Laplace metric of that point: check R-hat, or start closer "
+                      "(e.g. at jp.fit's solution)", UserWarning, stacklevel=2)
     return result
 
 
@@ -368,14 +422,16 @@ def _check_priors(model: Model, system: System, user) -> None:
                       "instead of (T14, b), which mixes more slowly along the a-b ridge", UserWarning, stacklevel=3)
 
 
-def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
-              user=None) -> SampleResult:
+def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, user, fold,
+              system, optimise):
+    """(SampleResult, q at the start actually used): NUTS from q0, or from
+    the posterior mode near it when ``optimise``."""
     from numpyro.infer import MCMC, NUTS
 
     priors = _priors(model, user)
-    coords = _Coords(model, priors, user or ())
+    coords = _Coords(model, priors, user or (), fold)
     k = len(model.free)
-    u0 = coords.from_q(_start_q(model, system))
+    u0 = coords.from_q(q0)
     log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
 
     def loglike_u(u):
@@ -391,50 +447,42 @@ def _run_nuts(model, system, num_warmup, num_samples, seed, num_chains, progress
         lp = lp + jnp.linalg.slogdet(jax.jacfwd(coords.to_q)(u))[1]
         return jnp.where(inside, lp, -jnp.inf)
 
-    scale = _laplace_widths(model, coords, u0, loglike_u)
-    u0j, scj = jnp.asarray(u0), jnp.asarray(scale)
-
-    @jax.jit  # numpyro evaluates it eagerly while it initialises: one program, not hundreds
-    def potential(w):
-        u = u0j + w * scj
+    @jax.jit
+    def potential_u(u):
         v = -(loglike_u(u) + logprior_u(u))
         return jnp.where(jnp.isnan(v), jnp.inf, v)
 
-    kernel = NUTS(potential_fn=potential, dense_mass=dense_mass)
-    mcmc = MCMC(kernel, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
-                chain_method="vectorized", progress_bar=progress_bar)
-    # chains start around the given system, 0.3 Laplace widths apart
-    init = 0.3 * np.random.default_rng(seed).standard_normal((num_chains, k)) if num_chains > 1 else np.zeros((1, k))
-    mcmc.run(jax.random.PRNGKey(seed), init_params=jnp.asarray(init if num_chains > 1 else init[0]),
-             extra_fields=("diverging", "num_steps", "energy", "potential_energy", "accept_prob", "adapt_state.step_size"))
-    w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(num_chains, num_samples, k)
-    u = u0[None, None] + w * scale[None, None]
-    return _result(model, system, coords, mcmc, u, loglike_u, log_norm)
+    jacobian_u = jax.jit(jax.jacfwd(lambda u: model.residuals(model.theta_from(coords.to_q(u)))))
 
-
-def _laplace_widths(model: Model, coords: _Coords, u0, loglike_u) -> np.ndarray:
-    """The scale of NUTS's coordinates w = (u - u0) / scale: the Laplace
-    widths at the start (Fisher information of the data plus the prior's
-    widths as Gaussian curvature, so that a parameter the data do not
-    constrain, like P from one transit, keeps its prior's width)."""
-
-    # eager JAX would compile every primitive on its own (hundreds of small
-    # compilations): the start and the post-processing run as one program each
-    def start_info(u):
-        res = lambda v: model.residuals(model.theta_from(coords.to_q(v)))  # noqa: E731
-        return loglike_u(u), jax.jacfwd(res)(u)
-
-    ll0, jac = (np.asarray(v) for v in jax.jit(start_info)(jnp.asarray(u0)))
-    ll0 = float(ll0)
+    ll0 = float(jax.jit(loglike_u)(jnp.asarray(u0)))
     if not np.isfinite(ll0):
         raise ValueError(f"sample: the log-likelihood at the start is {ll0} (flux_err as small as "
                          f"{float(np.min(np.asarray(model.sigma))):.3g} overflows float64, or the model is not finite)")
     prior_sd = coords.prior_widths(u0)
-    info = jac.T @ jac + np.diag(1.0 / prior_sd**2)
-    c = np.sqrt(np.diag(info))
-    cov = np.linalg.pinv(info / np.outer(c, c), rcond=1e-12) / np.outer(c, c)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    return np.where(np.isfinite(sd) & (sd > 0), np.minimum(sd, prior_sd), prior_sd)
+    if optimise:
+        u0, chol, ok, why = find_mode(potential_u, jacobian_u, u0, prior_sd)
+        start = {"optimised": True, "converged": bool(ok), "message": why}
+    else:
+        chol = laplace_factor(jacobian_u, u0, prior_sd)
+        start = {"optimised": False, "converged": None, "message": "started at the given system"}
+    u0j, lj = jnp.asarray(u0), jnp.asarray(chol)
+
+    @jax.jit  # numpyro evaluates it eagerly while it initialises: one program, not hundreds
+    def potential(w):
+        return potential_u(u0j + lj @ w)
+
+    kernel = NUTS(potential_fn=potential, dense_mass=dense_mass)
+    mcmc = MCMC(kernel, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
+                chain_method="vectorized", progress_bar=progress_bar)
+    # chains start around the mode, 0.3 Laplace widths apart
+    init = 0.3 * np.random.default_rng(seed).standard_normal((num_chains, k)) if num_chains > 1 else np.zeros((1, k))
+    mcmc.run(jax.random.PRNGKey(seed), init_params=jnp.asarray(init if num_chains > 1 else init[0]),
+             extra_fields=("diverging", "num_steps", "energy", "potential_energy", "accept_prob", "adapt_state.step_size"))
+    w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(num_chains, num_samples, k)
+    u = u0[None, None] + np.einsum("ij,cdj->cdi", chol, w)
+    result = _result(model, system, coords, mcmc, u, loglike_u, log_norm)
+    result.start = start
+    return result, np.asarray(coords.to_q(jnp.asarray(u0)))
 
 
 def _result(model: Model, system: System, coords: _Coords, mcmc, u, loglike_u, log_norm: float) -> SampleResult:
