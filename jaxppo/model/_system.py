@@ -21,7 +21,7 @@ from ._flux import occultation_flux
 from ..core.geometry import orbit_position
 from ._contacts import eccentric_contacts
 from ._star import Star
-from . import _ttv
+from ._ttv import check_transit_times, epochs_text, mid_time, shifted_time
 
 __all__ = ["scan_cases", "Planet", "System", "CASES", "hemisphere_cases", "case_label", "case_signs"]
 
@@ -294,7 +294,7 @@ class Planet(eqx.Module):
         # ---- transit times (TTVs): checked and stored apart from the orbit
         if transit_times is not None:
             transit_times = from_quantity("transit_times", transit_times, "d")
-        self.transit_times, self.transit_epochs = _ttv.check_transit_times(
+        self.transit_times, self.transit_epochs = check_transit_times(
             transit_times, transit_epochs, period, t0, self.name)
         # ---- end transit times
         if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
@@ -352,7 +352,7 @@ class Planet(eqx.Module):
         later one; docs/conventions.md, "Transit times")."""
         if self.transit_times is None:
             return t
-        return _ttv.shifted_time(t, self.transit_times, self.transit_epochs, self.period, self.t0, xp)
+        return shifted_time(t, self.transit_times, self.transit_epochs, self.period, self.t0, xp)
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
         """First and last contact relative to conjunction t0 + n P [d]:
@@ -398,7 +398,7 @@ class Planet(eqx.Module):
             arr = np.asarray(v)
             parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
         if self.transit_times is not None:
-            parts.append(f"transit_times={len(self.transit_epochs)} listed (epochs {_ttv.epochs_text(self.transit_epochs)})")
+            parts.append(f"transit_times={len(self.transit_epochs)} listed (epochs {epochs_text(self.transit_epochs)})")
         return "Planet(" + ", ".join(parts) + ")"
 
     def mid_time(self, epoch: int) -> float:
@@ -408,7 +408,7 @@ class Planet(eqx.Module):
         times (concrete parameters)."""
         if self.transit_times is None:
             return float(self.t0) + int(epoch) * float(self.period)
-        return _ttv.mid_time(int(epoch), self.transit_times, self.transit_epochs, self.period, self.t0)
+        return mid_time(int(epoch), self.transit_times, self.transit_epochs, self.period, self.t0)
 
     def replace(self, **changes) -> "Planet":
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega",

@@ -70,7 +70,7 @@ def check_transit_times(times, epochs, period, t0, name: str):
         return arr, epochs
     if not np.all(np.isfinite(arr)):
         k = int(np.argmin(np.isfinite(arr)))
-        raise ValueError(f"{label}transit_times must be finite, got {arr[k]!r} for epoch {epochs[k]}")
+        raise ValueError(f"{label}transit_times must be finite, got {float(arr[k])} for epoch {epochs[k]}")
     if _concrete(period, t0):
         p, t = float(np.asarray(period, float)), float(np.asarray(t0, float))
         off = arr - (t + p * np.asarray(epochs, float))
@@ -78,7 +78,7 @@ def check_transit_times(times, epochs, period, t0, name: str):
         if bad.size:
             k = int(bad[0])
             raise ValueError(
-                f"{label}transit time {arr[k]!r} d of epoch {epochs[k]} is {off[k]:+.6g} d from its linear "
+                f"{label}transit time {float(arr[k])!r} d of epoch {epochs[k]} is {off[k]:+.6g} d from its linear "
                 f"ephemeris t0 + {epochs[k]} P = {t + p * epochs[k]!r} d; every listed time must lie within half a "
                 f"period ({0.5 * p:.6g} d) of it (is the epoch number right? epoch 0 is the transit at t0)")
     return jnp.asarray(arr, float), epochs
