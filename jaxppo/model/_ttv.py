@@ -41,7 +41,10 @@ def check_transit_times(times, epochs, period, t0, name: str):
     if isinstance(times, (str, bytes)):
         raise ValueError(f"{label}transit_times must be a 1D list of mid-times [d], got {times!r}")
     traced = not _concrete(times)
-    arr = times if traced else np.asarray(times, dtype=float)
+    try:
+        arr = times if traced else np.asarray(times, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{label}transit_times must be a 1D list of mid-times [d] (numbers), got {times!r}") from None
     if arr.ndim != 1 or arr.shape[0] < 1:
         raise ValueError(f"{label}transit_times must be a non-empty 1D list of mid-times [d], got shape {arr.shape}")
     n = arr.shape[0]

@@ -167,7 +167,8 @@ def test_gradient_with_respect_to_a_transit_time():
     (dict(transit_times=[20.0], transit_epochs=[1]), "epoch 1"),
     (dict(transit_epochs=[0, 1]), "transit_epochs = \\[0, 1\\] needs transit_times"),
     (dict(transit_times=[[0.0, 10.0]]), "1D"),
-    (dict(transit_times="0.0"), "1D list of mid-times"),
+    (dict(transit_times="0.0"), "transit_times must be a time, got str"),
+    (dict(transit_times=[0.0, "x"]), r"1D list of mid-times \[d\] \(numbers\)"),
 ])
 def test_bad_transit_times_name_the_problem(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -180,8 +181,8 @@ def test_epochs_are_sorted_and_kept_by_replace_repr_and_serialisation():
     pl = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.0, radius=0.05, name="b",
                    transit_times=[30.01, 0.002, 19.99], transit_epochs=[3, 0, 2])
     assert pl.transit_epochs == (0, 2, 3) and np.array_equal(np.asarray(pl.transit_times), [0.002, 19.99, 30.01])
-    assert pl.mid_time(2) == 19.99 and pl.mid_time(1) == pytest.approx(10.0 + 0.002)  # tie 0/2 -> later: 2
-    assert pl.mid_time(1) == 10.0 + (19.99 - 20.0)
+    assert pl.mid_time(2) == 19.99 and pl.mid_time(0) == 0.002
+    assert pl.mid_time(1) == 10.0 + (19.99 - 20.0)  # epochs 0 and 2 equally near: the later
     assert pl.mid_time(7) == 70.0 + (30.01 - 30.0)
     moved = pl.replace(radius=0.06)
     assert moved.transit_epochs == pl.transit_epochs and np.array_equal(moved.transit_times, pl.transit_times)
@@ -201,14 +202,14 @@ def test_windows_tables_and_mask_use_the_listed_times():
     from jaxppo.model._transits import transit_windows
 
     system = _ttv_system()
-    table = system.transit_times(-1.0, 40.0)
+    table = system.transit_times(-7.0, 40.0)
     rows = {(str(r["planet"]), int(r["epoch"])): float(r["tc"]) for r in table}
     b, c = system.planets
     for pl in (b, c):
         for n, tc in zip(pl.transit_epochs, np.asarray(pl.transit_times)):
-            if -1.0 <= tc <= 40.0:
+            if -7.0 <= tc <= 40.0:
                 assert rows[(pl.name, n)] == tc
-    assert rows[("c", 0)] == -6.0 + (7.005 - 7.0)  # unlisted: offset of the nearest listed epoch
+    assert rows[("c", 0)] == pytest.approx(-6.0 + (7.005 - 7.0), abs=1e-12)  # unlisted: offset of the nearest listed epoch
     t1, t4 = (float(v) for v in c.contacts())
     for w in transit_windows(system, [1], -1.0, 40.0):
         assert w[0] == pytest.approx(w[3] + t1, abs=1e-12) and w[3] in rows.values()
