@@ -388,8 +388,7 @@ def _planets_from(raw: dict, star: Star, source: str, base=".") -> System:
         _check_keys(p, PLANET_KEYS, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')})", source)
         if not isinstance(p.get("tilted", False), bool):
             raise _err(source, f"[[planet]] #{i + 1}: tilted must be true or false, got {p['tilted']!r}")
-        missing = [f for f in _PLANET_FIELDS if f not in p]
-        if missing:
+        if missing := [f for f in _PLANET_FIELDS if f not in p]:
             raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
         for f in _PLANET_FIELDS + tuple(k for k in _PLANET_OPTIONAL if k in p):
             # a quoted number ("0.018") is a typo, not a value
@@ -538,6 +537,7 @@ inc = 87.687          # [deg] inclination, 0..180
 radius = 0.01805      # planet-to-star radius ratio
 e = 0.0               # eccentricity (optional, default 0: circular)
 omega = 90.0          # [deg] argument of periastron (optional, default 90: periastron at transit)
+# transit_times = [...] or "times.csv"; transit_epochs = [...]: measured mid-times [d] (TTVs, optional)
 tilted = true         # this orbit is rotated by alpha (at most one planet; default: the first)
 
 [[planet]]
