@@ -81,7 +81,7 @@ def _planet_transits(system, window):
             continue
         period, t0 = float(pl.period), float(pl.t0)
         n = round((0.5 * (t_lo + t_hi) - t0) / period)
-        mid = t0 + n * period
+        mid = pl.mid_time(n)  # transit times (TTVs) included
         if mid + half < t_lo or mid - half > t_hi:
             continue
         p = float(pl.radius)

@@ -323,7 +323,9 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
     keep their e and omega: inside a traced program ``base``'s leaves are
     tracers, so a circular planet given its traced e = 0 would take the
     slower Keplerian path."""
-    planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name) for p in base.planets]
+    # transit times (TTVs) stay as given: fixed in every fit
+    planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name,
+                    transit_times=p.transit_times, transit_epochs=p.transit_epochs) for p in base.planets]
     for k, p in enumerate(base.planets):
         if eccentric is None or eccentric[k]:
             planets[k].update(e=p.e, omega=p.omega)

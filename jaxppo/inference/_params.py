@@ -28,7 +28,7 @@ from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 
 __all__ = ["PLANET_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
-           "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
+           "check_ttv_free", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The parameters of each planet a fit or a sampler may free."""
@@ -54,6 +54,25 @@ def kipping_q(u1, u2):
     s = u1 + u2
     return s**2, jnp.where(s == 0, 0.5, u1 / (2.0 * jnp.where(s == 0, 1.0, s)))
 
+
+
+def check_ttv_free(system: System, idx: int, par: str, name: str) -> None:
+    """Refuse free parameters that a planet's transit times would make
+    meaningless or that are not supported: a free transit time
+    ("b.tc[12]") and the t0 of a planet with ``transit_times`` (its orbit
+    is shifted to the listed times, tc_n - t0 - n P, so t0 cancels: a free
+    t0 would move nothing and the fit would be degenerate)."""
+    pl = system.planets[idx]
+    if par.startswith("tc"):
+        raise ValueError(
+            f"free parameter {name!r}: free transit times are not supported yet; give the measured times as "
+            "Planet(..., transit_times=, transit_epochs=) and fit the other parameters (the times are kept "
+            "exactly as given)")
+    if par == "t0" and pl.transit_times is not None:
+        raise ValueError(
+            f"free parameter {name!r}: planet {pl.name or idx!r} has transit_times, which fix its mid-times (the "
+            "orbit is shifted by tc_n - t0 - n P, so t0 cancels and a free t0 would change nothing); leave t0 "
+            "fixed, or drop transit_times to fit a linear ephemeris")
 
 
 def logit(q):
@@ -113,6 +132,7 @@ def _split(name: str, system: System):
             idx = i
     if idx is None:
         raise ValueError(f"free parameter {name!r}: no planet named {owner!r}; names are {[p.name for p in system.planets]}")
+    check_ttv_free(system, idx, par, name)
     if par not in PLANET_PARAMS:
         raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS}")
     return idx, par

@@ -18,6 +18,7 @@ from ..model._overlap import may_touch
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
+from ._params import check_ttv_free
 
 __all__ = ["PLANET_PARAMS", "TransitPosterior", "a_from_density", "density_from_a", "check_density",
            "default_density", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
@@ -91,6 +92,8 @@ class TransitPosterior:
         slots = []
         for name in free:
             owner, _, par = name.partition(".")
+            if owner in labels:
+                check_ttv_free(system, labels.index(owner), par, name)
             if owner not in labels or par not in PLANET_PARAMS:
                 raise ValueError(f"free: {name!r} is not a planet parameter the marginal scan samples; names look "
                                  f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS})")

@@ -42,8 +42,16 @@ def system_to_dict(system: System) -> dict:
         star[f.name] = v if v is None or isinstance(v, str) else to_jsonable(v)
     planets = []
     for pl in system.planets:
-        planets.append({f.name: (getattr(pl, f.name) if f.name == "name" else to_jsonable(getattr(pl, f.name)))
-                        for f in dataclasses.fields(pl)})
+        entry = {}
+        for f in dataclasses.fields(pl):
+            v = getattr(pl, f.name)
+            if f.name == "name":
+                entry[f.name] = v
+            elif f.name == "transit_epochs":
+                entry[f.name] = None if v is None else [int(e) for e in v]
+            else:
+                entry[f.name] = None if v is None else to_jsonable(v)
+        planets.append(entry)
     return {"star": star, "planets": planets, "tilted": int(system.tilted)}
 
 
@@ -63,5 +71,7 @@ def system_from_dict(d: dict) -> System:
         else:
             kw[f.name] = jnp.asarray(from_jsonable(v), float)
     star = Star(**kw)
-    planets = [Planet(**{k: (v if k == "name" else from_jsonable(v)) for k, v in p.items()}) for p in d["planets"]]
+    # name and the epochs as written; transit_times None: a linear ephemeris
+    planets = [Planet(**{k: (v if k in ("name", "transit_epochs") or v is None else from_jsonable(v))
+                         for k, v in p.items()}) for p in d["planets"]]
     return System(star, planets, d["tilted"])

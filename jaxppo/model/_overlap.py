@@ -132,6 +132,8 @@ def in_transit_mask(system: System, t, pad: float = 0.0) -> np.ndarray:
         if half <= 0:  # never transits: nothing to mask
             continue
         period, t0 = float(pl.period), float(pl.t0)
-        n = np.round((t - t0) / period)
-        mask |= np.abs(t - (t0 + n * period)) < half + pad
+        # a planet with transit times is where its orbit is at the shifted time
+        ts = pl.orbit_time(t, np)
+        n = np.round((ts - t0) / period)
+        mask |= np.abs(ts - (t0 + n * period)) < half + pad
     return mask

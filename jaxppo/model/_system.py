@@ -8,7 +8,6 @@ in Winn 2010).
 
 from __future__ import annotations
 
-import math
 import os
 import warnings
 
@@ -19,8 +18,10 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from ._flux import occultation_flux
-from ..core.geometry import conjunction_mean_anomaly, orbit_position
+from ..core.geometry import orbit_position
+from ._contacts import eccentric_contacts
 from ._star import Star
+from ._ttv import check_transit_times, epochs_text, mid_time, shifted_time
 
 __all__ = ["scan_cases", "Planet", "System", "CASES", "hemisphere_cases", "case_label", "case_signs"]
 
@@ -226,6 +227,13 @@ class Planet(eqx.Module):
         omega: argument of periastron [deg], as in Winn (2010), batman
             (``w``) and jaxoplanet: omega = 90 deg puts periastron at
             transit, 270 deg apoastron.
+        transit_times: measured (or free) mid-times [d] of the epochs in
+            ``transit_epochs`` (default 0..n-1; epoch 0 is the transit at
+            t0), each within half a period of t0 + n P. The orbit is then
+            shifted, at every time, by the offset tc_n - t0 - n P of the
+            listed transit nearest in time (docs/conventions.md, "Transit
+            times"); None: the linear ephemeris t0 + n P.
+        transit_epochs: integer epochs of ``transit_times`` (static).
 
     astropy Quantities are converted (inc, omega: any angle unit; period,
     t0: any time unit; a, radius, e: dimensionless, e.g.
@@ -243,8 +251,11 @@ class Planet(eqx.Module):
     e: Array
     omega: Array
     name: str = eqx.field(static=True, default="")
+    transit_times: Array | None = None
+    transit_epochs: tuple[int, ...] | None = eqx.field(static=True, default=None)
 
-    def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0):
+    def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0, transit_times=None,
+                 transit_epochs=None):
         period = from_quantity("period", period, "d")
         t0 = from_quantity("t0", t0, "d")
         a = from_quantity("a", a, "")
@@ -280,6 +291,12 @@ class Planet(eqx.Module):
         self.e = jnp.asarray(e, float)
         self.omega = jnp.asarray(omega, float)
         self.name = str(name)
+        # ---- transit times (TTVs): checked and stored apart from the orbit
+        if transit_times is not None:
+            transit_times = from_quantity("transit_times", transit_times, "d")
+        self.transit_times, self.transit_epochs = check_transit_times(
+            transit_times, transit_epochs, period, t0, self.name)
+        # ---- end transit times
         if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
             e_, w_ = np.asarray(e, float), np.deg2rad(np.asarray(omega, float))
             b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
@@ -318,6 +335,7 @@ class Planet(eqx.Module):
         """Sky position (x, y, z) [R*] at times t [d] (docs/conventions.md:
         circular or Keplerian orbit). ``xp=numpy`` evaluates eagerly in numpy
         (geometry on the host)."""
+        t = self.orbit_time(t, xp)
         inc = xp.deg2rad(xp.asarray(self.inc))
         a = xp.asarray(self.a)
         if not self.circular:
@@ -326,6 +344,15 @@ class Planet(eqx.Module):
         phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
         cphi = xp.cos(phi)
         return a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc)
+
+    def orbit_time(self, t: ArrayLike, xp=jnp):
+        """The time [d] at which the Keplerian orbit is evaluated for time t:
+        t itself on a linear ephemeris; with transit times, t minus the
+        offset tc_n - t0 - n P of the listed transit nearest to t (ties: the
+        later one; docs/conventions.md, "Transit times")."""
+        if self.transit_times is None:
+            return t
+        return shifted_time(t, self.transit_times, self.transit_epochs, self.period, self.t0, xp)
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
         """First and last contact relative to conjunction t0 + n P [d]:
@@ -338,7 +365,7 @@ class Planet(eqx.Module):
             return -half, half
         if any(isinstance(getattr(self, f), jax.core.Tracer) for f in ("period", "a", "inc", "radius", "e", "omega")):
             raise ValueError(f"planet {self.name!r}: contact times of an eccentric orbit need concrete parameters, got traced ones")
-        f = np.vectorize(_eccentric_contacts, otypes=[float, float])
+        f = np.vectorize(eccentric_contacts, otypes=[float, float])
         return f(*(np.asarray(getattr(self, k), float) for k in ("period", "a", "inc", "radius", "e", "omega")))
 
     def half_duration(self) -> Array:
@@ -370,76 +397,24 @@ class Planet(eqx.Module):
                 continue
             arr = np.asarray(v)
             parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
+        if self.transit_times is not None:
+            parts.append(f"transit_times={len(self.transit_epochs)} listed (epochs {epochs_text(self.transit_epochs)})")
         return "Planet(" + ", ".join(parts) + ")"
 
+    def mid_time(self, epoch: int) -> float:
+        """Predicted mid-transit time [d] of ``epoch`` (0: the transit at
+        t0): the listed time of a listed epoch, else t0 + n P, plus the
+        offset of the nearest listed epoch when the planet has transit
+        times (concrete parameters)."""
+        if self.transit_times is None:
+            return float(self.t0) + int(epoch) * float(self.period)
+        return mid_time(int(epoch), self.transit_times, self.transit_epochs, self.period, self.t0)
+
     def replace(self, **changes) -> "Planet":
-        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega")}
+        fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega",
+                                                  "transit_times", "transit_epochs")}
         fields.update(changes)
         return Planet(**fields)
-
-
-def _bisect(g, lo, hi, steps=200):
-    """Root of g in [lo, hi] (g(lo), g(hi) of opposite signs) to rounding."""
-    glo = g(lo)
-    for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        if mid in (lo, hi):
-            break
-        gm = g(mid)
-        if (gm < 0) == (glo < 0):
-            lo, glo = mid, gm
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-def _eccentric_contacts(period, a, inc, radius, e, omega) -> tuple[float, float]:
-    """(t1 - t0, t4 - t0) [d] of an eccentric orbit: the outermost times
-    about conjunction at which the sky distance equals 1 + radius, on the
-    near side (z > 0). Works in theta = f + omega - pi/2 (0 at conjunction),
-    where r = a (1 - e^2) / (1 + e cos f) and the sky distance is
-    r sqrt(sin^2 theta + cos^2 theta cos^2 i)."""
-    w = math.radians(omega) - 0.5 * math.pi
-    ci = math.cos(math.radians(inc))
-    lim = 1.0 + radius
-
-    def dist(th):
-        r = a * (1.0 - e * e) / (1.0 + e * np.cos(th - w))
-        return r * np.sqrt(np.sin(th) ** 2 + (np.cos(th) * ci) ** 2) - lim
-
-    grid = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 4097)
-    d = dist(grid)
-    k = int(np.argmin(d))
-    if d[k] >= 0:
-        # refine the minimum (a grazing transit may dip below 1 + radius
-        # between grid points): golden-section search on the two cells
-        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-        g = (math.sqrt(5.0) - 1.0) / 2.0
-        for _ in range(100):
-            m1, m2 = hi - g * (hi - lo), lo + g * (hi - lo)
-            if dist(m1) < dist(m2):
-                hi = m2
-            else:
-                lo = m1
-        tmin = 0.5 * (lo + hi)
-        if dist(tmin) >= 0:
-            return 0.0, 0.0
-        grid = np.insert(grid, k + 1 if tmin > grid[k] else k, tmin)
-        d = dist(grid)
-    inside = np.nonzero(d < 0)[0]
-    # the ends of the half orbit are at distance r >= a (1 - e) > 1 + radius
-    j0, j1 = inside[0], inside[-1]
-    th1 = _bisect(lambda th: float(dist(th)), grid[j0 - 1], grid[j0])
-    th4 = _bisect(lambda th: float(dist(th)), grid[j1], grid[j1 + 1])
-    mc = float(conjunction_mean_anomaly(e, math.radians(omega), np))
-
-    def dt(th):
-        f = th - w
-        E = 2.0 * math.atan2(math.sqrt(1.0 - e) * math.sin(0.5 * f), math.sqrt(1.0 + e) * math.cos(0.5 * f))
-        dm = (E - e * math.sin(E)) - mc
-        return period * math.remainder(dm, 2.0 * math.pi) / (2.0 * math.pi)
-
-    return dt(th1), dt(th4)
 
 
 class System(eqx.Module):

@@ -20,8 +20,11 @@ def transit_times(system: System, t_start, t_end):
     astropy Table with columns ``planet`` (name, or index when unnamed),
     ``epoch`` (0 is the transit at the planet's t0) and ``tc`` [d], sorted by
     time. Every planet's transits are its conjunctions t0 + n P (t0 is the
-    time of inferior conjunction, eccentric orbits included); a planet that
-    never crosses the stellar disk has none. The question every orbit model
+    time of inferior conjunction, eccentric orbits included); a planet with
+    ``transit_times`` has the listed times at its listed epochs and t0 + n P
+    plus the offset of the nearest listed epoch elsewhere
+    (:meth:`Planet.mid_time`). A planet that never crosses the stellar disk
+    has none. The question every orbit model
     answers alike, so users and checks can compare them.
     """
     from astropy.table import Table
@@ -34,13 +37,29 @@ def transit_times(system: System, t_start, t_end):
         t1, t4 = (float(v) for v in pl.contacts())
         if t4 <= t1:
             continue  # never on the stellar disk
-        period, t0 = float(pl.period), float(pl.t0)
-        for n in range(math.ceil((t_start - t0) / period), math.floor((t_end - t0) / period) + 1):
-            rows.append((planet_label(system, i), n, t0 + n * period))
+        for n, tc in _epochs_between(pl, t_start, t_end):
+            rows.append((planet_label(system, i), n, tc))
     rows.sort(key=lambda r: r[2])
     table = Table(rows=rows or None, names=("planet", "epoch", "tc"), dtype=(str, int, float))
     table["tc"].unit = "d"
     return table
+
+
+def _epochs_between(pl, t_start: float, t_end: float, pad: float = 0.0) -> list[tuple[int, float]]:
+    """(epoch, predicted mid-time [d]) of the planet's transits with
+    t_start - pad <= tc <= t_end + pad."""
+    period, t0 = float(pl.period), float(pl.t0)
+    lo, hi = t_start - pad, t_end + pad
+    if pl.transit_times is None:
+        return [(n, t0 + n * period) for n in range(math.ceil((lo - t0) / period), math.floor((hi - t0) / period) + 1)]
+    # a listed time lies within P/2 of t0 + n P, and so does every predicted one
+    # (it takes the offset of a listed epoch): one more epoch on each side
+    out = []
+    for n in range(math.ceil((lo - t0) / period) - 1, math.floor((hi - t0) / period) + 2):
+        tc = pl.mid_time(n)
+        if lo <= tc <= hi:
+            out.append((n, tc))
+    return out
 
 
 def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
@@ -113,11 +132,7 @@ def transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
         if t4 <= t1:
             continue
         half = max(-t1, t4)
-        period, t0 = float(pl.period), float(pl.t0)
-        n0 = math.floor((t_start - half - t0) / period)
-        n1 = math.ceil((t_end + half - t0) / period)
-        for n in range(n0, n1 + 1):
-            mid = t0 + n * period
+        for _, mid in _epochs_between(pl, t_start, t_end, pad=half):
             if mid + t4 >= t_start and mid + t1 <= t_end:
                 windows.append((mid + t1, mid + t4, i, mid))
     windows.sort()

@@ -16,6 +16,7 @@ from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
 from ..model._system import CASES, Planet, System, scan_cases
+from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest
 
 __all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
            "config_from_dict", "finished_scan_config", "load_config", "default_config_path", "synthetic_config_path", "config_template"]
@@ -66,6 +67,7 @@ class ScanConfig:
         raw = {k: v for k, v in self.raw.items() if k != "fit"}
         if isinstance(raw.get("scan"), dict):
             raw["scan"] = {k: v for k, v in raw["scan"].items() if k != "marginalize"}
+        raw.update(ttv_digest(self.system))  # transit times from a file: their values count
         payload = json.dumps({"config": raw, "jaxppo": __version__, "supersampling": nsub},
                              sort_keys=True, default=str).encode()
         data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
@@ -85,7 +87,7 @@ STAR_KEYS = {
     "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
     "phoenix": ("law", "path", "limb"),
 }
-PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted",)
+PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted", "transit_times", "transit_epochs")
 DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(COLUMN_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
@@ -362,8 +364,8 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
         "star": {"law": star.law, "params": np.asarray(star.params).tolist(),
                  "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
                  "interpolation": star.interpolation},
-        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")}}
-                   for pl in system.planets],
+        "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")},
+                    **planet_ttv_dict(pl)} for pl in system.planets],
         "tilted": system.tilted,
         "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
         "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": s["margin"],
@@ -374,7 +376,7 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
                       s["detrend"], s["baseline"], s["clip"], s["events"])
 
 
-def _planets_from(raw: dict, star: Star, source: str) -> System:
+def _planets_from(raw: dict, star: Star, source: str, base=".") -> System:
     """[[planet]] entries: the system, tilted the one with tilted = true."""
     planets, tilted = [], []
     entries = raw["planet"] if isinstance(raw["planet"], list) else [raw["planet"]]
@@ -386,8 +388,7 @@ def _planets_from(raw: dict, star: Star, source: str) -> System:
         _check_keys(p, PLANET_KEYS, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')})", source)
         if not isinstance(p.get("tilted", False), bool):
             raise _err(source, f"[[planet]] #{i + 1}: tilted must be true or false, got {p['tilted']!r}")
-        missing = [f for f in _PLANET_FIELDS if f not in p]
-        if missing:
+        if missing := [f for f in _PLANET_FIELDS if f not in p]:
             raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
         for f in _PLANET_FIELDS + tuple(k for k in _PLANET_OPTIONAL if k in p):
             # a quoted number ("0.018") is a typo, not a value
@@ -396,7 +397,7 @@ def _planets_from(raw: dict, star: Star, source: str) -> System:
                            f"got {p[f]!r}")
         try:
             values = {f: float(p[f]) for f in _PLANET_FIELDS}
-            values.update({k: float(p.get(k, v)) for k, v in _PLANET_OPTIONAL.items()})
+            values.update({k: float(p.get(k, v)) for k, v in _PLANET_OPTIONAL.items()}, **transit_times_from(p, base))
             planets.append(Planet(**values, name=str(p.get("name", f"p{i + 1}"))))
         except (TypeError, ValueError) as e:
             raise _err(source, f"[[planet]] #{i + 1}: {e}") from e
@@ -450,7 +451,7 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         if sec not in raw:
             raise _err(source, f"missing section [{sec}]" if sec != "planet" else "missing [[planet]] entries")
     star = _star_from(raw["star"], base, source)
-    system = _planets_from(raw, star, source)
+    system = _planets_from(raw, star, source, base)
     lc = _lightcurve_from(raw["data"], base, source)
 
     scan = raw["scan"]
@@ -536,6 +537,7 @@ inc = 87.687          # [deg] inclination, 0..180
 radius = 0.01805      # planet-to-star radius ratio
 e = 0.0               # eccentricity (optional, default 0: circular)
 omega = 90.0          # [deg] argument of periastron (optional, default 90: periastron at transit)
+# transit_times = [...] or "times.csv"; transit_epochs = [...]: measured mid-times [d] (TTVs, optional)
 tilted = true         # this orbit is rotated by alpha (at most one planet; default: the first)
 
 [[planet]]

@@ -53,6 +53,7 @@ from ._progress import atomic_write, read_progress, record_line
 from ._scan import run_scan
 from ._windows import windows_and_events
 from ..inference._importance import MIN_IMPORTANCE_ESS
+from ..inference._params import check_ttv_free
 from ..inference._posterior import PLANET_PARAMS, check_density, default_density, nuts_draws
 from ..model._lightcurve import LightCurve
 from ..model._overlap import contact_frames, on_star, ppo_table, untilted_geometry
@@ -67,8 +68,11 @@ _ORDER, _KCHUNK = 24, 65536
 
 
 def default_free(system: System) -> tuple[str, ...]:
-    """t0, period, a, inc and radius of every planet (the issue's default)."""
-    return tuple(f"{pl.name or i}.{p}" for i, pl in enumerate(system.planets) for p in PLANET_PARAMS)
+    """t0, period, a, inc and radius of every planet (the issue's default);
+    not the t0 of a planet with transit times (they fix its mid-times, t0
+    cancels)."""
+    return tuple(f"{pl.name or i}.{p}" for i, pl in enumerate(system.planets) for p in PLANET_PARAMS
+                 if not (p == "t0" and pl.transit_times is not None))
 
 
 
@@ -98,6 +102,9 @@ def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
     labels = {pl.name or str(i) for i, pl in enumerate(system.planets)}
     for name in names:
         owner, _, par = name.partition(".")
+        if owner in labels:
+            idx = next(j for j, pl in enumerate(system.planets) if (pl.name or str(j)) == owner)
+            check_ttv_free(system, idx, par, f"samples: {name}")
         if owner not in labels or par not in PLANET_PARAMS:
             raise ValueError(f"samples: {name!r} is not a planet parameter; names look like 'b.t0' "
                              f"(planets {sorted(labels)}, parameters {PLANET_PARAMS})")
@@ -235,11 +242,13 @@ def quiet_alpha(system: System, tm: np.ndarray, case) -> float:
 
 def _centre_epochs(system: System, t_mid: float) -> System:
     """The same orbits with each planet's t0 moved by whole periods to the
-    transit nearest t_mid [d]."""
+    transit nearest t_mid [d]; listed transit epochs are renumbered with
+    it (the listed times stay)."""
     planets = []
     for pl in system.planets:
-        n = np.round((t_mid - float(pl.t0)) / float(pl.period))
-        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period)))
+        n = int(np.round((t_mid - float(pl.t0)) / float(pl.period)))
+        epochs = None if pl.transit_epochs is None else tuple(e - n for e in pl.transit_epochs)
+        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period), transit_epochs=epochs))
     return system.replace(planets=planets)
 
 

@@ -1,0 +1,76 @@
+"""transit_times / transit_epochs of a [[planet]] table: inline lists or a
+CSV/ECSV file (columns epoch, tc, tc_err) relative to the config's folder."""
+
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.obliquity._config import load_config
+
+from test_config import BASE  # noqa: E402  (the same two-planet config)
+
+
+def _write(tmp_path, planet_b_extra):
+    jp.simulate_kepler20(seed=2, noise=4e-4).to_csv(tmp_path / "d.csv")
+    text = BASE.format(data='path = "d.csv"').replace('name = "b"', 'name = "b"\n' + planet_b_extra, 1)
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    return p
+
+
+def test_inline_and_file_transit_times(tmp_path):
+    t0, period = 134.501962, 3.69611590
+    times = [t0 + 1 * period + 0.002, t0 + 40 * period - 0.001]
+    inline = load_config(_write(tmp_path, f"transit_times = {times}\ntransit_epochs = [1, 40]"))
+    b = inline.system.planets[0]
+    assert b.transit_epochs == (1, 40) and np.array_equal(np.asarray(b.transit_times), times)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.csv").write_text("epoch,tc,tc_err\n" + "\n".join(
+        f"{n},{tc!r},0.0007" for n, tc in zip((1, 40), times)) + "\n")
+    from_file = load_config(_write(tmp_path, 'transit_times = "sub/b.csv"'))
+    fb = from_file.system.planets[0]
+    assert fb.transit_epochs == (1, 40) and np.array_equal(np.asarray(fb.transit_times), times)
+    # the digest follows the times in the file, not only its name
+    (tmp_path / "sub" / "b.csv").write_text("epoch,tc,tc_err\n1,%r,0.0007\n40,%r,0.0007\n" % (times[0] + 1e-4, times[1]))
+    assert load_config(_write(tmp_path, 'transit_times = "sub/b.csv"')).digest != from_file.digest
+    # ECSV by suffix
+    from astropy.table import Table
+
+    Table({"epoch": [1, 40], "tc": times, "tc_err": [7e-4, 7e-4]}).write(tmp_path / "b.ecsv", format="ascii.ecsv")
+    eb = load_config(_write(tmp_path, 'transit_times = "b.ecsv"')).system.planets[0]
+    assert np.array_equal(np.asarray(eb.transit_times), times)
+    # a config without transit times keeps its digest (resumed scans survive)
+    assert "transit_times" not in load_config(_write(tmp_path, "")).raw["planet"][0]
+
+
+@pytest.mark.parametrize("extra, match", [
+    ("transit_epochs = [1]", "transit_epochs needs transit_times"),
+    ('transit_times = "nope.csv"', "transit_times file .*nope.csv' not found"),
+    ('transit_times = [1.0, "2"]', "transit_times must be a non-empty list of mid-times"),
+    ("transit_times = [138.2, 141.9]\ntransit_epochs = [1.5, 2]", "transit_epochs must be a list of integers"),
+    ("transit_times = [140.5]\ntransit_epochs = [1]", r"\[\[planet\]\] #1: planet .b.: transit time 140.5 d of epoch 1"),
+])
+def test_bad_transit_time_keys(tmp_path, extra, match):
+    with pytest.raises(ValueError, match=match):
+        load_config(_write(tmp_path, extra))
+
+
+def test_marginal_scan_keeps_transit_times_consistent():
+    """The marginal scan samples at a t0 moved to the middle of the data:
+    listed epochs are renumbered with it (same orbit), the default free
+    parameters leave out the t0 of a planet with transit times, and draws
+    of that t0 are refused."""
+    from jaxppo.obliquity._marginal import _centre_epochs, _check_samples, default_free
+
+    b = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.5, radius=0.1, name="b",
+                  transit_times=[0.01, 9.985, 20.02, 30.0, 40.03], transit_epochs=[0, 1, 2, 3, 4])
+    c = jp.Planet(period=13.0, t0=-6.0, a=25.0, inc=89.6, radius=0.08, name="c")
+    system = jp.System(jp.Star("quadratic", [0.4, 0.2]), [b, c])
+    centred = _centre_epochs(system, 31.0)
+    cb = centred.planets[0]
+    assert float(cb.t0) == 30.0 and cb.transit_epochs == (-3, -2, -1, 0, 1)
+    t = np.linspace(-2.0, 42.0, 4001)
+    assert np.allclose(np.asarray(centred.flux(t)), np.asarray(system.flux(t)), rtol=0, atol=1e-12)
+    assert "b.t0" not in default_free(system) and "c.t0" in default_free(system) and "b.period" in default_free(system)
+    with pytest.raises(ValueError, match="planet 'b' has transit_times"):
+        _check_samples(system, {"b.t0": np.zeros(3)})
