@@ -15,8 +15,9 @@ from jaxtyping import Array
 
 from ._star import Star
 from ._terms import disk_terms, exact_frames, inner_disk_terms, lens_rho_jit, lens_terms
+from ..core.centre import centre_split
 from ..core.geometry import safe_hypot
-from ..core.occult import INNER_MARGIN, LENS_RULES, MAX_RADIUS, centre_split, disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
+from ..core.occult import INNER_MARGIN, LENS_RULES, MAX_RADIUS, disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
 
 
 def is_concrete(*arrays) -> bool:

@@ -11,7 +11,8 @@ import jax.numpy as jnp
 from jaxtyping import Array
 
 from ._star import Star
-from ..core.occult import centre_split, disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
+from ..core.centre import centre_split
+from ..core.occult import disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
 
 @functools.partial(jax.jit, static_argnames=("order",))
 def exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
