@@ -23,7 +23,7 @@ def half_angle_nodes(start: Array, span: Array, u: Array) -> tuple[Array, Array]
     return sa * cu + ca * su, ca * cu - sa * su
 
 
-def arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: bool):
+def arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: bool, lin=None):
     """Integrals over arcs [start, start + span] of circles parametrised by the
     angle tau from their *near* point (the point closest to the stellar
     centre), where
@@ -35,13 +35,24 @@ def arc_integrals(g, intensity, start, span, dm2, pd, ppd, rule, dtype, shape: b
     centre, d ~ p). ``dm2`` = (d - p)^2, ``pd`` = p d, ``ppd`` = p (p - d),
     broadcasting against ``start``. Returns the Green's-theorem integral of each arc
     and, with ``shape``, the integrals of I cos tau, I sin tau and I over it
-    (for the shape derivative, see ``union_deficit``)."""
+    (for the shape derivative, see ``union_deficit``).
+
+    ``lin`` = (p a, p b), optional, adds p (a cos tau + b sin tau) to
+    x dy - y dx and twice that to r^2: the terms p c.n of a centre c moved
+    by (a, b) along (e, e_perp). Callers pass a zero-valued (a, b) whose
+    derivatives are those of the centre where polar coordinates about the
+    stellar centre are singular (d = 0), so that second derivatives there
+    are right; the values are unchanged."""
     u, w = rule
     u, w = jnp.asarray(u, dtype), jnp.asarray(w, dtype)
     sh, ch = half_angle_nodes(start, span, u)
     sh2 = sh * sh
     s = dm2[..., None] + 4.0 * pd[..., None] * sh2
-    val = ((g(s) * (ppd[..., None] + 2.0 * pd[..., None] * sh2)) @ w) * span
+    green = ppd[..., None] + 2.0 * pd[..., None] * sh2
+    if lin is not None:
+        cn = lin[0][..., None] * (1.0 - 2.0 * sh2) + lin[1][..., None] * (2.0 * sh * ch)
+        s, green = s + 2.0 * cn, green + cn
+    val = ((g(s) * green) @ w) * span
     if not shape:
         return val, None
     inten = intensity(s)

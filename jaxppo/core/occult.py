@@ -55,6 +55,7 @@ from .geometry import (
     wrap_angle,
 )
 from .arcs import arc_integrals
+from .centre import CENTRED_D
 from .quadrature import clustered_rule, gauss_legendre_01
 
 __all__ = ["MAX_RADIUS", "union_deficit", "disk_deficit", "inner_disk_deficit", "lens_deficit", "lens_rho",
@@ -138,7 +139,11 @@ def _planet_pieces(x, y, r, active):
     k = x.shape[-1]
     # Each circle's angle tau is measured from its near point, direction e
     # (towards the stellar centre; +x for a circle centred on it).
-    d = safe_hypot(x, y)
+    d_true = safe_hypot(x, y)
+    # a centre within CENTRED_D of the star's (its circle off the limb) is
+    # measured from e = +x (see ``_union_parts``): its polar d is 0
+    centred = (d_true < CENTRED_D) & (jnp.abs(1.0 - r) > CENTRED_D)
+    d = jnp.where(centred, 0.0, d_true)
     has_dir = d > 0
     d_safe = jnp.where(has_dir, d, 1.0)
     ex = jnp.where(has_dir, -x / d_safe, 1.0)
@@ -151,7 +156,7 @@ def _planet_pieces(x, y, r, active):
         [safe_atan2(ex[:, None] * ddy - ey[:, None] * ddx, ex[:, None] * ddx + ey[:, None] * ddy), jnp.zeros((k, 1), dtype)],
         axis=1,
     )
-    delta = jnp.concatenate([safe_hypot(ddx, ddy), d[:, None]], axis=1)
+    delta = jnp.concatenate([safe_hypot(ddx, ddy), d_true[:, None]], axis=1)
     oq = jnp.concatenate([r[others], jnp.ones((k, 1), dtype)], axis=1)
     o_active = jnp.concatenate([active[others], jnp.ones((k, 1), bool)], axis=1)
     half, crosses, nested = crossing_half_width(r[:, None], delta, oq)
@@ -164,7 +169,7 @@ def _planet_pieces(x, y, r, active):
     # A circle that *is* the limb bounds the union once, as the limb (it
     # would otherwise count both as a planet circle on the star and as a disk
     # covering the star).
-    is_limb = (d == 0) & (r == 1)
+    is_limb = (d_true == 0) & (r == 1)
 
     lo = jnp.where(crosses, wrap_angle(base - half), 0.0)
     hi = jnp.where(crosses, wrap_angle(base + half), 0.0)
@@ -186,7 +191,7 @@ def _planet_pieces(x, y, r, active):
     in_star = jnp.where(crosses[:, None, -1], inside_arc[:, :, -1], on_star[:, None])
     covered = jnp.where(crosses[:, None, :-1], inside_arc[:, :, :-1], nested_planet[:, None, :])
     keep = in_star & ~jnp.any(covered, axis=-1) & (active & ~is_limb)[:, None] & (ends > starts)
-    return d, ex, ey, starts, ends, keep
+    return d, centred, ex, ey, starts, ends, keep
 
 
 def _limb_angle(x, y, r, active):
@@ -211,14 +216,23 @@ def _union_parts(x, y, r, g, intensity, phi1, order: int, shape: bool):
     ``shape`` the shape derivatives (dF/dx, dF/dy, dF/dr) of every disk."""
     dtype = x.dtype
     active = ~_duplicates(x, y, r, 64 * float(jnp.finfo(dtype).eps))
-    d, ex, ey, starts, ends, keep = _planet_pieces(x, y, r, active)
+    d, centred, ex, ey, starts, ends, keep = _planet_pieces(x, y, r, active)
     # Every piece gets nodes clustered like u^4 at both ends: at a limb
     # crossing (and at a planet-planet crossing that lies near the limb) the
     # intensity's mu^q branch point sits at the end of the piece.
     dm = d - r
+    # Near d = 0 the polar coordinates (d, e) of a centre are singular: at
+    # d = 0 the guards give d and e zero derivatives (every second
+    # derivative in the centre was 0), and just off it the curvature across
+    # e, F'(d) / d, loses ~eps / d of its digits (2x at d = 1e-15, which
+    # cos(90 deg) gives). There (``_planet_pieces``: d < CENTRED_D, not on
+    # the limb) the circle is measured from the fixed direction e = +x, at
+    # d = 0 in the polar terms, and the centre enters r^2 = |c + p n|^2
+    # exactly: |c|^2 and c.n = x cos tau + y sin tau.
+    cx, cy = jnp.where(centred, x, 0.0), jnp.where(centred, y, 0.0)
     vals, moments = arc_integrals(
-        g, intensity, starts, ends - starts, (dm * dm)[:, None], (r * d)[:, None], (-r * dm)[:, None],
-        clustered_rule(order), dtype, shape,
+        g, intensity, starts, ends - starts, (dm * dm + cx * cx + cy * cy)[:, None], (r * d)[:, None],
+        (-r * dm)[:, None], clustered_rule(order), dtype, shape, lin=((r * cx)[:, None], (r * cy)[:, None]),
     )
     planet_part = jnp.sum(jnp.where(keep, vals, 0.0))
     limb_angle = _limb_angle(x, y, r, active)

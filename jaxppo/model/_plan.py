@@ -15,6 +15,7 @@ from jaxtyping import Array
 
 from ._star import Star
 from ._terms import disk_terms, exact_frames, inner_disk_terms, lens_rho_jit, lens_terms
+from ..core.centre import centre_split
 from ..core.geometry import safe_hypot
 from ..core.occult import INNER_MARGIN, LENS_RULES, MAX_RADIUS, disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
 
@@ -126,7 +127,10 @@ def _survey(star: Star, x: Array, y: Array, r: Array) -> tuple[Array, Array, Arr
     # disks outside the rule's domain get a harmless (d, p) = (0.5, 0), so
     # that under grad their masked-out terms (possibly NaN off the star)
     # cannot turn a zero cotangent into NaN
-    terms = inner_disk_deficit(jnp.where(inner, d, 0.5), jnp.where(inner, r, 0.0), g) / (2.0 * jnp.pi * phi1)
+    # centred disks: d = 0 here, their curvature is added by traced_auto_frames
+    # (centre_split; the host plan takes no derivatives)
+    d_in, _ = centre_split(x, y, r, star.radial_intensity())
+    terms = inner_disk_deficit(jnp.where(inner, d_in, 0.5), jnp.where(inner, r, 0.0), g) / (2.0 * jnp.pi * phi1)
     inner_sum = jnp.sum(jnp.where(inner, terms, 0.0), axis=-1)
     cross = jnp.stack(cross, -1) if cross else jnp.zeros(x.shape[:-1] + (0,), bool)
     return multiple, counts, inner, inner_sum, cross
@@ -331,6 +335,7 @@ def traced_auto_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> 
     # otherwise fuse, say, lens_rho into each of its consumers and evaluate
     # it several times: measured 1.5x the whole cost)
     multiple, counts, inner, inner_sum, cross = jax.lax.optimization_barrier(_survey(star, x, y, r))
+    d_in, centre = centre_split(x, y, r, inten)
     ok = jnp.isfinite(x) & jnp.isfinite(y) & jnp.isfinite(r) & (r >= 0) & (r <= MAX_RADIUS)
     union = multiple | ~jnp.all(ok, axis=-1)
     out = 1.0 - inner_sum
@@ -357,8 +362,11 @@ def traced_auto_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> 
     general = (counts & ~inner & ~union[:, None]).reshape(-1)
     one = _compacted(
         [lambda dd, pp: jax.vmap(lambda a, b: disk_deficit(a, b, g, phi1, order, inten))(dd, pp) / norm],
-        jnp.where(general, 0, -1), (safe_hypot(x, y).reshape(-1), r.reshape(-1)), (10.0, 0.1), TERM_BLOCK, dtype,
+        jnp.where(general, 0, -1), (d_in.reshape(-1), r.reshape(-1)), (10.0, 0.1), TERM_BLOCK, dtype,
     )
+    # one-disk terms see the centre through d alone: at and next to d = 0
+    # their second derivatives come from centre_split's extra term
+    out = out - jnp.sum(jnp.where(counts & ~union[:, None], centre, 0.0), axis=-1) / norm
     out = jax.lax.optimization_barrier(out - one.reshape(n, k).sum(-1))
     pad = (10.0 + np.arange(k), np.zeros(k), np.full(k, 0.1))
     whole = _compacted(

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from jaxtyping import Array
 
 from ._star import Star
-from ..core.geometry import safe_hypot
+from ..core.centre import centre_split
 from ..core.occult import disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
 
 @functools.partial(jax.jit, static_argnames=("order",))
@@ -27,9 +27,9 @@ def separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Arr
     """Frames whose disks do not overlap each other: a sum of one-disk terms."""
     g, phi1 = star.radial_kernel()
     inten = star.radial_intensity()
-    d = safe_hypot(x, y)
+    d, centre = centre_split(x, y, r, inten)  # right second derivatives at d = 0
     one = jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))
-    deficit = one(d.reshape(-1), r.reshape(-1)).reshape(d.shape).sum(-1)
+    deficit = (one(d.reshape(-1), r.reshape(-1)).reshape(d.shape) + centre).sum(-1)
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
 
