@@ -339,11 +339,29 @@ class Planet(eqx.Module):
         inc = xp.deg2rad(xp.asarray(self.inc))
         a = xp.asarray(self.a)
         if not self.circular:
-            return orbit_position(t, xp.asarray(self.period), xp.asarray(self.t0), a, inc,
-                                  xp.asarray(self.e), xp.deg2rad(xp.asarray(self.omega)), xp)
-        phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
-        cphi = xp.cos(phi)
-        return a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc)
+            pos = orbit_position(t, xp.asarray(self.period), xp.asarray(self.t0), a, inc,
+                                 xp.asarray(self.e), xp.deg2rad(xp.asarray(self.omega)), xp)
+        else:
+            phi = 2.0 * np.pi * (xp.asarray(t) - xp.asarray(self.t0)) / xp.asarray(self.period)
+            cphi = xp.cos(phi)
+            pos = (a * xp.sin(phi), a * cphi * xp.cos(inc), a * cphi * xp.sin(inc))
+        # the traced policy (docs/conventions.md): parameters the constructor
+        # would refuse, reached under jit/grad/vmap, give NaN positions (and
+        # so NaN fluxes), never a plausible number
+        ok = self.in_domain(xp)
+        return tuple(xp.where(ok, v, xp.nan) for v in pos)
+
+    def in_domain(self, xp=jnp):
+        """True where the parameters are ones the constructor accepts: period
+        > 0, a > 1, radius > 0, inc in [0, 180] deg, e in [0, 1), periastron
+        a (1 - e) > 1 + radius, everything finite. Concrete values are
+        checked at construction; this is the same rule for traced ones."""
+        period, a, radius = xp.asarray(self.period), xp.asarray(self.a), xp.asarray(self.radius)
+        inc, e, t0, omega = xp.asarray(self.inc), xp.asarray(self.e), xp.asarray(self.t0), xp.asarray(self.omega)
+        finite = (xp.isfinite(period) & xp.isfinite(a) & xp.isfinite(radius) & xp.isfinite(inc) & xp.isfinite(e)
+                  & xp.isfinite(t0) & xp.isfinite(omega))
+        return (finite & (period > 0) & (a > 1) & (radius > 0) & (inc >= 0) & (inc <= 180) & (e >= 0) & (e < 1)
+                & (a * (1.0 - e) > 1.0 + radius))
 
     def orbit_time(self, t: ArrayLike, xp=jnp):
         """The time [d] at which the Keplerian orbit is evaluated for time t:
