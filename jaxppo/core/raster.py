@@ -85,35 +85,45 @@ def full_disk_flux(
 
 
 def windowed_deficit(
-    x: Array, y: Array, r: Array, intensity: Callable, scale: float, window: int, ss: int = 2,
+    x: Array, y: Array, r: Array, intensity: Callable, scale: Array, window: int, ss: int = 2,
     surface: Callable | None = None,
 ) -> Array:
     """Occulted flux (same units as F0) from per-disk windows of
-    ``window x window`` pixels of side ``scale`` [R*] (one frame).
+    ``window x window`` pixels, disk i's of side ``scale[i]`` [R*] (one frame).
 
-    Windows are anchored on a global lattice (pixel edges at multiples of
-    ``scale``), so sampling is the same wherever a disk sits.
+    Each window is anchored on its own lattice (pixel edges at multiples of
+    ``scale[i]``) around the centre of ``visible_box``, so sampling is the same wherever
+    a disk sits.
     """
     k = x.shape[-1]
+    _, cx, cy = visible_box(x, y, r)
     off = subsample_offsets(ss)  # pixels
     idx = np.arange(window) - window // 2
     gx, gy = np.meshgrid(idx, idx, indexing="xy")
     base = (gx.ravel()[:, None] + 0.5 + off[None, :, 0]).ravel()  # in pixels
     basey = (gy.ravel()[:, None] + 0.5 + off[None, :, 1]).ravel()
     base, basey = jnp.asarray(base), jnp.asarray(basey)
-    area = (scale / ss) ** 2
     total = 0.0
     for i in range(k):
-        ax = jnp.floor(x[i] / scale) * scale
-        ay = jnp.floor(y[i] / scale) * scale
-        px = ax + base * scale
-        py = ay + basey * scale
+        h = scale[i]
+        px = jnp.floor(cx[i] / h) * h + base * h
+        py = jnp.floor(cy[i] / h) * h + basey * h
         w = _star_weight(px, py, intensity, surface)
         mine = (px - x[i]) ** 2 + (py - y[i]) ** 2 < r[i] ** 2
         for j in range(i):
             mine = mine & ~((px - x[j]) ** 2 + (py - y[j]) ** 2 < r[j] ** 2)
-        total = total + jnp.sum(jnp.where(mine, w, 0.0)) * area
+        total = total + jnp.sum(jnp.where(mine, w, 0.0)) * (h / ss) ** 2
     return total
+
+
+def visible_box(x, y, r, xp=jnp):
+    """Side [R*] of the square that holds the bounding box of each disk's
+    part on the star (box of the disk clipped to [-1, 1]^2), and its centre;
+    0 for a disk off the star or of zero radius. ``xp``: jnp or numpy."""
+    x0, x1 = xp.maximum(x - r, -1.0), xp.minimum(x + r, 1.0)
+    y0, y1 = xp.maximum(y - r, -1.0), xp.minimum(y + r, 1.0)
+    side = xp.maximum(xp.maximum(x1 - x0, y1 - y0), 0.0)
+    return side, 0.5 * (x0 + x1), 0.5 * (y0 + y1)
 
 
 def _w_integral(t: Array, r: Array) -> Array:
@@ -150,35 +160,39 @@ _SUB = subsample_offsets(16)
 
 
 def windowed_deficit_exact_coverage(
-    x: Array, y: Array, r: Array, intensity: Callable, scale: float, window: int, ss: int = 1,
+    x: Array, y: Array, r: Array, intensity: Callable, scale: Array, window: int, ss: int = 1,
     surface: Callable | None = None,
 ) -> Array:
     """Windowed raster with exact pixel-disk coverage (closed-form area of
-    each pixel inside the disk); the intensity is sampled at ss x ss points
-    per pixel.
+    each pixel inside the disk); disk i's window has ``window x window``
+    pixels of side ``scale[i]`` [R*] around the centre of ``visible_box``;
+    the intensity is sampled at ss x ss points per pixel.
 
     Two kinds of pixel are refined on a 16 x 16 sub-grid: pixels on the edges
     of two disks at once (the part already charged to an earlier disk is
     counted there; elsewhere the product of the exact fractions is exact, one
-    of them being 0 or 1), and pixels on the stellar limb (exact fraction on
-    the star times the mean intensity of the sub-points on the star). At most
-    ``4 * window`` such pixels per disk are refined (a disk's edge crosses
-    about pi * window of them); the rest keep the product rule.
+    of them being 0 or 1), and pixels on the stellar limb: the exact fraction
+    on the star times the mean intensity of the sub-points on the star where
+    no disk edge crosses the pixel, the sub-points on the star, in disk i and
+    in no earlier disk where one does (a product of the two fractions would
+    count a disk edge just inside the limb as if it were spread over the
+    pixel). At most ``8 * window + 8`` such pixels per disk are refined (a
+    convex curve crosses at most 4 * window + 4 of them); the rest keep the
+    product rule.
     """
     k = x.shape[-1]
+    _, cx, cy = visible_box(x, y, r)
     idx = np.arange(window) - window // 2
     gx, gy = np.meshgrid(idx, idx, indexing="xy")
     gx, gy = jnp.asarray(gx.ravel(), float), jnp.asarray(gy.ravel(), float)
     off = jnp.asarray(subsample_offsets(ss))
-    sub = jnp.asarray(_SUB) + 0.5
-    n_refine = min(4 * window, window * window)
-    area = scale * scale
+    n_refine = min(8 * window + 8, window * window)
     total = 0.0
     for i in range(k):
-        ax = jnp.floor(x[i] / scale) * scale
-        ay = jnp.floor(y[i] / scale) * scale
-        x0, y0 = ax + gx * scale, ay + gy * scale
-        x1, y1 = x0 + scale, y0 + scale
+        h = scale[i]
+        area = h * h
+        x0, y0 = jnp.floor(cx[i] / h) * h + gx * h, jnp.floor(cy[i] / h) * h + gy * h
+        x1, y1 = x0 + h, y0 + h
         # Which circles cross each pixel, decided geometrically (nearest and
         # farthest point of the pixel from the centre): robust, unlike testing
         # the closed-form areas, whose inclusion-exclusion leaves rounding of
@@ -188,38 +202,54 @@ def windowed_deficit_exact_coverage(
         frac = _fraction(x0, x1, y0, y1, x[i], y[i], r[i], crosses_i, inside_i, n_refine, area)
         keep = frac
         partial = jnp.zeros_like(crosses_i)
+        any_edge = crosses_i
         for j in range(i):
             crosses_j = _edge_in_pixel(x0, x1, y0, y1, x[j], y[j], r[j])
             inside_j = _pixel_inside(x0, x1, y0, y1, x[j], y[j], r[j])
             fj = _fraction(x0, x1, y0, y1, x[j], y[j], r[j], crosses_j, inside_j, n_refine, area)
             keep = keep * (1.0 - fj)
             partial = partial | (crosses_i & crosses_j)
+            any_edge = any_edge | crosses_j
         limb = _edge_in_pixel(x0, x1, y0, y1, 0.0, 0.0, 1.0) & (frac > 0)
         star_in = _pixel_inside(x0, x1, y0, y1, 0.0, 0.0, 1.0)
         on_star = _fraction(x0, x1, y0, y1, 0.0, 0.0, 1.0, limb, star_in, n_refine, area)
-        px = (x0 + 0.5 * scale)[:, None] + off[None, :, 0] * scale
-        py = (y0 + 0.5 * scale)[:, None] + off[None, :, 1] * scale
+        px = (x0 + 0.5 * h)[:, None] + off[None, :, 0] * h
+        py = (y0 + 0.5 * h)[:, None] + off[None, :, 1] * h
         w = jnp.mean(_star_weight(px, py, intensity, surface), axis=-1)
         cover = jnp.where(limb, keep * on_star, keep)
-
-        # refine the flagged pixels (fixed count, so it stays jittable)
-        sel = jnp.nonzero(partial | limb, size=n_refine, fill_value=0)[0]
-        valid = jnp.arange(n_refine) < jnp.sum(partial | limb)
-        sx = x0[sel][:, None] + sub[None, :, 0] * scale
-        sy = y0[sel][:, None] + sub[None, :, 1] * scale
-        in_i = (sx - x[i]) ** 2 + (sy - y[i]) ** 2 < r[i] ** 2
-        taken = jnp.zeros_like(in_i)
-        for j in range(i):
-            taken = taken | ((sx - x[j]) ** 2 + (sy - y[j]) ** 2 < r[j] ** 2)
-        f_ref = jnp.where(partial[sel], jnp.maximum(frac[sel] - jnp.mean(in_i & taken, axis=-1), 0.0), keep[sel])
-        sub_w = _star_weight(sx, sy, intensity, surface)
-        n_in = jnp.sum(sx * sx + sy * sy < 1.0, axis=-1)
-        w_ref = jnp.where(limb[sel], jnp.sum(sub_w, axis=-1) / jnp.maximum(n_in, 1), w[sel])
-        c_ref = jnp.where(limb[sel], f_ref * on_star[sel], f_ref)
+        mixed = limb & any_edge
+        flags = (partial, limb, mixed)
+        fine = _refine(x, y, r, i, x0, y0, h, frac, keep, on_star, flags, intensity, surface, n_refine)
+        sel, valid, f_ref, w_limb, w_mixed = fine
+        c_ref = jnp.where(mixed[sel], 1.0, jnp.where(limb[sel], f_ref * on_star[sel], f_ref))
+        w_ref = jnp.where(mixed[sel], w_mixed, jnp.where(limb[sel], w_limb, w[sel]))
         contrib = jnp.sum(cover * w)
         contrib = contrib + jnp.sum(jnp.where(valid, c_ref * w_ref - cover[sel] * w[sel], 0.0))
         total = total + contrib * area
     return total
+
+
+def _refine(x, y, r, i, x0, y0, h, frac, keep, on_star, flags, intensity, surface, n_refine):
+    """Coverage and mean intensity of the flagged pixels (a fixed count, so it
+    stays jittable) from a 16 x 16 sub-grid: see
+    ``windowed_deficit_exact_coverage``."""
+    partial, limb, mixed = flags
+    sub = jnp.asarray(_SUB) + 0.5
+    sel = jnp.nonzero(partial | limb, size=n_refine, fill_value=0)[0]
+    valid = jnp.arange(n_refine) < jnp.sum(partial | limb)
+    sx = x0[sel][:, None] + sub[None, :, 0] * h
+    sy = y0[sel][:, None] + sub[None, :, 1] * h
+    in_i = (sx - x[i]) ** 2 + (sy - y[i]) ** 2 < r[i] ** 2
+    taken = jnp.zeros_like(in_i)
+    for j in range(i):
+        taken = taken | ((sx - x[j]) ** 2 + (sy - y[j]) ** 2 < r[j] ** 2)
+    f_ref = jnp.where(partial[sel], jnp.maximum(frac[sel] - jnp.mean(in_i & taken, axis=-1), 0.0), keep[sel])
+    sub_w = _star_weight(sx, sy, intensity, surface)  # 0 off the star
+    n_in = jnp.sum(sx * sx + sy * sy < 1.0, axis=-1)
+    w_limb = jnp.sum(sub_w, axis=-1) / jnp.maximum(n_in, 1)
+    # limb and a disk edge in one pixel: what the sub-grid sees of the three
+    w_mixed = jnp.mean(jnp.where(in_i & ~taken, sub_w, 0.0), axis=-1)
+    return sel, valid, f_ref, w_limb, w_mixed
 
 
 def _edge_in_pixel(x0, x1, y0, y1, xc, yc, r):

@@ -151,7 +151,8 @@ def occultation_flux(
             ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
         chunk: frames per compiled batch (bounds memory).
         raster: ``RasterSettings`` for ``method="raster"`` (default: windowed,
-            pixel scale = smallest radius / 24, 4 x 4 supersampling).
+            exact pixel coverage, each disk's own pixels: its visible part / 32,
+            i.e. r / 16; accuracy in ``RasterSettings``).
         times: time [d] of each frame (broadcast against the leading axes),
             needed only by a star with rotating spots (``Star.with_spots``);
             :meth:`System.flux` passes its t.

@@ -80,3 +80,53 @@ def test_bad_raster_settings():
         RasterSettings(mode="full", aa="exact")
     with pytest.raises(ValueError, match="pixel scale"):
         RasterSettings(scale=-1.0)
+
+
+STAR_QD = jp.Star.quadratic(0.4, 0.26)
+
+
+def _raster_vs_exact(x, y, r, **kw):
+    x, y, r = (jnp.asarray(v, float) for v in (x, y, r))
+    exact = np.asarray(jp.occultation_flux(STAR_QD, x, y, r, method="exact"))
+    ras = np.asarray(jp.occultation_flux(STAR_QD, x, y, r, method="raster", raster=RasterSettings(**kw)))
+    return ras, exact
+
+
+def test_window_resolves_a_disk_of_nearly_the_stars_size():
+    # the product of the disk's and the limb's pixel fractions counted a disk
+    # edge just inside the limb as spread over the pixel (error 6e-3)
+    ras, exact = _raster_vs_exact([[0.0], [0.005], [0.0]], [[0.0], [0.0], [0.004]], [[0.99], [0.99], [0.995]])
+    assert np.max(np.abs(ras - exact)) < 1.5e-3, ras - exact
+    ras4, _ = _raster_vs_exact([[0.0], [0.005], [0.0]], [[0.0], [0.0], [0.004]], [[0.99], [0.99], [0.995]], ss=4)
+    assert np.max(np.abs(ras4 - exact)) < 2e-4, ras4 - exact
+
+
+def test_window_disk_covering_the_star_gives_zero_never_negative():
+    ras, exact = _raster_vs_exact([[0.0], [0.1], [0.0], [0.0]], [[0.0], [0.05], [0.0], [0.0]], [[1.2], [1.2], [0.999], [1.0]])
+    assert np.all(ras >= 0.0), ras
+    assert ras[0] == 0.0 and ras[1] == 0.0
+    assert np.max(np.abs(ras - exact)) < 1.5e-3, ras - exact
+
+
+def test_window_tiny_disk_next_to_a_large_one_is_bounded():
+    import time
+
+    t0 = time.perf_counter()
+    ras, exact = _raster_vs_exact([[0.3, -0.2]], [[0.0, 0.1]], [[1e-3, 0.5]])
+    assert time.perf_counter() - t0 < 10.0
+    assert np.max(np.abs(ras - exact)) < 2e-5, ras - exact
+    # the tiny disk is resolved on its own pixels: alone it is near exact
+    ras, exact = _raster_vs_exact([[0.3]], [[0.0]], [[1e-3]])
+    assert np.max(np.abs(ras - exact)) < 1e-12, ras - exact
+
+
+def test_window_refuses_settings_over_the_memory_cap():
+    x, y, r = (jnp.asarray(v, float) for v in ([[0.3, -0.2]], [[0.0, 0.1]], [[1e-3, 0.5]]))
+    with pytest.raises(ValueError, match="RasterSettings.scale=1e-05"):
+        jp.occultation_flux(STAR_QD, x, y, r, method="raster", raster=RasterSettings(scale=1e-5))
+    with pytest.raises(ValueError, match="RasterSettings.n_window=5000"):
+        RasterSettings(n_window=5000)
+    with pytest.raises(ValueError, match="RasterSettings.n_window"):
+        RasterSettings(n_window=4)
+    with pytest.raises(ValueError, match="RasterSettings.n=20000"):
+        jp.occultation_flux(STAR_QD, x, y, r, method="raster", raster=RasterSettings("full", n=20000))
