@@ -5,10 +5,13 @@ from pathlib import Path
 
 import jax
 
-# The CLI turns on JAX's persistent compilation cache (~/.cache/jaxppo/jax) for
-# the whole process; tests that call it must not read executables that other
-# runs and other code versions left there (a stale entry aborted the process
-# in jax's cache reader). Each test session gets a cache of its own.
+# The CLI turns on JAX's persistent compilation cache for the whole process.
+# Tests call the CLI in-process, and later tests then wrote every executable
+# to that cache: jax 0.10.2's cache reader aborted and its writer segfaulted
+# in such long processes (two CI runs, different tests each time). The suite
+# runs without it; test_persistent_compilation_cache switches it on in its
+# own subprocesses, with a folder of its own.
+os.environ["JAXPPO_CACHE"] = "0"
 os.environ.setdefault("JAXPPO_CACHE_DIR", tempfile.mkdtemp(prefix="jaxppo_test_cache_"))
 
 jax.config.update("jax_enable_x64", True)

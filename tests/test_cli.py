@@ -355,7 +355,7 @@ def test_persistent_compilation_cache(tmp_path):
     import subprocess
     import sys
 
-    env = dict(os.environ, JAXPPO_CACHE_DIR=str(tmp_path / "cache"))
+    env = dict(os.environ, JAXPPO_CACHE_DIR=str(tmp_path / "cache"), JAXPPO_CACHE="1")
     cmd = [sys.executable, "-m", "jaxppo.cli", "simulate", "--out", str(tmp_path / "d.csv")]
     subprocess.run(cmd, env=env, check=True, capture_output=True)
     assert any((tmp_path / "cache").iterdir())
