@@ -61,3 +61,5 @@ from .obliquity._windows import scan_windows as scan_windows
 from .obliquity._marginal import MarginalResult as MarginalResult
 from .obliquity._marginal import marginal_scan as marginal_scan
 from . import activity as activity
+from .inference._times import measure_transit_times as measure_transit_times
+from .inference._times import linear_ephemeris as linear_ephemeris

@@ -164,7 +164,7 @@ def cmd_scan(args) -> int:
 
 def cmd_init(args) -> int:
     """Write a commented config template (every key, units, defaults)."""
-    from jaxppo.obliquity._config import config_template
+    from jaxppo.obliquity._template import config_template
 
     path = _out_file(args.path, "PATH")
     if path.exists() and not args.force:
@@ -366,6 +366,31 @@ def cmd_activity(args) -> int:
     return 0
 
 
+def cmd_ttv(args) -> int:
+    """Measure every transit time in the config's data; the table, O-C figures."""
+    _enable_x64()
+    import jaxppo as jp
+    from jaxppo.inference._times_report import read_times, summary_lines, write_times_products
+    from jaxppo.obliquity._config import load_config
+
+    out = _out_folder(args.out)
+    cfg = load_config(args.config)
+    kw = {k: v for k, v in cfg.ttv.items() if k != "reference"}
+    if args.planets:
+        kw["planets"] = args.planets
+    reference = {Path(p).name: read_times(p) for p in cfg.ttv.get("reference", [])}
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        table = jp.measure_transit_times(cfg.system, cfg.lightcurve, progress=not args.quiet, **kw)
+    for w in caught:
+        print(f"jaxppo ttv: warning: {w.message}", file=sys.stderr)
+    summary = write_times_products(table, out, reference)
+    print("\n".join(summary_lines(summary, len(table), time.perf_counter() - t0)))
+    print(f"wrote {out}/transit_times.ecsv, ttv_summary.json, " + ", ".join(summary["figures"]))
+    return 0 if summary["fit"]["success"] else 1
+
+
 def _draws(text: str) -> int:
     """argparse type of --marginalize: an integer >= 0."""
     try:
@@ -473,6 +498,18 @@ def _add_activity(sub) -> None:
     p.set_defaults(func=cmd_activity)
 
 
+def _add_ttv(sub) -> None:
+    p = sub.add_parser("ttv", help="measure every transit's mid-time (exact model, overlaps fitted together); "
+                       "writes transit_times.ecsv and an O-C figure per planet")
+    p.add_argument("config", metavar="CONFIG", help="config (TOML; docs/config.md) with [star], [[planet]], [data] "
+                   "and optionally [ttv]: planets, free, search [d], grid, min_points, reference (docs/ttv.md)")
+    p.add_argument("--out", default="ttv_out", metavar="DIR", help="output folder (default: ttv_out)")
+    p.add_argument("--planets", nargs="+", default=None, metavar="NAME",
+                   help="planets whose times are measured (default: [ttv] planets, else all)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines (default: show them)")
+    p.set_defaults(func=cmd_ttv)
+
+
 def _add_tools(sub) -> None:
     """The ``init``, ``plot``, ``simulate`` and ``demo`` subcommands."""
     p = sub.add_parser("init", help="write a commented scan config template (every key, units, defaults)")
@@ -520,7 +557,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "(BKJD for the bundled Kepler data), angles in degrees.")
     parser.add_argument("--version", action="version", version=f"jaxppo {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_scan, _add_fit_sample, _add_activity, _add_tools):
+    for add in (_add_scan, _add_fit_sample, _add_ttv, _add_activity, _add_tools):
         add(sub)
     return parser
 

@@ -19,7 +19,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._model import Model, scaled_residuals
-from ._params import as_lightcurve
+from ._params import as_lightcurve, planet_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["fit", "FitResult", "CONDITION_WARN"]
@@ -185,7 +185,7 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
     # the start as given (the coordinates would clip an impossible inclination)
     ph = np.asarray(model.physical(theta), float)
     start = np.array([ph[i] if owner == "lc" or par in ("q1", "q2") else float(
-        system.star.params[par] if owner == "star" else getattr(system.planets[owner], par))
+        system.star.params[par] if owner == "star" else planet_value(system.planets[owner], par))
         for i, (owner, par) in enumerate(model.slots)])
     return FitResult(system, chi2_start, nan, False, "failed: " + "; ".join(problems), tuple(model.free),
                      start, np.full(k, np.nan), chi2_start / max(n - k, 1) if n > k else np.nan,
@@ -345,14 +345,20 @@ def _assess(model: Model, theta) -> dict:
         cov_gn = np.linalg.inv(jtj) / np.outer(c, c)
     except np.linalg.LinAlgError:
         cov_gn = None
-    pts, pairs = _hessian_points(c.size)
-    n_hess = len(pts)
+    # the centre and +-h along each axis: residual vectors, which say which
+    # parameters share data points (the others have no cross term)
+    axis_pts = np.asarray(_hessian_points(c.size, []))
+    res = np.asarray(model.residuals_batch(jnp.asarray(theta) + jnp.asarray(axis_pts) / c))
+    pairs = _coupled_pairs(res)
+    pts = _hessian_points(c.size, pairs)[len(axis_pts):]
     # the same batch also evaluates chi^2 at +-1 sigma along the principal
     # axes of the linearised covariance (see _axis_steps)
     axes = None if jitter else _axis_steps(cov_gn)
     if axes is not None:
         pts += list(axes * c)
-    f = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(pts)) / c))
+    n_hess = len(axis_pts) + 4 * len(pairs)
+    f_pairs = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(pts)) / c)) if pts else np.zeros(0)
+    f = np.concatenate([np.sum(res**2, axis=1), f_pairs])
     hess = _second_differences(f, pairs, c.size)
     if not np.all(np.isfinite(hess)):
         out["problems"].append("the Hessian of chi^2 at the solution is not finite")
@@ -364,7 +370,7 @@ def _assess(model: Model, theta) -> dict:
         if axes is not None:
             out["dchi2_1sigma"] = f[n_hess:] - chi2
         return out
-    return _laplace_with_jitter(out, model, theta, hess, c, n_hess)
+    return _laplace_with_jitter(out, model, theta, hess, c, len(pts))
 
 
 # Hessian of chi^2 in the scaled coordinates by second differences of chi^2
@@ -376,21 +382,36 @@ def _assess(model: Model, theta) -> dict:
 _HESSIAN_STEP = 0.3
 
 
-def _hessian_points(k: int):
-    """(points in the scaled coordinates: the centre, +-h along each axis,
-    (+-h, +-h) in each pair of axes; the pairs (i, j), i < j)."""
+def _hessian_points(k: int, pairs) -> list:
+    """Points in the scaled coordinates: the centre, +-h along each axis,
+    (+-h, +-h) in each of the ``pairs`` of axes (i, j), i < j."""
     h = _HESSIAN_STEP
     eye = np.eye(k) * h
     pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
-    pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
     pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
-    return pts, pairs
+    return pts
+
+
+def _coupled_pairs(res) -> list:
+    """The pairs (i, j), i < j, of parameters that move a common residual
+    (``res``: the residuals at the centre and at +-h along each axis, the
+    rows of :func:`_hessian_points` without pairs). Parameters that move
+    disjoint sets of points (the transit times of different transits, the
+    baselines of different windows) add separately to chi^2: their cross
+    derivative is zero, and skipping those pairs turns the 2 k^2 chi^2
+    evaluations of a fit of many transit times into a few per transit."""
+    moved = np.abs(res[1:] - res[0]) > 0
+    moved = moved[0::2] | moved[1::2]  # [k, n]: the points parameter i moves
+    share = (moved.astype(np.int32) @ moved.T.astype(np.int32)) > 0
+    k = share.shape[0]
+    return [(i, j) for i in range(k) for j in range(i + 1, k) if share[i, j]]
 
 
 def _second_differences(f, pairs, k: int) -> np.ndarray:
-    """The Hessian from chi^2 ``f`` at the points of :func:`_hessian_points`."""
+    """The Hessian from chi^2 ``f`` at the points of :func:`_hessian_points`
+    (zero for the pairs not listed)."""
     h = _HESSIAN_STEP
-    hess = np.empty((k, k))
+    hess = np.zeros((k, k))
     for i in range(k):
         hess[i, i] = (f[1 + 2 * i] - 2 * f[0] + f[2 + 2 * i]) / h**2
     base = 1 + 2 * k
@@ -431,7 +452,7 @@ def _conditioning(out: dict, jtj, free) -> None:
     out["weakest"] = " ".join(f"{v0[i]:+.2f} {free[i]}" for i in top if abs(v0[i]) > 0.1)
 
 
-def _laplace_with_jitter(out: dict, model: Model, theta, hess, c, n_hess: int) -> dict:
+def _laplace_with_jitter(out: dict, model: Model, theta, hess, c, n_batch: int) -> dict:
     """With a free jitter, the Laplace covariance: -2 ln L ~ const +
     dtheta^T H dtheta, cov = 2 H^-1 (in scaled coordinates, back to theta
     by the column scales ``c``); the Gauss-Newton form of the augmented
@@ -444,7 +465,7 @@ def _laplace_with_jitter(out: dict, model: Model, theta, hess, c, n_hess: int) -
     axes = _axis_steps(out["cov_theta"])
     if axes is not None:
         # padded to the Hessian's batch size: the compiled program is reused
-        steps = list(axes) + [np.zeros(k)] * max(n_hess - len(axes), 0)
+        steps = list(axes) + [np.zeros(k)] * max(n_batch - len(axes), 0)
         g = np.asarray(model.chi2_batch(jnp.asarray(theta) + jnp.asarray(np.array(steps))))
         out["dchi2_1sigma"] = g[: len(axes)] - out["chi2"]
     return out

@@ -20,10 +20,11 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._overlap import on_star, pairs_in_contact
 from ..model._system import Planet, System
-from ._params import as_lightcurve, expand_free, is_trend, jitter_start, kipping_q, kipping_u, logit
+from ._params import (as_lightcurve, expand_free, is_tc, is_trend, jitter_start, kipping_q, kipping_u, logit,
+                      planet_value)
 
 __all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals", "scaled_residuals",
-           "pointwise_loglike", "chi2_batch", "jacobian"]
+           "pointwise_loglike", "chi2_batch", "residuals_batch", "jacobian"]
 
 UNION_MARGIN = 0.05
 """[R*] Two disks within this distance of touching at the start run the
@@ -136,8 +137,8 @@ class Model:
                     out.append(system.star.params[par])
                 continue
             pl = system.planets[owner]
-            if par == "t0":
-                out.append(pl.t0)
+            if par == "t0" or is_tc(par):
+                out.append(planet_value(pl, par))
             elif par == "period":
                 out.append(jnp.log(pl.period))
             elif par == "a":
@@ -166,7 +167,7 @@ class Model:
                 out.append(logit(v))
             elif par == "jitter":
                 out.append(jnp.log(v))
-            elif owner in ("star", "lc") or par == "t0":
+            elif owner in ("star", "lc") or par == "t0" or is_tc(par):
                 out.append(v)
             elif par == "period":
                 out.append(jnp.log(v))
@@ -196,7 +197,7 @@ class Model:
             elif owner == "lc":
                 out.append(theta[k])
             else:
-                out.append(sysm.star.params[par] if owner == "star" else getattr(sysm.planets[owner], par))
+                out.append(sysm.star.params[par] if owner == "star" else planet_value(sysm.planets[owner], par))
         return jnp.stack(out)
 
     def derived_names(self) -> tuple:
@@ -253,6 +254,10 @@ class Model:
     def chi2_batch(self, thetas):
         """chi^2 at each row of ``thetas`` (one compiled program)."""
         return chi2_batch(thetas, self.data())
+
+    def residuals_batch(self, thetas):
+        """:meth:`residuals` at each row of ``thetas`` (one compiled program)."""
+        return residuals_batch(thetas, self.data())
 
     def jacobian(self, theta):
         """(d residuals / d theta, residuals), compiled once per structure."""
@@ -323,7 +328,7 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
     keep their e and omega: inside a traced program ``base``'s leaves are
     tracers, so a circular planet given its traced e = 0 would take the
     slower Keplerian path."""
-    # transit times (TTVs) stay as given: fixed in every fit
+    # listed transit times: as given, except the free ones ("b.tc[12]")
     planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name,
                     transit_times=p.transit_times, transit_epochs=p.transit_epochs) for p in base.planets]
     for k, p in enumerate(base.planets):
@@ -339,6 +344,8 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             q[par] = jax.nn.sigmoid(v)
         elif owner == "star":
             star_params = star_params.at[par].set(v)
+        elif is_tc(par):
+            planets[owner]["transit_times"] = jnp.asarray(planets[owner]["transit_times"], float).at[par[1]].set(v)
         elif par == "t0":
             planets[owner]["t0"] = v
         elif par == "period":
@@ -426,6 +433,11 @@ def scaled_residuals(z, args) -> jnp.ndarray:
 @eqx.filter_jit
 def chi2_batch(thetas, d: ModelData):
     return jax.lax.map(lambda t: jnp.sum(residuals(t, d) ** 2), thetas)
+
+
+@eqx.filter_jit
+def residuals_batch(thetas, d: ModelData):
+    return jax.lax.map(lambda t: residuals(t, d), thetas)
 
 
 @eqx.filter_jit

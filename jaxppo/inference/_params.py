@@ -4,6 +4,10 @@ them to, which keep the physics valid: a = 1 + exp(.), p = exp(.),
 P = exp(.), and the impact parameter b = (1 + p) tanh(.) (so |b| < 1 + p and
 the planet always transits), with i = arccos(b / a).
 
+A planet with ``transit_times`` also has its listed mid-times as
+parameters: ``"b.tc[12]"`` (epoch 12; coordinate: the time itself [d]) and
+``"b.tc"`` for all of them.
+
 Besides the planets' and the star's parameters:
 
 * ``"star.q1"``, ``"star.q2"`` (quadratic star): Kipping (2013, eqs. 15-16)
@@ -21,14 +25,17 @@ Besides the planets' and the star's parameters:
 
 from __future__ import annotations
 
+import re
+
 import jax.numpy as jnp
 import numpy as np
 
 from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
+from ..model._ttv import epochs_text
 
 __all__ = ["PLANET_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
-           "check_ttv_free", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
+           "check_ttv_free", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The parameters of each planet a fit or a sampler may free."""
@@ -56,23 +63,51 @@ def kipping_q(u1, u2):
 
 
 
-def check_ttv_free(system: System, idx: int, par: str, name: str) -> None:
-    """Refuse free parameters that a planet's transit times would make
-    meaningless or that are not supported: a free transit time
-    ("b.tc[12]") and the t0 of a planet with ``transit_times`` (its orbit
-    is shifted to the listed times, tc_n - t0 - n P, so t0 cancels: a free
-    t0 would move nothing and the fit would be degenerate)."""
+def check_ttv_free(system: System, idx: int, par: str, name: str):
+    """The slot of a planet parameter tied to transit times, or None for
+    any other parameter: ``"b.tc[12]"`` is the listed mid-time of epoch 12
+    (slot par ``("tc", k)``, k its position in ``transit_times``). Refused:
+    a time of an epoch the planet does not list, and the t0 of a planet with
+    ``transit_times`` (its orbit is shifted by tc_n - t0 - n P, so t0
+    cancels: a free t0 would move nothing and the fit would be degenerate)."""
     pl = system.planets[idx]
+    label = pl.name or str(idx)
     if par.startswith("tc"):
-        raise ValueError(
-            f"free parameter {name!r}: free transit times are not supported yet; give the measured times as "
-            "Planet(..., transit_times=, transit_epochs=) and fit the other parameters (the times are kept "
-            "exactly as given)")
+        m = re.fullmatch(r"tc\[\s*(-?\d+)\s*\]", par)
+        if m is None:
+            raise ValueError(f"free parameter {name!r}: a transit time is named like '{label}.tc[12]' (the listed "
+                             f"epoch in brackets), or '{label}.tc' for every listed epoch")
+        epoch = int(m.group(1))
+        if pl.transit_times is None:
+            raise ValueError(f"free parameter {name!r}: planet {label!r} has no transit_times; give it "
+                             "Planet(..., transit_times=, transit_epochs=) (e.g. its predicted times from "
+                             "system.transit_times, or use jaxppo.measure_transit_times)")
+        if epoch not in pl.transit_epochs:
+            raise ValueError(f"free parameter {name!r}: planet {label!r} lists no epoch {epoch} (its transit_epochs "
+                             f"are {epochs_text(pl.transit_epochs)})")
+        return ("tc", pl.transit_epochs.index(epoch))
     if par == "t0" and pl.transit_times is not None:
         raise ValueError(
-            f"free parameter {name!r}: planet {pl.name or idx!r} has transit_times, which fix its mid-times (the "
+            f"free parameter {name!r}: planet {label!r} has transit_times, which fix its mid-times (the "
             "orbit is shifted by tc_n - t0 - n P, so t0 cancels and a free t0 would change nothing); leave t0 "
-            "fixed, or drop transit_times to fit a linear ephemeris")
+            f"fixed and free its times ('{label}.tc'), or drop transit_times to fit a linear ephemeris")
+    return None
+
+
+def is_tc(par) -> bool:
+    """Whether a planet slot's par is a transit time ("tc", k)."""
+    return isinstance(par, tuple) and par[0] == "tc"
+
+
+def planet_value(pl, par):
+    """The value of a planet slot: an attribute, or the listed transit time
+    of a ("tc", k) slot."""
+    return pl.transit_times[par[1]] if is_tc(par) else getattr(pl, par)
+
+
+def tc_name(pl, idx: int, k: int) -> str:
+    """The public name "b.tc[12]" of the k-th listed time of a planet."""
+    return f"{pl.name or idx}.tc[{pl.transit_epochs[k]}]"
 
 
 def logit(q):
@@ -100,6 +135,8 @@ def parameter_names(system: System) -> list[str]:
     for i, pl in enumerate(system.planets):
         label = pl.name or str(i)
         names += [f"{label}.{p}" for p in PLANET_PARAMS]
+        if pl.transit_times is not None:
+            names += [tc_name(pl, i, k) for k in range(len(pl.transit_epochs))]
     names += [f"star.{p}" for p in STAR_PARAMS.get(system.star.law, ())]
     if system.star.law == "quadratic":
         names += ["star.q1", "star.q2"]
@@ -132,9 +169,12 @@ def _split(name: str, system: System):
             idx = i
     if idx is None:
         raise ValueError(f"free parameter {name!r}: no planet named {owner!r}; names are {[p.name for p in system.planets]}")
-    check_ttv_free(system, idx, par, name)
+    tc = check_ttv_free(system, idx, par, name)
+    if tc is not None:
+        return idx, tc
     if par not in PLANET_PARAMS:
-        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS}")
+        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS} and, for a planet with "
+                         "transit_times, its listed mid-times 'tc[<epoch>]' (or 'tc' for all)")
     return idx, par
 
 
@@ -144,6 +184,20 @@ def _baseline_windows(time: np.ndarray) -> list[np.ndarray]:
     return np.split(np.arange(time.size), cuts)
 
 
+def _expand_tc(free, system: System) -> list:
+    """"b.tc" -> "b.tc[e]" for every listed epoch e of planet b."""
+    out = []
+    for n in free:
+        owner, _, par = n.partition(".") if isinstance(n, str) else (None, None, None)
+        hit = [i for i, pl in enumerate(system.planets) if (pl.name or str(i)) == owner]
+        if par == "tc" and hit and system.planets[hit[-1]].transit_times is not None:
+            pl = system.planets[hit[-1]]
+            out += [tc_name(pl, hit[-1], k) for k in range(len(pl.transit_epochs))]
+        else:
+            out.append(n)
+    return out
+
+
 def expand_free(free, system: System, time: np.ndarray):
     """(names, slots, basis): "lc.baseline[2]" expanded per window and
     power; ``basis`` [n, m] holds the columns of the multiplicative trend
@@ -151,7 +205,7 @@ def expand_free(free, system: System, time: np.ndarray):
     slots."""
     names, slots, cols = [], [], []
     windows = None
-    for n in free:
+    for n in _expand_tc(free, system):
         owner, par = _split(n, system)
         if owner == "lc" and par in ("baseline", "baseline2"):
             windows = _baseline_windows(time) if windows is None else windows

@@ -46,6 +46,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
+from ._params import is_tc, planet_value
 from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -213,8 +214,9 @@ def _planet_prior(pl, par):
     """The default prior of a planet parameter (see :func:`sample`)."""
     import numpyro.distributions as dist
 
-    if par == "t0":
-        return dist.Uniform(float(pl.t0) - 0.05, float(pl.t0) + 0.05)
+    if par == "t0" or is_tc(par):
+        t = float(planet_value(pl, par))
+        return dist.Uniform(t - 0.05, t + 0.05)
     if par == "period":
         p = float(pl.period)
         return dist.Uniform(p * (1 - 1e-3), p * (1 + 1e-3))
@@ -335,7 +337,7 @@ def _start_q(model: Model, system: System) -> np.ndarray:
                                  f"{b:.3g}, a {float(pl.a):.3g} R*, radius {float(pl.radius):.3g} R*)")
             q.append(b / (1.0 + float(pl.radius)))
         else:
-            q.append(float(getattr(system.planets[owner], par)))
+            q.append(float(planet_value(system.planets[owner], par)))
     return np.asarray(q)
 
 

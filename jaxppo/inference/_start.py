@@ -75,7 +75,9 @@ def find_mode(potential_u, jacobian_u, u0, prior_sd, max_steps: int = 256):
     if not (np.isfinite(f) and f <= f0):
         return u0, chol0, False, f"BFGS ended at a worse point (-ln p {f:.6g}, start {f0:.6g}); started at the given system"
     chol = laplace_factor(jacobian_u, u, prior_sd)
-    g = np.asarray(jax.jit(jax.grad(potential_u))(jnp.asarray(u)))
+    g = _gradient_u(sol, chol0)
+    if g is None:
+        g = np.asarray(jax.jit(jax.grad(potential_u))(jnp.asarray(u)))
     decrement = 0.5 * float(np.sum((chol.T @ g) ** 2))
     stopped = bool(sol.result == optx.RESULTS.successful)
     ok = stopped and np.isfinite(decrement) and decrement < NEWTON_TOL
@@ -84,3 +86,17 @@ def find_mode(potential_u, jacobian_u, u0, prior_sd, max_steps: int = 256):
     if not stopped:
         why += f"; BFGS did not stop on its criteria ({sol.result})"
     return u, chol, ok, why
+
+
+def _gradient_u(sol, chol0) -> np.ndarray | None:
+    """The gradient of the potential in u at BFGS's solution, from BFGS's
+    own state (its gradient in the whitened w, u = u0 + L0 w, so g_w =
+    L0^T g_u): no second compilation of the gradient. None when the state
+    does not hold it."""
+    grad = getattr(getattr(getattr(sol, "state", None), "f_info", None), "grad", None)
+    if grad is None:
+        return None
+    g_w = np.asarray(grad, float)
+    if g_w.shape != (chol0.shape[0],) or not np.all(np.isfinite(g_w)):
+        return None
+    return np.linalg.solve(chol0.T, g_w)

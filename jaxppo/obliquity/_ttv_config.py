@@ -7,7 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["transit_times_from", "planet_ttv_dict", "ttv_digest"]
+__all__ = ["TTV_KEYS", "transit_times_from", "planet_ttv_dict", "ttv_digest", "ttv_settings"]
+
+TTV_KEYS = ("planets", "free", "search", "grid", "min_points", "reference")
+"""The keys of a config's [ttv] section (``jaxppo ttv``; docs/config.md)."""
 
 
 def transit_times_from(p: dict, base) -> dict:
@@ -63,3 +66,61 @@ def ttv_digest(system) -> dict:
     of those scans do not change."""
     ttv = {pl.name: np.asarray(pl.transit_times).tolist() for pl in system.planets if pl.transit_times is not None}
     return {"transit_times": ttv} if ttv else {}
+
+
+def ttv_settings(section, system, base) -> dict:
+    """The checked [ttv] section (``jaxppo ttv``), as keywords of
+    :func:`jaxppo.measure_transit_times` plus ``reference``: ``planets`` (names; default all), ``free`` (parameters
+    fitted with the times), ``search`` [d], ``grid``, ``min_points``,
+    ``reference`` (tables of times to compare with: columns planet, epoch,
+    tc, tc_err; a file or a list, relative to the config's folder; a list
+    of absolute paths here). Raises ValueError naming the key."""
+    if not isinstance(section, dict):
+        raise ValueError("must be a table (a [ttv] section)")
+    bad = sorted(set(section) - set(TTV_KEYS))
+    if bad:
+        raise ValueError(f"unknown key(s) {bad}; valid: {list(TTV_KEYS)}")
+    out = {}
+    names = [pl.name for pl in system.planets]
+    if "planets" in section:
+        pl = section["planets"]
+        if not (isinstance(pl, list) and pl and all(isinstance(v, str) for v in pl)):
+            raise ValueError(f"planets must be a list of planet names, got {pl!r}")
+        unknown = [v for v in pl if v not in names]
+        if unknown:
+            raise ValueError(f"planets: no planet {unknown[0]!r}; the planets are {names}")
+        out["planets"] = list(pl)
+    if "free" in section:
+        free = section["free"]
+        if not (isinstance(free, list) and all(isinstance(v, str) for v in free)):
+            raise ValueError(f"free must be a list of parameter names such as \"b.radius\", got {free!r}")
+        from ..inference._params import parameter_names
+
+        valid = parameter_names(system)
+        unknown = [v for v in free if v not in valid]
+        if unknown:
+            raise ValueError(f"free: unknown parameter(s) {unknown}; valid: {valid}")
+        out["free"] = tuple(free)
+    if "search" in section:
+        v = section["search"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+            raise ValueError(f"search must be a positive half-width [d], got {v!r}")
+        out["search"] = float(v)
+    for key, low in (("grid", 3), ("min_points", 1)):
+        if key in section:
+            v = section[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{key} must be an integer >= {low}, got {v!r}")
+            out[key] = v
+    refs = section.get("reference", [])
+    refs = [refs] if isinstance(refs, str) else refs
+    if not (isinstance(refs, list) and all(isinstance(v, str) for v in refs)):
+        raise ValueError(f"reference must be a file name or a list of them, got {section['reference']!r}")
+    out["reference"] = []
+    for ref in refs:
+        path = Path(ref) if Path(ref).is_absolute() else Path(base) / ref
+        if not path.is_file():
+            raise ValueError(f"reference file {str(path)!r} not found (relative paths are relative to the "
+                             "config's folder)")
+        out["reference"].append(str(path))
+    return out

@@ -74,3 +74,27 @@ def test_marginal_scan_keeps_transit_times_consistent():
     assert "b.t0" not in default_free(system) and "c.t0" in default_free(system) and "b.period" in default_free(system)
     with pytest.raises(ValueError, match="planet 'b' has transit_times"):
         _check_samples(system, {"b.t0": np.zeros(3)})
+
+
+def _with_ttv(tmp_path, section: str):
+    p = _write(tmp_path, "")
+    p.write_text(p.read_text() + "\n[ttv]\n" + section + "\n")
+    return p
+
+
+def test_ttv_section_is_read_and_checked(tmp_path):
+    (tmp_path / "ref.csv").write_text("planet,epoch,tc,tc_err\nb,0,134.5,0.001\n")
+    cfg = load_config(_with_ttv(tmp_path, 'planets = ["c"]\nfree = ["lc.jitter"]\nsearch = 0.05\ngrid = 21\n'
+                                          'min_points = 5\nreference = "ref.csv"'))
+    assert cfg.ttv == {"planets": ["c"], "free": ("lc.jitter",), "search": 0.05, "grid": 21, "min_points": 5,
+                       "reference": [str(tmp_path / "ref.csv")]}
+    # [ttv] is not part of the scan's digest (it changes no scan result)
+    assert cfg.digest == load_config(_write(tmp_path, "")).digest
+    for section, match in [('planets = ["x"]', "planets: no planet 'x'"), ("grid = 2", "grid must be an integer >= 3"),
+                           ('free = ["b.nope"]', r"free: unknown parameter\(s\) \['b.nope'\]"),
+                           ("search = -1.0", "search must be a positive half-width"),
+                           ('reference = "none.csv"', "reference file .*none.csv' not found"),
+                           ("speed = 1", r"unknown key\(s\) \['speed'\]")]:
+        with pytest.raises(ValueError, match=r"\[ttv\] " + match):
+            load_config(_with_ttv(tmp_path, section))
+

@@ -1,0 +1,267 @@
+"""Measuring transit times: every transit's mid-time fitted with the exact
+model (other planets and overlapping transits included), its error, and
+the linear ephemeris and O-C diagram of the measured times.
+
+:func:`measure_transit_times` gives each planet a listed mid-time for every
+epoch with data (``Planet(transit_times=, transit_epochs=)``), finds each
+one's start on a grid of shifts (the chi^2 of the epoch's own points), then
+fits all of them together, with the parameters named in ``free``, by
+:func:`jaxppo.fit` (Levenberg-Marquardt). The errors are those of the fit's
+linearised covariance (every mid-time's marginal error, the other
+parameters free too).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..model._system import Planet, System
+from ..model._transits import planet_label
+from ._fit import FitResult, fit
+from ._model import Model
+from ._params import as_lightcurve
+
+__all__ = ["measure_transit_times", "linear_ephemeris", "TIMES_COLUMNS"]
+
+TIMES_COLUMNS = ("planet", "epoch", "tc", "tc_err", "chi2", "n_points")
+"""The columns of :func:`measure_transit_times`'s table."""
+
+
+def _planet_indices(system: System, planets) -> list[int]:
+    labels = [planet_label(system, i) for i in range(len(system.planets))]
+    if planets is None:
+        return list(range(len(system.planets)))
+    if isinstance(planets, (str, int)):
+        planets = [planets]
+    out = []
+    for p in planets:
+        if isinstance(p, (int, np.integer)) and not isinstance(p, bool) and 0 <= p < len(labels):
+            out.append(int(p))
+        elif str(p) in labels:
+            out.append(labels.index(str(p)))
+        else:
+            raise ValueError(f"planets: no planet {p!r}; the planets are {labels}")
+    if len(set(out)) != len(out):
+        raise ValueError(f"planets: {list(planets)!r} names a planet twice")
+    return out
+
+
+def _data_epochs(pl: Planet, time: np.ndarray, min_points: int) -> list[tuple[int, float]]:
+    """(epoch, predicted mid-time) of the planet's transits with at least
+    ``min_points`` data points between first and last contact."""
+    t1, t4 = (float(v) for v in pl.contacts())
+    if not t4 > t1:
+        return []
+    period, t0 = float(pl.period), float(pl.t0)
+    out = []
+    for n in range(math.floor((time.min() - t4 - t0) / period) - 1, math.ceil((time.max() - t1 - t0) / period) + 2):
+        tc = pl.mid_time(n)
+        if np.count_nonzero((time >= tc + t1) & (time <= tc + t4)) >= min_points:
+            out.append((n, tc))
+    return out
+
+
+def _with_times(pl: Planet, new: dict) -> Planet:
+    """The planet with its listed times plus ``new`` (epoch -> tc)."""
+    times = {} if pl.transit_times is None else dict(zip(pl.transit_epochs, np.asarray(pl.transit_times, float)))
+    times.update(new)
+    epochs = sorted(times)
+    fields = {k: getattr(pl, k) for k in ("period", "t0", "a", "inc", "radius", "name", "e", "omega")}
+    return Planet(**fields, transit_times=[times[e] for e in epochs], transit_epochs=epochs)
+
+
+def _classes(windows) -> list[list[int]]:
+    """The transits split into groups no two of which share a point
+    (greedy colouring of the overlap graph of their windows)."""
+    colour = []
+    for i, w in enumerate(windows):
+        taken = {colour[j] for j in range(i) if np.any(w & windows[j])}
+        colour.append(next(c for c in range(len(windows) + 1) if c not in taken))
+    return [[i for i, c in enumerate(colour) if c == k] for k in range(max(colour) + 1)]
+
+
+def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> jnp.ndarray:
+    """Theta with each free mid-time moved to the shift (on a grid of
+    ``grid`` shifts in [-search, +search] [d]) that minimises the chi^2 of
+    its own points. The times of transits that share no point move at once
+    (one model evaluation per shift); transits that share points (two
+    planets on the star together) are searched in turn, each with the
+    others at their best so far, twice over."""
+    from ._model import residuals
+
+    theta = model.to_theta(model.system)
+    frac = np.linspace(-1.0, 1.0, grid)
+    data = model.data()
+    n = model.y.size
+    classes = _classes(windows)
+    for _ in range(1 if len(classes) == 1 else 2):
+        for members in classes:
+            idx = np.array([slots[i] for i in members])
+            shifts = jnp.asarray(frac[:, None] * search[members][None, :])
+            thetas = jnp.tile(theta, (grid, 1)).at[:, idx].add(shifts)
+            r2 = np.asarray(jax.lax.map(lambda th: residuals(th, data) ** 2, thetas))[:, :n]
+            best = [int(np.argmin(r2[:, windows[i]].sum(1))) if windows[i].any() else grid // 2 for i in members]
+            theta = theta.at[idx].set(jnp.asarray(np.asarray(thetas)[np.array(best), idx]))
+    return theta
+
+
+def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
+    """Weighted least-squares linear ephemeris tc = t0 + n P of measured
+    mid-times: (t0 [d], P [d], their 2x2 covariance). Needs two distinct
+    epochs; without errors the weights are equal and the covariance is
+    scaled by the scatter."""
+    n = np.asarray(epoch, float)
+    t = np.asarray(tc, float)
+    if n.size != t.size or n.size < 2 or np.unique(n).size < 2:
+        raise ValueError(f"linear_ephemeris needs mid-times of at least two distinct epochs, got epochs {n.tolist()}")
+    if tc_err is None:
+        w = np.ones_like(t)
+    else:
+        e = np.asarray(tc_err, float)
+        if e.shape != t.shape or not np.all(np.isfinite(e) & (e > 0)):
+            raise ValueError(f"linear_ephemeris: tc_err must be positive and finite, one per time, got {e.tolist()}")
+        w = 1.0 / e**2
+    A = np.stack([np.ones_like(n), n], axis=1)
+    cov = np.linalg.inv(A.T @ (A * w[:, None]))
+    t0, period = cov @ (A.T @ (w * t))
+    if tc_err is None:
+        dof = max(n.size - 2, 1)
+        cov = cov * float(np.sum((t - t0 - period * n) ** 2)) / dof
+    return float(t0), float(period), cov
+
+
+def _window_stats(model: Model, result: FitResult, windows) -> tuple[np.ndarray, np.ndarray]:
+    """(chi^2, number of points) of each epoch's points at the fit."""
+    theta_ref = model.to_theta(model.system)
+    theta = model.theta_from(jnp.asarray(result.values), theta_ref)
+    r = np.asarray(model.residuals(theta))[:model.y.size]
+    return np.array([float(np.sum(r[w] ** 2)) for w in windows]), np.array([int(w.sum()) for w in windows])
+
+
+def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), search=None, grid: int = 41,
+                          min_points: int = 3, alpha: float = 0.0, case: str = "same", return_fit: bool = False,
+                          progress: bool = False):
+    """Measure the mid-time of every transit in the data.
+
+    ``system``: the model (its ephemerides give the starting times; a planet
+    with ``transit_times`` starts from them); ``lightcurve``: a
+    :class:`jaxppo.LightCurve` or a lightkurve LightCurve (its ``exposure``
+    is integrated); ``planets``: the names (or indices) of the planets whose
+    times are measured (default: all; the others keep their ephemerides);
+    ``free``: other parameters fitted together with the times (names of
+    :func:`jaxppo.parameter_names`, e.g. ``("b.radius", "b.a", "b.inc",
+    "lc.baseline")``; default none: the times alone, the rest fixed at
+    ``system``); ``search`` [d]: half-width of the grid of starting shifts
+    per planet (default the half-duration of its transit, first to last
+    contact), ``grid`` shifts; ``min_points``: a transit is measured when at
+    least this many points lie between its first and last contact.
+    Overlapping transits (two planets on the star at once, occulting each
+    other or not) are fitted together with the exact model.
+
+    Returns an astropy Table with columns ``planet``, ``epoch`` (0: the
+    transit at the planet's t0), ``tc`` [d], ``tc_err`` [d] (1 sigma, from
+    the fit's covariance), ``chi2`` and ``n_points`` (the chi^2 and number
+    of the points between first and last contact of that transit, padded by
+    the exposure), sorted by planet and epoch; ``meta`` holds the fit's
+    ``chi2``, ``n_points``, ``reduced_chi2``, ``success``, ``message`` and
+    ``free``. A failed fit warns (UserWarning) and leaves ``success`` False.
+    ``return_fit=True`` returns ``(table, FitResult)``; the FitResult's
+    ``system`` carries the measured times.
+    """
+    lc = as_lightcurve(lightcurve)
+    time = np.asarray(lc.time, float)
+    if time.size == 0:
+        raise ValueError("lightcurve has no points")
+    if int(grid) != grid or grid < 3:
+        raise ValueError(f"grid must be an integer >= 3 (the starting shifts per transit), got {grid!r}")
+    if int(min_points) != min_points or min_points < 1:
+        raise ValueError(f"min_points must be an integer >= 1, got {min_points!r}")
+    chosen = _planet_indices(system, planets)
+    free = (free,) if isinstance(free, str) else tuple(free)
+    for name in free:
+        owner, _, par = str(name).partition(".")
+        if par.startswith("tc") or (par == "t0" and owner in [planet_label(system, i) for i in chosen]):
+            raise ValueError(f"free: {name!r} is measured here (every transit time of the chosen planets is free; "
+                             "their t0 is then degenerate with them); name the other parameters only")
+    if search is not None and not (np.isfinite(float(search)) and float(search) > 0):
+        raise ValueError(f"search must be a positive half-width [d], got {search!r}")
+    start, plan = _plan(system, lc, chosen, int(min_points), search)
+    names = [p["name"] for p in plan]
+    say = (lambda m: print(f"measure_transit_times: {m}", flush=True)) if progress else (lambda m: None)
+    say(f"{len(names)} transits of {len(chosen)} planet(s); grid of {grid} starting shifts")
+    # a shift of half a duration moves a disk by about 1 + p stellar radii
+    model = Model(start, lc, tuple(names) + free, alpha, case, active_margin=2.5)
+    slot_idx = [model.free.index(n) for n in names]
+    theta = _grid_start(model, slot_idx, np.array([p["search"] for p in plan]), int(grid),
+                        [p["window"] for p in plan])
+    say("joint fit of every time" + (f" and {list(free)}" if free else ""))
+    result = fit(model.to_system(theta), lc, free=tuple(names) + free, alpha=alpha, case=case, progress=progress)
+    if not result.success:
+        warnings.warn(f"measure_transit_times: the fit did not converge ({result.message}); the times are where "
+                      "it stopped and their errors may be wrong", UserWarning, stacklevel=2)
+    table = _result_table(Model(start, lc, result.names, alpha, case, active_margin=1.0), result, plan, lc)
+    return (table, result) if return_fit else table
+
+
+def _plan(system: System, lc, chosen, min_points: int, search):
+    """(the start: every chosen planet with a listed time for each of its
+    transits in the data, [per transit: name "b.tc[n]", planet label,
+    epoch, contacts (t1, t4) about mid-time, search half-width, the
+    window of its points for the grid]) ."""
+    time = np.asarray(lc.time, float)
+    planets = list(system.planets)
+    found = {}
+    for i in chosen:
+        found[i] = _data_epochs(system.planets[i], time, min_points)
+        if found[i]:
+            planets[i] = _with_times(system.planets[i], dict(found[i]))
+    if not any(found.values()):
+        labels = [planet_label(system, i) for i in chosen]
+        raise ValueError(f"no transit of planet(s) {labels} has {min_points} or more points between first and last "
+                         f"contact in the data (times {time.min():.3f}-{time.max():.3f} d); check t0, period and the "
+                         "time system (BKJD for Kepler, BTJD for TESS)")
+    start = System(system.star, planets, system.tilted)
+    pad = float(lc.exposure or 0.0)
+    plan = []
+    for i in chosen:
+        t1, t4 = (float(v) for v in system.planets[i].contacts())
+        width = 0.5 * (t4 - t1) if search is None else float(search)
+        label = planet_label(system, i)
+        for n, _ in found[i]:
+            tc = start.planets[i].mid_time(n)
+            plan.append({"name": f"{label}.tc[{n}]", "planet": label, "epoch": n, "contacts": (t1, t4),
+                         "search": width,
+                         "window": (time >= tc + t1 - pad - width) & (time <= tc + t4 + pad + width)})
+    return start, plan
+
+
+def _result_table(model: Model, result: FitResult, plan, lc):
+    """The table of :func:`measure_transit_times` from the joint fit."""
+    from astropy.table import Table
+
+    time = np.asarray(lc.time, float)
+    pad = float(lc.exposure or 0.0)
+    k = [result.names.index(p["name"]) for p in plan]
+    tc = np.array([float(result.values[j]) for j in k])
+    # the points of each transit at its measured time: first to last contact, padded by the exposure
+    points = [(time >= t + p["contacts"][0] - pad) & (time <= t + p["contacts"][1] + pad) for t, p in zip(tc, plan)]
+    chi2, npts = _window_stats(model, result, points)
+    table = Table()
+    table["planet"] = [p["planet"] for p in plan]
+    table["epoch"] = np.array([p["epoch"] for p in plan], int)
+    table["tc"] = tc
+    table["tc"].unit = "d"
+    table["tc_err"] = np.array([float(result.errors[j]) for j in k])
+    table["tc_err"].unit = "d"
+    table["chi2"] = chi2
+    table["n_points"] = npts
+    table = table[np.lexsort((table["epoch"], table["planet"]))]
+    table.meta.update({"chi2": float(result.chi2), "n_points": int(time.size),
+                       "reduced_chi2": float(result.reduced_chi2), "success": bool(result.success),
+                       "message": str(result.message), "free": list(result.names)})
+    return table

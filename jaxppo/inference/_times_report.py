@@ -1,0 +1,153 @@
+"""What ``jaxppo ttv`` writes: the measured transit times (ECSV), the O-C
+diagram of each planet, and the comparison with reference times."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ._times import TIMES_COLUMNS, linear_ephemeris
+
+__all__ = ["read_times", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
+
+MINUTES = 1440.0
+
+
+def read_times(path) -> "Table":  # noqa: F821
+    """A table of transit times (columns planet, epoch, tc [d], tc_err [d];
+    CSV or, by its suffix, ECSV), as :func:`measure_transit_times` writes
+    it. Raises ValueError naming the file and what is missing."""
+    from astropy.table import Table
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"transit-times file {str(path)!r} not found")
+    fmt = "ascii.ecsv" if path.suffix.lower() == ".ecsv" else "ascii.csv"
+    try:
+        table = Table.read(path, format=fmt)
+    except Exception as e:  # astropy raises many kinds on a malformed table
+        raise ValueError(f"cannot read transit-times file {str(path)!r} as {fmt}: {e}") from None
+    missing = [c for c in ("planet", "epoch", "tc", "tc_err") if c not in table.colnames]
+    if missing:
+        raise ValueError(f"transit-times file {str(path)!r} needs columns planet, epoch, tc, tc_err; missing "
+                         f"{missing} (has {table.colnames})")
+    out = Table()
+    out["planet"] = [str(v) for v in table["planet"]]
+    out["epoch"] = np.asarray(table["epoch"], int)
+    out["tc"] = np.asarray(table["tc"], float)
+    out["tc_err"] = np.asarray(table["tc_err"], float)
+    return out
+
+
+def compare_times(measured, reference) -> dict:
+    """Per planet, the measured times against reference times of the same
+    epochs: z = (tc - tc_ref) / sqrt(tc_err^2 + tc_err_ref^2); returns
+    {planet: {n, median_abs_z, within_1sigma, within_2sigma, max_abs_z,
+    chi2, median_diff_min}} (the median of tc - tc_ref [min]: a shift
+    common to every epoch shows there)."""
+    out = {}
+    for planet in sorted(set(measured["planet"])):
+        m = measured[measured["planet"] == planet]
+        r = reference[reference["planet"] == planet]
+        ref = {int(e): (float(t), float(s)) for e, t, s in zip(r["epoch"], r["tc"], r["tc_err"])}
+        z, diff = [], []
+        for e, t, s in zip(m["epoch"], m["tc"], m["tc_err"]):
+            if int(e) in ref:
+                tr, sr = ref[int(e)]
+                diff.append(float(t) - tr)
+                z.append(diff[-1] / np.hypot(float(s), sr))
+        z = np.asarray(z)
+        if not z.size:
+            out[planet] = {"n": 0}
+            continue
+        out[planet] = {"n": int(z.size), "median_abs_z": float(np.median(np.abs(z))),
+                       "within_1sigma": float(np.mean(np.abs(z) < 1)), "within_2sigma": float(np.mean(np.abs(z) < 2)),
+                       "max_abs_z": float(np.max(np.abs(z))), "chi2": float(np.sum(z**2)),
+                       "median_diff_min": float(np.median(diff) * MINUTES)}
+    return out
+
+
+def plot_oc(measured, planet: str, path, references=None) -> dict:
+    """The O-C diagram of one planet: measured minus the linear ephemeris
+    fitted to the measured times [min] against epoch, with 1-sigma errors
+    (and the times of each of ``references``, {label: table}, against the
+    same ephemeris).
+    Returns the ephemeris {t0, period, t0_err, period_err} [d]."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = measured[measured["planet"] == planet]
+    t0, period, cov = linear_ephemeris(m["epoch"], m["tc"], m["tc_err"])
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    for k, (label, ref) in enumerate((references or {}).items()):
+        r = ref[ref["planet"] == planet]
+        if len(r):
+            ax.errorbar(np.asarray(r["epoch"]) + 0.15 * (k + 1), (np.asarray(r["tc"]) - t0 - period
+                        * np.asarray(r["epoch"])) * MINUTES, np.asarray(r["tc_err"]) * MINUTES, fmt="sD^v"[k % 4],
+                        ms=3, color=f"C{k + 1}", mfc="none", label=label)
+    ax.errorbar(m["epoch"], (np.asarray(m["tc"]) - t0 - period * np.asarray(m["epoch"])) * MINUTES,
+                np.asarray(m["tc_err"]) * MINUTES, fmt="o", ms=3, color="C0", label="jaxppo")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("O - C [min]")
+    ax.set_title(f"planet {planet}: tc = {t0:.5f} + {period:.6f} n [d]")
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return {"t0": t0, "period": period, "t0_err": float(np.sqrt(cov[0, 0])), "period_err": float(np.sqrt(cov[1, 1]))}
+
+
+def write_times_products(table, out, references=None) -> dict:
+    """Write ``transit_times.ecsv`` (columns :data:`TIMES_COLUMNS`), an O-C
+    figure ``oc_<planet>.png`` per planet with two or more epochs and
+    ``ttv_summary.json`` (the fit, each planet's linear ephemeris and O-C
+    scatter, and the comparison with each of ``references``, {label:
+    table}) in the folder ``out``; returns the summary."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    table[list(TIMES_COLUMNS)].write(out / "transit_times.ecsv", format="ascii.ecsv", overwrite=True)
+    summary = {"fit": dict(table.meta), "planets": {}, "figures": []}
+    for planet in sorted(set(table["planet"])):
+        m = table[table["planet"] == planet]
+        entry = {"transits": int(len(m))}
+        if len(set(m["epoch"])) >= 2:
+            name = f"oc_{planet}.png"
+            eph = plot_oc(table, planet, out / name, references)
+            oc = np.asarray(m["tc"]) - eph["t0"] - eph["period"] * np.asarray(m["epoch"])
+            entry.update(eph, oc_rms_min=float(np.sqrt(np.mean(oc**2)) * MINUTES),
+                         oc_max_abs_min=float(np.max(np.abs(oc)) * MINUTES),
+                         median_tc_err_min=float(np.median(m["tc_err"]) * MINUTES),
+                         chi2_linear=float(np.sum((oc / np.asarray(m["tc_err"])) ** 2)))
+            summary["figures"].append(name)
+        summary["planets"][planet] = entry
+    if references:
+        summary["reference"] = {label: compare_times(table, ref) for label, ref in references.items()}
+    (out / "ttv_summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    return summary
+
+
+def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
+    """What ``jaxppo ttv`` prints of :func:`write_times_products`' summary."""
+    fit = summary["fit"]
+    lines = [f"{n_times} transit times, chi^2 = {fit['chi2']:.1f} for {fit['n_points']} points "
+             f"(chi^2/(N - k) = {fit['reduced_chi2']:.3f}), {seconds:.1f} s"]
+    for planet, e in summary["planets"].items():
+        line = f"  {planet}: {e['transits']} transits"
+        if "oc_rms_min" in e:
+            line += (f", O-C rms {e['oc_rms_min']:.1f} min (max {e['oc_max_abs_min']:.1f}), median error "
+                     f"{e['median_tc_err_min']:.1f} min, chi^2 of a linear ephemeris {e['chi2_linear']:.1f}")
+        lines.append(line)
+    for label, per_planet in summary.get("reference", {}).items():
+        lines.append(f"  against {label}:")
+        for planet, c in per_planet.items():
+            if c["n"]:
+                lines.append(f"    {planet}: {c['n']} epochs, median |z| {c['median_abs_z']:.2f}, "
+                             f"{100 * c['within_1sigma']:.0f} % within 1 sigma, {100 * c['within_2sigma']:.0f} % "
+                             f"within 2, max |z| {c['max_abs_z']:.2f} (median difference "
+                             f"{c['median_diff_min']:+.2f} min)")
+    return lines
