@@ -1,3 +1,3 @@
 """The package version (its own module: no module imports the package root)."""
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"

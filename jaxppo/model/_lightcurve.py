@@ -11,7 +11,7 @@ import numpy as np
 from ._exposure import supersampled_times
 from ._system import from_quantity
 from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, kepler_exposure, lightkurve_columns,
-                       plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days)
+                       plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days, TIME_ZERO)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
 from ._readers import QUALITY_BITMASKS as QUALITY_BITMASKS
 from ._readers import QUALITY_FLAGS as QUALITY_FLAGS
@@ -321,6 +321,29 @@ class LightCurve:
                 fh.write(f"{row[0]:.8f},{row[1]:.10f},{row[2]:.6e}\n")
         tmp.replace(path)
 
+    def to_time_zero(self, time_zero, current=None) -> "LightCurve":
+        """The light curve with its times counted from another zero point:
+        ``time_zero`` "bkjd" (BJD_TDB - 2454833, Kepler), "btjd" (BJD_TDB -
+        2457000, TESS) or a number [JD]. The current zero point is
+        ``current`` (same forms), else the light curve's ``time_zero``,
+        else its mission's (a Kepler or TESS FITS file); so a TESS light
+        curve joins Kepler data with ``lc.to_time_zero("bkjd")`` (times +
+        2167 d). The shift is exact: both are BJD_TDB."""
+        new, now = _zero_point(time_zero, "time_zero"), None
+        if current is not None:
+            now = _zero_point(current, "current")
+        elif self.time_zero is not None:
+            now = float(self.time_zero)
+        elif self.report.get("mission") in TIME_ZERO:
+            now = TIME_ZERO[self.report["mission"]][0]
+        if now is None:
+            raise ValueError("the light curve's time zero point is unknown (not read from a Kepler or TESS file); "
+                             "give current= ('bkjd', 'btjd' or a JD)")
+        label = {v[0]: v[1] for v in TIME_ZERO.values()}.get(new)
+        report = dict(self.report, time=f"BJD_TDB - {new:.1f} [d]" + (f" ({label})" if label else "")
+                      + f", shifted by {now - new:+.1f} d")
+        return dataclasses.replace(self, time=self.time + (now - new), report=report, time_zero=new)
+
     # ---- selections -------------------------------------------------------------
     def select(self, mask) -> "LightCurve":
         mask = np.asarray(mask, bool)
@@ -363,3 +386,19 @@ class LightCurve:
         SUB_EXPOSURE = 30 s, 59 for a 29.4-min Kepler long cadence; the rule
         and why 30 s: ``jaxppo.model._exposure``). Returns (times, n)."""
         return supersampled_times(self.time, self.exposure, n)
+
+
+def _zero_point(value, name: str) -> float:
+    """A zero point [JD] from "bkjd", "btjd" or a number."""
+    if isinstance(value, str):
+        zeros = {"bkjd": TIME_ZERO["kepler"][0], "btjd": TIME_ZERO["tess"][0]}
+        if value.lower() not in zeros:
+            raise ValueError(f"{name} must be 'bkjd', 'btjd' or a Julian date, got {value!r}")
+        return zeros[value.lower()]
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 'bkjd', 'btjd' or a Julian date, got {value!r}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v

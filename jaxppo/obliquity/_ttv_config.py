@@ -18,7 +18,8 @@ def transit_times_from(p: dict, base) -> dict:
     Planet keywords ({} without them): inline lists, or
     ``transit_times = "file"`` (CSV, or ECSV by its suffix; relative to the
     config's folder ``base``) with columns epoch and tc [d] (tc_err may be
-    there; the model does not use it). Raises ValueError naming the key."""
+    there; the model does not use it; with a planet column, the rows of
+    this planet's name). Raises ValueError naming the key."""
     if "transit_times" not in p:
         if "transit_epochs" in p:
             raise ValueError("transit_epochs needs transit_times (the mid-times [d] of those epochs)")
@@ -39,6 +40,12 @@ def transit_times_from(p: dict, base) -> dict:
         except Exception as e:  # astropy raises many kinds on a malformed table
             raise ValueError(f"cannot read transit_times file {str(path)!r} as {fmt}: {e}") from None
         cols = {c.lower(): c for c in table.colnames}
+        if "planet" in cols:  # a table of several planets (jaxppo ttv's transit_times.ecsv): this one's rows
+            name = str(p.get("name", ""))
+            table = table[[str(v) == name for v in table[cols["planet"]]]]
+            if not len(table):
+                raise ValueError(f"transit_times file {str(path)!r} has no rows of planet {name!r} (its planet "
+                                 "column names the planet of each time)")
         if "epoch" not in cols or "tc" not in cols:
             raise ValueError(f"transit_times file {str(path)!r} needs columns epoch and tc (and optionally "
                              f"tc_err), got {table.colnames}")

@@ -102,3 +102,30 @@ def test_measure_transit_times_finds_every_transit_of_both_planets():
         jp.measure_transit_times(linear, lc, planets=["x"])
     with pytest.raises(ValueError, match="'b.tc\\[1\\]' is measured here"):
         jp.measure_transit_times(linear, lc, free=("b.tc[1]",))
+
+
+def test_real_tess_transit_of_kepler51_d_in_kepler_time():
+    """The REAL TESS sector-14 SPOC light curve of Kepler-51 (BTJD), moved to
+    BKJD with LightCurve.to_time_zero("bkjd"), measured with the Kepler-51
+    config's system (ephemerides from the Kepler data): d's transit near
+    BKJD 3856.99 (BTJD 1689.99) is found, with an error of minutes, chi^2
+    per point near 1 (2 % rms per 2-min point), and tens of minutes early
+    of the Kepler linear ephemeris extrapolated over 28 orbits."""
+    from pathlib import Path
+
+    folder = Path(jp.__file__).parent / "data" / "kepler51"
+    fits = folder / "tess2019198215352-s0014-0000000027846348-0150-s_lc.fits"
+    cfg = jp.load_config(folder / "kepler51_llc.toml")
+    tess = jp.LightCurve.from_fits(fits)
+    assert "BTJD" in tess.report["time"] and 1683 < tess.time.min() < 1684
+    bk = tess.to_time_zero("bkjd")
+    assert np.array_equal(bk.time, tess.time + 2167.0) and "BKJD" in bk.report["time"]
+    d = cfg.system.planets[2]
+    pred = float(d.t0) + 28 * float(d.period)
+    table = jp.measure_transit_times(cfg.system, bk.select(np.abs(bk.time - pred) < 1.0), planets=["d"],
+                                     search=0.15, grid=61)
+    assert len(table) == 1 and int(table["epoch"][0]) == 28 and table.meta["success"]
+    tc, err = float(table["tc"][0]), float(table["tc_err"][0])
+    assert abs(tc - 3856.99) < 0.01 and 0.003 < err < 0.03, (tc, err)
+    assert 0.8 < table["chi2"][0] / table["n_points"][0] < 1.2
+    assert (pred - tc) * 1440 > 10  # early of the Kepler linear ephemeris

@@ -390,3 +390,23 @@ def test_csv_with_a_byte_order_mark(tmp_path):
     path.write_bytes("time,flux,flux_err\n1.0,1.0,0.001\n1.1,0.999,0.001\n".encode("utf-8-sig"))
     lc = jp.LightCurve.from_csv(path)
     np.testing.assert_array_equal(lc.time, [1.0, 1.1])
+
+
+def test_to_time_zero_moves_between_kepler_and_tess_time():
+    """BTJD -> BKJD is +2167 d exactly; the zero point comes from the light
+    curve (time_zero, or its mission) or from ``current``; unknown ones and
+    bad names are refused by name."""
+    import jaxppo as jp
+
+    lc = jp.LightCurve(np.array([1689.0, 1690.0]), np.ones(2), np.full(2, 1e-3))
+    with pytest.raises(ValueError, match="time zero point is unknown"):
+        lc.to_time_zero("bkjd")
+    bk = lc.to_time_zero("bkjd", current="btjd")
+    assert np.array_equal(bk.time, lc.time + 2167.0) and bk.time_zero == 2454833.0
+    back = bk.to_time_zero("btjd")
+    assert np.array_equal(back.time, lc.time) and "BTJD" in back.report["time"]
+    assert np.array_equal(bk.to_time_zero(2454000.0).time, lc.time + 3000.0)
+    with pytest.raises(ValueError, match="time_zero must be 'bkjd', 'btjd' or a Julian date, got 'mjd'"):
+        bk.to_time_zero("mjd")
+    with pytest.raises(ValueError, match="current must be finite"):
+        lc.to_time_zero("bkjd", current=float("nan"))

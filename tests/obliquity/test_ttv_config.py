@@ -98,3 +98,16 @@ def test_ttv_section_is_read_and_checked(tmp_path):
         with pytest.raises(ValueError, match=r"\[ttv\] " + match):
             load_config(_with_ttv(tmp_path, section))
 
+
+
+def test_transit_times_from_a_table_of_several_planets(tmp_path):
+    """A transit_times file with a planet column (jaxppo ttv's
+    transit_times.ecsv) gives each planet its own rows."""
+    t0, period = 134.501962, 3.69611590
+    (tmp_path / "tt.csv").write_text("planet,epoch,tc,tc_err\n"
+                                     f"c,0,138.6,0.001\nb,1,{t0 + period + 0.002!r},0.001\nb,2,{t0 + 2 * period!r},0.001\n")
+    b = load_config(_write(tmp_path, 'transit_times = "tt.csv"')).system.planets[0]
+    assert b.transit_epochs == (1, 2) and np.allclose(np.asarray(b.transit_times), [t0 + period + 0.002, t0 + 2 * period])
+    (tmp_path / "tt.csv").write_text("planet,epoch,tc,tc_err\nc,0,138.6,0.001\n")
+    with pytest.raises(ValueError, match="has no rows of planet 'b'"):
+        load_config(_write(tmp_path, 'transit_times = "tt.csv"'))
