@@ -1,0 +1,149 @@
+"""Property-based tests (hypothesis) over the degenerate classes of the
+flux engine and the public constructors: scenes of one to three disks
+built from the special distances where methods fail (b in {0, p, 1 - p,
+1, 1 + p}, external and internal tangency, concentric, identical, disks
+larger than the star, tiny next to large), each nudged by 0 or +-1e-15,
++-1e-9, +-1e-3; and inputs in other units and types.
+
+Properties:
+* "exact" and "auto" equal the independent radial reference
+  (tests/helpers.py ``reference_deficit``) to 1e-10 in float64; "auto"
+  equals "exact" to 1e-12;
+* 0 <= F <= 1; a disk added never raises the flux; the order of the disks
+  does not matter (1e-13);
+* jit(grad) of the flux is finite (float32 and its bounds:
+  tests/core/test_adversarial.py);
+* the raster (windowed, default settings) stays within [0, 1] and within
+  the error envelope RasterSettings documents for its largest disk;
+* Planet and System.flux give the same numbers for a quantity in any time
+  or length unit as for its value in days / stellar radii, and refuse
+  strings and booleans by name.
+"""
+
+import math
+
+import astropy.units as u
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import jaxppo as jp
+from helpers import numpy_intensity, reference_deficit, reference_total
+
+STAR = jp.Star.quadratic(0.4, 0.25)
+_I_MU = numpy_intensity(STAR)
+
+
+def I_R(r):
+    """I at the projected radius r (numpy_intensity is a function of mu)."""
+    return _I_MU(np.sqrt(np.clip(1.0 - np.asarray(r, float) ** 2, 0.0, 1.0)))
+
+
+
+TOTAL = reference_total(I_R)
+SETTINGS = settings(max_examples=25, deadline=None, derandomize=True,
+                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+NUDGES = [0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1e-3, -1e-3]
+RADII = [1e-4, 0.01, 0.1, 0.5, 0.99, 1.0, 1.5]
+
+
+@st.composite
+def first_disk(draw):
+    p = draw(st.one_of(st.sampled_from(RADII), st.floats(1e-4, 1.5)))
+    d = draw(st.one_of(st.sampled_from([0.0, p, abs(1.0 - p), 1.0, 1.0 + p]), st.floats(0.0, 2.6)))
+    d = max(d + draw(st.sampled_from(NUDGES)), 0.0)
+    phi = draw(st.floats(0.0, 2.0 * math.pi))
+    return d * math.cos(phi), d * math.sin(phi), p
+
+
+@st.composite
+def scene(draw, max_disks=3):
+    """[(x, y, r)] of one to ``max_disks`` disks; each further disk placed
+    against the first in a degenerate relation (or at random)."""
+    x0, y0, p0 = draw(first_disk())
+    disks = [(x0, y0, p0)]
+    for _ in range(draw(st.integers(0, max_disks - 1))):
+        kind = draw(st.sampled_from(["tangent", "inside", "concentric", "identical", "free"]))
+        q = draw(st.one_of(st.sampled_from(RADII), st.floats(1e-4, 1.5)))
+        if kind == "identical":
+            disks.append((x0, y0, p0))
+            continue
+        sep = {"tangent": p0 + q, "inside": abs(p0 - q), "concentric": 0.0}.get(kind)
+        if sep is None:
+            sep = draw(st.floats(0.0, 2.0))
+        sep = max(sep + draw(st.sampled_from(NUDGES)), 0.0)
+        phi = draw(st.floats(0.0, 2.0 * math.pi))
+        disks.append((x0 + sep * math.cos(phi), y0 + sep * math.sin(phi), q))
+    return disks
+
+
+def _flux(disks, method="exact", dtype=jnp.float64):
+    x, y, r = (jnp.asarray([d[k] for d in disks], dtype) for k in range(3))
+    return float(jp.occultation_flux(STAR, x[None], y[None], r[None], method=method)[0])
+
+
+@SETTINGS
+@given(scene())
+def test_exact_and_auto_equal_the_reference(disks):
+    x, y, r = (np.array([d[k] for d in disks]) for k in range(3))
+    ref = 1.0 - reference_deficit(I_R, x, y, r) / TOTAL
+    exact = _flux(disks)
+    assert abs(exact - ref) <= 1e-10, (disks, exact, ref)
+    assert abs(_flux(disks, "auto") - exact) <= 1e-12, disks
+
+
+@SETTINGS
+@given(scene(), st.randoms(use_true_random=False))
+def test_bounds_monotonicity_and_order(disks, rnd):
+    f = _flux(disks, "auto")
+    assert -1e-15 <= f <= 1.0 + 1e-15, (disks, f)
+    if len(disks) > 1:
+        assert f <= _flux(disks[:-1], "auto") + 1e-13, disks
+        shuffled = list(disks)
+        rnd.shuffle(shuffled)
+        assert abs(_flux(shuffled, "auto") - f) <= 1e-13, (disks, shuffled)
+
+
+@settings(max_examples=15, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(scene(max_disks=2))
+def test_gradients_finite(disks):
+    x, y, r = (jnp.asarray([d[k] for d in disks]) for k in range(3))
+    g = jax.jit(jax.grad(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None])[0], argnums=(0, 1, 2)))
+    assert all(np.all(np.isfinite(np.asarray(v))) for v in g(x, y, r)), disks
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(scene(max_disks=2).filter(lambda ds: all(min(d[2], 1.0) >= 0.01 for d in ds)))
+def test_raster_within_its_bound(disks):
+    exact = _flux(disks)
+    raster = _flux(disks, "raster")
+    # the envelope RasterSettings documents (error ~ pixel^2 ~ r^2, steep near r = 1):
+    # 1e-7 for planet sizes, 2e-5 at r = 0.5, 1.5e-3 at r = 0.99 (with margins)
+    r_max = min(max(d[2] for d in disks), 1.0)
+    bound = float(np.exp(np.interp(r_max, [0.0, 0.1, 0.5, 0.99, 1.0], np.log([1e-6, 1e-6, 4e-5, 2e-3, 2e-3]))))
+    assert -1e-12 <= raster <= 1.0 + 1e-12 and abs(raster - exact) <= bound, (disks, raster, exact, bound)
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.sampled_from([(u.d, 1.0), (u.h, 24.0), (u.min, 1440.0), (u.s, 86400.0)]),
+       st.sampled_from([(u.dimensionless_unscaled, 1.0)]), st.floats(-0.2, 0.2))
+def test_units_give_the_same_numbers(time_unit, _, t):
+    unit, per_day = time_unit
+    pl = jp.Planet(period=3.7 * per_day * unit, t0=0.0 * unit, a=10.0, inc=89.0, radius=0.05)
+    ref = jp.Planet(period=3.7, t0=0.0, a=10.0, inc=89.0, radius=0.05)
+    assert float(pl.period) == pytest.approx(3.7, rel=1e-15)
+    s, s_ref = jp.System(STAR, [pl]), jp.System(STAR, [ref])
+    got = np.asarray(s.flux(np.array([t, 0.0]) * per_day * unit))
+    assert np.allclose(got, np.asarray(s_ref.flux(np.array([t, 0.0]))), rtol=0, atol=1e-15)
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.sampled_from(["period", "t0", "a", "inc", "radius"]), st.sampled_from(["3.7", True, None, "x"]))
+def test_bad_parameter_types_are_refused_by_name(name, value):
+    kw = dict(period=3.7, t0=0.0, a=10.0, inc=89.0, radius=0.05)
+    kw[name] = value
+    with pytest.raises((ValueError, TypeError), match=name):
+        jp.Planet(**kw)
