@@ -168,8 +168,9 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     the fit's covariance), ``chi2`` and ``n_points`` (the chi^2 and number
     of the points between first and last contact of that transit, padded by
     the exposure), sorted by planet and epoch; ``meta`` holds the fit's
-    ``chi2``, ``n_points``, ``reduced_chi2``, ``success``, ``message`` and
-    ``free``. A failed fit warns (UserWarning) and leaves ``success`` False.
+    ``chi2``, ``n_points``, ``reduced_chi2``, ``success``, ``message``,
+    ``free`` and ``parameters`` (name -> [value, 1-sigma error] of the free
+    parameters other than the times). A failed fit warns (UserWarning) and leaves ``success`` False.
     ``return_fit=True`` returns ``(table, FitResult)``; the FitResult's
     ``system`` carries the measured times.
     """
@@ -263,5 +264,7 @@ def _result_table(model: Model, result: FitResult, plan, lc):
     table = table[np.lexsort((table["epoch"], table["planet"]))]
     table.meta.update({"chi2": float(result.chi2), "n_points": int(time.size),
                        "reduced_chi2": float(result.reduced_chi2), "success": bool(result.success),
-                       "message": str(result.message), "free": list(result.names)})
+                       "message": str(result.message), "free": list(result.names),
+                       "parameters": {n: [float(v), float(e)] for n, v, e in zip(result.names, result.values,
+                                                                                 result.errors) if ".tc[" not in n}})
     return table

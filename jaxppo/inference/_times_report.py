@@ -136,6 +136,8 @@ def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
     fit = summary["fit"]
     lines = [f"{n_times} transit times, chi^2 = {fit['chi2']:.1f} for {fit['n_points']} points "
              f"(chi^2/(N - k) = {fit['reduced_chi2']:.3f}), {seconds:.1f} s"]
+    for name, (value, error) in fit.get("parameters", {}).items():
+        lines.append(f"  {name} = {value:.6g} +- {error:.2g}")
     for planet, e in summary["planets"].items():
         line = f"  {planet}: {e['transits']} transits"
         if "oc_rms_min" in e:
