@@ -225,6 +225,10 @@ def expand_free(free, system: System, time: np.ndarray):
             slots.append((owner, par))
             if (owner, par) == ("lc", "offset"):
                 cols.append(np.ones(time.size))
+    twice = sorted({names[k] for k, sl in enumerate(slots) if slots.count(sl) > 1})
+    if twice:
+        raise ValueError(f"free parameters repeat: {twice} named more than once (e.g. 'b.tc' already holds every "
+                         "listed time of b)")
     pars = {p for o, p in slots if o == "lc" and not isinstance(p, tuple)}
     if "offset" in pars and any(isinstance(p, tuple) for o, p in slots if o == "lc"):
         raise ValueError("free parameters 'lc.offset' and 'lc.baseline' are degenerate (each window's baseline "

@@ -110,6 +110,48 @@ def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> 
     return theta
 
 
+def _groups(windows) -> list[list[int]]:
+    """The connected groups (two or more) of transits whose windows share
+    points."""
+    n, seen, out = len(windows), set(), []
+    for i in range(n):
+        if i in seen:
+            continue
+        group, todo = [], [i]
+        while todo:
+            j = todo.pop()
+            if j in seen:
+                continue
+            seen.add(j)
+            group.append(j)
+            todo += [k for k in range(n) if k not in seen and np.any(windows[j] & windows[k])]
+        if len(group) > 1:
+            out.append(sorted(group))
+    return out
+
+
+def _joint_grid(model: Model, theta, slots, names, search, grid: int, windows, lc, alpha, case):
+    """Theta with the times of each group of two or three transits that
+    share points (two planets on the star together) set to the best point
+    of a joint grid over their shifts, on the group's points only: searched
+    one at a time, each time can take the other's dip (a swapped pair is a
+    deep local minimum of chi^2)."""
+    frac = np.linspace(-1.0, 1.0, grid)
+    for group in _groups(windows):
+        if len(group) > 3:
+            continue  # the passes of _grid_start only
+        axis = frac if len(group) == 2 else np.linspace(-1.0, 1.0, min(grid, 21))
+        mask = np.any([windows[i] for i in group], axis=0)
+        sub = Model(model.to_system(theta), lc.select(mask), tuple(names[i] for i in group), alpha, case,
+                    active_margin=2.5)
+        start = np.asarray(sub.to_theta(sub.system))
+        mesh = np.stack(np.meshgrid(*[axis * search[i] for i in group], indexing="ij"), -1).reshape(-1, len(group))
+        chi2 = np.asarray(sub.chi2_batch(jnp.asarray(start + mesh)))
+        best = start + mesh[int(np.nanargmin(chi2))]
+        theta = theta.at[np.array([slots[i] for i in group])].set(jnp.asarray(best))
+    return theta
+
+
 def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
     """Weighted least-squares linear ephemeris tc = t0 + n P of measured
     mid-times: (t0 [d], P [d], their 2x2 covariance). Needs two distinct
@@ -136,7 +178,9 @@ def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
 
 
 def _window_stats(model: Model, result: FitResult, windows) -> tuple[np.ndarray, np.ndarray]:
-    """(chi^2, number of points) of each epoch's points at the fit."""
+    """(chi^2, number of points) of each epoch's points at the fit
+    (``model``: built on the fitted system, so its computed frames are
+    those of the measured times)."""
     theta_ref = model.to_theta(model.system)
     theta = model.theta_from(jnp.asarray(result.values), theta_ref)
     r = np.asarray(model.residuals(theta))[:model.y.size]
@@ -198,14 +242,17 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     # a shift of half a duration moves a disk by about 1 + p stellar radii
     model = Model(start, lc, tuple(names) + free, alpha, case, active_margin=2.5)
     slot_idx = [model.free.index(n) for n in names]
-    theta = _grid_start(model, slot_idx, np.array([p["search"] for p in plan]), int(grid),
-                        [p["window"] for p in plan])
+    search_of, windows = np.array([p["search"] for p in plan]), [p["window"] for p in plan]
+    theta = _grid_start(model, slot_idx, search_of, int(grid), windows)
+    theta = _joint_grid(model, theta, slot_idx, names, search_of, int(grid), windows, lc, alpha, case)
     say("joint fit of every time" + (f" and {list(free)}" if free else ""))
     result = fit(model.to_system(theta), lc, free=tuple(names) + free, alpha=alpha, case=case, progress=progress)
     if not result.success:
         warnings.warn(f"measure_transit_times: the fit did not converge ({result.message}); the times are where "
                       "it stopped and their errors may be wrong", UserWarning, stacklevel=2)
-    table = _result_table(Model(start, lc, result.names, alpha, case, active_margin=1.0), result, plan, lc)
+    table = _result_table(Model(result.system, lc, tuple(names) + free, alpha, case, active_margin=1.0), result,
+                          plan, lc)
+    _warn_misfits(table)
     return (table, result) if return_fit else table
 
 
@@ -239,6 +286,25 @@ def _plan(system: System, lc, chosen, min_points: int, search):
                          "search": width,
                          "window": (time >= tc + t1 - pad - width) & (time <= tc + t4 + pad + width)})
     return start, plan
+
+
+def _warn_misfits(table) -> None:
+    """Warn about transits whose chi^2 per point lies far (5 sigma of a
+    chi^2 of that many points) above the median transit's: a time in a
+    wrong minimum (or a transit the model does not describe)."""
+    n = np.asarray(table["n_points"], float)
+    chi2 = np.asarray(table["chi2"], float)
+    ok = n > 0
+    if ok.sum() < 3:
+        return
+    level = float(np.median(chi2[ok] / n[ok]))
+    bad = ok & (chi2 > level * (n + 5.0 * np.sqrt(2.0 * np.maximum(n, 1.0))))
+    if bad.any():
+        which = ", ".join(f"{p} epoch {e} (chi^2 {c:.0f} for {k:.0f} points)" for p, e, c, k in
+                          zip(table["planet"][bad], table["epoch"][bad], chi2[bad], n[bad]))
+        warnings.warn(f"measure_transit_times: {which} fit far worse than the median transit (chi^2 per point "
+                      f"{level:.2f}): a time in a wrong minimum, or a transit the model does not describe; check "
+                      "it (e.g. another start or search)", UserWarning, stacklevel=3)
 
 
 def _result_table(model: Model, result: FitResult, plan, lc):

@@ -350,7 +350,7 @@ class LightCurve:
         if not mask.any():
             raise ValueError("the selection keeps no points")
         return LightCurve(self.time[mask], self.flux[mask], self.flux_err[mask], self.exposure, dict(self.report),
-                          self.errors_estimated)
+                          self.errors_estimated, self.time_zero)
 
     def windows(self, intervals) -> "LightCurve":
         """Points inside any of the (start, end) intervals."""
@@ -377,7 +377,8 @@ class LightCurve:
             trend = np.polyval(coef, self.time[win] - tm)
             flux[win] = self.flux[win] / trend
             err[win] = self.flux_err[win] / trend
-        return LightCurve(self.time, flux, err, self.exposure, dict(self.report), self.errors_estimated)
+        return LightCurve(self.time, flux, err, self.exposure, dict(self.report), self.errors_estimated,
+                          self.time_zero)
 
     def supersampled_times(self, n: int | None = None) -> tuple[np.ndarray, int]:
         """Times [d] at which to evaluate a model so that averaging groups of
@@ -390,6 +391,8 @@ class LightCurve:
 
 def _zero_point(value, name: str) -> float:
     """A zero point [JD] from "bkjd", "btjd" or a number."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be 'bkjd', 'btjd' or a Julian date, got {value!r}")
     if isinstance(value, str):
         zeros = {"bkjd": TIME_ZERO["kepler"][0], "btjd": TIME_ZERO["tess"][0]}
         if value.lower() not in zeros:

@@ -96,6 +96,8 @@ def ttv_settings(section, system, base) -> dict:
         unknown = [v for v in pl if v not in names]
         if unknown:
             raise ValueError(f"planets: no planet {unknown[0]!r}; the planets are {names}")
+        if len(set(pl)) != len(pl):
+            raise ValueError(f"planets: {pl!r} names a planet twice")
         out["planets"] = list(pl)
     if "free" in section:
         free = section["free"]
@@ -107,6 +109,11 @@ def ttv_settings(section, system, base) -> dict:
         unknown = [v for v in free if v not in valid]
         if unknown:
             raise ValueError(f"free: unknown parameter(s) {unknown}; valid: {valid}")
+        measured = out.get("planets", names)
+        clash = [v for v in free if ".tc[" in v or (v.endswith(".t0") and v.split(".")[0] in measured)]
+        if clash:
+            raise ValueError(f"free: {clash} are measured by jaxppo ttv (every transit time of the measured planets "
+                             "is free; their t0 is then degenerate with them); name the other parameters only")
         out["free"] = tuple(free)
     if "search" in section:
         v = section["search"]

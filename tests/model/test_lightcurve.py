@@ -410,3 +410,18 @@ def test_to_time_zero_moves_between_kepler_and_tess_time():
         bk.to_time_zero("mjd")
     with pytest.raises(ValueError, match="current must be finite"):
         lc.to_time_zero("bkjd", current=float("nan"))
+
+
+def test_selections_keep_the_time_zero():
+    """A selection of a shifted light curve keeps its zero point: a second
+    to_time_zero must not apply the mission's shift again (it gave +4334 d)."""
+    import jaxppo as jp
+
+    lc = jp.LightCurve(np.array([1689.0, 1690.0, 1691.0]), np.ones(3), np.full(3, 1e-3), report={"mission": "tess"})
+    bk = lc.to_time_zero("bkjd")
+    for part in (bk.select(np.array([True, True, False])), bk.windows([(3855.0, 3857.5)]),
+                 bk):
+        assert part.time_zero == 2454833.0
+        assert np.array_equal(part.to_time_zero("bkjd").time, part.time)
+    with pytest.raises(ValueError, match="time_zero must be 'bkjd', 'btjd' or a Julian date, got True"):
+        bk.to_time_zero(True)

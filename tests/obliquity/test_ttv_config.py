@@ -111,3 +111,12 @@ def test_transit_times_from_a_table_of_several_planets(tmp_path):
     (tmp_path / "tt.csv").write_text("planet,epoch,tc,tc_err\nc,0,138.6,0.001\n")
     with pytest.raises(ValueError, match="has no rows of planet 'b'"):
         load_config(_write(tmp_path, 'transit_times = "tt.csv"'))
+
+
+def test_ttv_section_refuses_what_the_measurement_would_refuse_later(tmp_path):
+    for section, match in [('planets = ["b", "b"]', r"planets: \['b', 'b'\] names a planet twice"),
+                           ('free = ["b.t0"]', r"free: \['b.t0'\] are measured by jaxppo ttv")]:
+        with pytest.raises(ValueError, match=r"c.toml: \[ttv\] " + match):
+            load_config(_with_ttv(tmp_path, section))
+    # the t0 of a planet not measured may be free
+    assert load_config(_with_ttv(tmp_path, 'planets = ["c"]\nfree = ["b.t0"]')).ttv["free"] == ("b.t0",)
