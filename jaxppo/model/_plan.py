@@ -192,6 +192,19 @@ def _shard(arrays):
     return tuple(jax.device_put(a, spec) for a in arrays)
 
 
+def to_host(v) -> np.ndarray:
+    """A result as a numpy array on this process. With several JAX
+    processes (``jax.distributed.initialize``) the frames of a sharded
+    result lie on other processes' devices too: every process gathers the
+    whole array (``multihost_utils.process_allgather``), so each holds the
+    same numbers as one process would."""
+    if isinstance(v, jax.Array) and not v.is_fully_addressable:
+        from jax.experimental import multihost_utils
+
+        return np.asarray(multihost_utils.process_allgather(v, tiled=True))
+    return np.asarray(v)
+
+
 def run_padded(fn, star, x, y, r, order, chunk: int):
     """Run a frame kernel over [frame, disk] arrays in calls of a few fixed
     sizes (``_padded_calls``: so repeated calls reuse compilations), padded to
@@ -215,7 +228,7 @@ def run_padded(fn, star, x, y, r, order, chunk: int):
             rs = xp.concatenate([rs, xp.full((pad, kk), 0.1, rs.dtype)], 0)
         xs, ys, rs = _shard(tuple(jnp.asarray(v) for v in (xs, ys, rs)))
         res = fn(star, xs, ys, rs, order)
-        outs.append(jax.tree_util.tree_map(lambda v: np.asarray(v)[:m] if concrete else v[:m], res))
+        outs.append(jax.tree_util.tree_map(lambda v: to_host(v)[:m] if concrete else v[:m], res))
     cat = np.concatenate if concrete else jnp.concatenate
     return jax.tree_util.tree_map(lambda *v: cat(v), *outs)
 
