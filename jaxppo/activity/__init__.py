@@ -29,3 +29,28 @@ from ._rotation import quarter_variability as quarter_variability
 from ._rotation import read_quarters_csv as read_quarters_csv
 from ._rotation import rotation_period as rotation_period
 from ._rotation import transit_mask as transit_mask
+# the public API: what the reference documents and tests/test_docstrings.py checks
+__all__ = [
+    "BrightnessMap",
+    "brightness_map",
+    "plot_brightness_map",
+    "plot_periodogram",
+    "plot_spot_fit",
+    "KEPLER20_SPOT_CONTRAST",
+    "SpotFit",
+    "fit_spots",
+    "spot_flux",
+    "activity_report",
+    "plot_ppo_or_spot",
+    "ppo_or_spot",
+    "Spots",
+    "PAPER_ROTATION_PERIOD",
+    "PreparedLightCurve",
+    "RotationResult",
+    "load_kepler20_quarters",
+    "prepare_light_curve",
+    "quarter_variability",
+    "read_quarters_csv",
+    "rotation_period",
+    "transit_mask",
+]

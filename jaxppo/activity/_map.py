@@ -16,11 +16,43 @@ __all__ = ["BrightnessMap", "brightness_map", "plot_brightness_map", "plot_perio
 
 @dataclasses.dataclass(frozen=True)
 class BrightnessMap:
-    """period [d]; t_ref [d]: start of chunk 0; chunk_start [d] (n_chunk,);
-    phase_edges (n_bin + 1,) from -extend to 1 + extend; flux [%]
-    (n_chunk, n_bin): mean relative flux per phase bin in percent, NaN where
-    there is no data; counts (n_chunk, n_bin); repeated (n_bin,): True for
-    bins outside [0, 1) (the shaded, repeated parts)."""
+    """A light curve binned in rotation chunks and rotational phase (paper Fig. 3).
+
+    Made by :func:`brightness_map`; drawn by :func:`plot_brightness_map`.
+    Row k is chunk k (t_ref + k P <= t < t_ref + (k + 1) P); its bins outside
+    [0, 1) repeat the neighbouring chunks' data.
+
+    Attributes
+    ----------
+    period : float
+        Rotation period [d] = chunk length.
+    t_ref : float
+        Start of chunk 0 [d].
+    chunk_start : numpy.ndarray
+        Start time of each chunk [d], shape [n_chunk].
+    phase_edges : numpy.ndarray
+        Phase bin edges from about -extend to 1 + extend, shape [n_bin + 1];
+        0 and 1 are edges.
+    flux : numpy.ndarray
+        Mean relative flux per phase bin [%], shape [n_chunk, n_bin]; NaN
+        where a bin has fewer than ``min_points`` points.
+    counts : numpy.ndarray
+        Points per bin, shape [n_chunk, n_bin] (int).
+    repeated : numpy.ndarray
+        True for bins outside [0, 1) (the shaded, repeated parts), shape
+        [n_bin].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> t = np.arange(0.0, 40.0, 0.05)
+    >>> bmap = jp.activity.brightness_map(t, 1e-3 * np.sin(2 * np.pi * t / 10.0), period=10.0, bins=25)
+    >>> bmap.flux.shape, bmap.chunk_start.tolist(), int(bmap.repeated.sum())
+    ((4, 49), [0.0, 10.0, 20.0, 30.0], 24)
+    >>> print(f"{bmap.phase_edges[0]:.2f} .. {bmap.phase_edges[-1]:.2f}")
+    -0.48 .. 1.48
+    """
 
     period: float
     t_ref: float
@@ -32,23 +64,66 @@ class BrightnessMap:
 
     @property
     def phase_centres(self) -> np.ndarray:
+        """Centres of the phase bins, shape [n_bin] (mid-points of ``phase_edges``)."""
         return 0.5 * (self.phase_edges[1:] + self.phase_edges[:-1])
 
 
 def brightness_map(time, flux, period: float, t_ref: float | None = None, bins: int = 50,
                    extend: float = 0.5, min_points: int = 3) -> BrightnessMap:
-    """Bin a light curve into rotation chunks.
+    """Bin a light curve into rotation chunks (the brightness map, paper Fig. 3).
 
-    Args:
-        time [d], flux (relative, 0 = mean): 1D, finite.
-        period: rotation period [d] = chunk length.
-        t_ref: start of chunk 0 [d]; default the first time.
-        bins: phase bins per rotation.
-        extend: repeated fraction of a rotation on each side (paper: 0.5).
-        min_points: fewer points than this in a bin give NaN.
     Chunk k holds t_ref + k P <= t < t_ref + (k + 1) P at phases
     (t - t_ref) / P - k in [0, 1); its row also shows phases in
-    [-extend, 0) and [1, 1 + extend) from the neighbouring chunks.
+    [-extend, 0) and [1, 1 + extend) from the neighbouring chunks, so that
+    the modulation is not cut at the chunk edges. Bins have width 1/bins
+    and 0 and 1 are bin edges (``extend`` is rounded to whole bins).
+
+    Parameters
+    ----------
+    time : array_like
+        Times [d], shape [n_times], finite.
+    flux : array_like
+        Relative flux (0 = mean level, e.g. ``PreparedLightCurve.flux``),
+        shape [n_times], finite.
+    period : float
+        Rotation period [d] = chunk length.
+    t_ref : float, optional
+        Start of chunk 0 [d]; None (default): the first time.
+    bins : int, optional
+        Phase bins per rotation, >= 4 (default 50).
+    extend : float, optional
+        Repeated fraction of a rotation on each side, in [0, 1] (default 0.5,
+        as in the paper).
+    min_points : int, optional
+        Bins with fewer points than this are NaN (default 3).
+
+    Returns
+    -------
+    BrightnessMap
+        The binned map, flux in percent.
+
+    Raises
+    ------
+    ValueError
+        If ``time`` and ``flux`` are not 1D of equal, non-zero length or not
+        finite; if ``period`` is not a positive number; if ``bins`` is not an
+        integer >= 4, ``extend`` outside [0, 1], ``min_points`` not a
+        positive integer, or ``t_ref`` not finite.
+
+    Examples
+    --------
+    A 0.1 % sinusoid of period 10 d: each chunk's minimum lies at phase 0.75.
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> t = np.arange(0.0, 40.0, 0.05)
+    >>> bmap = jp.activity.brightness_map(t, 1e-3 * np.sin(2 * np.pi * t / 10.0), period=10.0, bins=25)
+    >>> bmap.flux.shape  # 4 chunks, 25 bins + 12 repeated on each side
+    (4, 49)
+    >>> own = ~bmap.repeated
+    >>> row = bmap.flux[1, own]
+    >>> print(f"phase {bmap.phase_centres[own][np.argmin(row)]:.2f}: {row.min():.3f} %")
+    phase 0.74: -0.099 %
     """
     t = np.asarray(time, float)
     y = np.asarray(flux, float)
@@ -92,8 +167,39 @@ def brightness_map(time, flux, period: float, t_ref: float | None = None, bins: 
 
 
 def plot_brightness_map(bmap: BrightnessMap, path, title: str | None = None, spots=None):
-    """Write the map as a PNG (paper Fig. 3). Bright = high flux. ``spots``:
-    optional list of (time [d], phase, radius [deg]) drawn as black dots."""
+    """Write a brightness map as a PNG (paper Fig. 3).
+
+    Bright = high flux (colour scale symmetric about 0, to the 99th
+    percentile of |flux|); the repeated parts outside [0, 1) are shaded,
+    bins without data grey.
+
+    Parameters
+    ----------
+    bmap : BrightnessMap
+        The map from :func:`brightness_map`.
+    path : str or os.PathLike
+        The PNG file to write.
+    title : str, optional
+        Figure title; None (default): the period and a legend of the shading.
+    spots : list of tuple, optional
+        (time [d], phase, radius [deg]) of spots drawn as black dots (area
+        proportional to the spot's), e.g. from :func:`fit_spots` with phase
+        = longitude / 360; copies are drawn in the repeated parts.
+
+    Returns
+    -------
+    str or os.PathLike
+        ``path``, as given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> t = np.arange(0.0, 40.0, 0.05)
+    >>> bmap = jp.activity.brightness_map(t, 1e-3 * np.sin(2 * np.pi * t / 10.0), period=10.0, bins=25)
+    >>> print(jp.activity.plot_brightness_map(bmap, "map.png", spots=[(15.0, 0.75, 5.0)]))
+    map.png
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -135,8 +241,45 @@ def plot_brightness_map(bmap: BrightnessMap, path, title: str | None = None, spo
 
 
 def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: float | None = None):
-    """Write a PNG with the stitched light curve, the periodogram and the
-    per-quarter variability."""
+    """Write a PNG with the stitched light curve, the periodogram and the per-quarter variability.
+
+    Three panels: the relative flux and its running median; the
+    single-sinusoid periodogram (the two-harmonic one too when the period
+    was doubled) with the period, its HWHM, the bootstrap range and
+    optionally the paper's period; a bar chart of the variability.
+
+    Parameters
+    ----------
+    prepared : PreparedLightCurve
+        The light curve from :func:`prepare_light_curve`.
+    rotation : RotationResult
+        Its periodogram from :func:`rotation_period`.
+    variability : dict
+        {quarter: peak-to-peak [%]} from :func:`quarter_variability`.
+    path : str or os.PathLike
+        The PNG file to write.
+    paper_period : float, optional
+        A reference period [d] marked on the periodogram (e.g. 26.948 d of
+        Mueller et al. 2021); None (default): none.
+
+    Returns
+    -------
+    str or os.PathLike
+        ``path``, as given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> t = np.arange(0.0, 60.0, 0.02)
+    >>> q = np.where(t < 30.0, 1, 2)
+    >>> prep = jp.activity.prepare_light_curve(t, 1 + 1e-3 * np.sin(2 * np.pi * t / 8.0), quarters=q,
+    ...                                        mask_transits=False)
+    >>> rot = jp.activity.rotation_period(prep.time, prep.flux, period_max=20.0)
+    >>> var = jp.activity.quarter_variability(prep)
+    >>> print(jp.activity.plot_periodogram(prep, rot, var, "periodogram.png"))
+    periodogram.png
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -184,7 +327,36 @@ def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: 
 
 
 def plot_spot_fit(time, flux, fit, path):
-    """Write a PNG of one chunk's relative flux with the few-spot model."""
+    """Write a PNG of one chunk's relative flux with the few-spot model.
+
+    Parameters
+    ----------
+    time : array_like
+        Times of the chunk [d], shape [n_times].
+    flux : array_like
+        Relative flux of the chunk, shape [n_times] (plotted in percent).
+    fit : SpotFit
+        The fit from :func:`fit_spots`; its model is drawn on 1000 times
+        spanning ``time``, and its longitudes and radii are in the title.
+    path : str or os.PathLike
+        The PNG file to write.
+
+    Returns
+    -------
+    str or os.PathLike
+        ``path``, as given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> fit = jp.activity.SpotFit(lon=np.array([90.0]), lat=np.array([0.0]), radius=np.array([5.0]),
+    ...                           offset=0.0, contrast=0.59, inc=90.0, period=20.0, t_ref=0.0,
+    ...                           chi2=0.0, sigma=1e-4, success=True)
+    >>> t = np.linspace(0.0, 20.0, 200)
+    >>> print(jp.activity.plot_spot_fit(t, fit.model(t), fit, "spots.png"))
+    spots.png
+    """
     import matplotlib
 
     matplotlib.use("Agg")

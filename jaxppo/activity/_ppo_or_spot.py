@@ -140,25 +140,75 @@ def _fit_bump(tm, nsub, y, sig, base, lo, hi, a_max, w_min, w_max, starts=7):
 
 
 def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
-    """Fit a spot-crossing bump to the window data of every negative
-    Delta chi^2 dip of a finished scan and compare it with the PPO model.
+    """Compare a PPO and a spot crossing as the cause of every negative dip of a finished scan.
 
-    Args:
-        result: a :class:`jaxppo.ScanResult` from this process (it carries
-            ``windows``, the detrended points, and ``table5``).
-        system: the scan's :class:`jaxppo.System` (``cfg.system``).
-        out: folder for ``ppo_or_spot.png`` (None: no figure).
-        figure: draw the figure (paper Fig. 6 style) when ``out`` is given.
+    For each dip (a Table 5 feature with Delta chi^2 < 0) the scan's window
+    data are fitted by the no-PPO model plus a Gaussian bump
+    A exp(-(t - t_c)^2 / (2 w^2)) (exposure-averaged; t_c inside a planet's
+    transit, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
+    to half its duration; optimistix Levenberg-Marquardt from a grid of
+    starts) and compared with the PPO model at the dip's alpha by
+    BIC = chi^2 + k ln N (k = 1 for the PPO, 3 per window for the spot;
+    Mueller et al. 2021, Sect. 3.3.3 and Fig. 6). The bump fits any
+    brightening inside a transit, so it is a generous alternative: a PPO
+    that still wins by BIC is supported, one that loses is not.
 
-    Returns:
-        a strict-JSON dict: ``method`` (one line), ``dips``: per dip the case,
+    Parameters
+    ----------
+    result : jaxppo.ScanResult
+        A finished scan from this process: it carries ``windows`` (the
+        detrended :class:`jaxppo.ScanWindow` points) and ``table5`` (read
+        from ``result.summary``). Any object with ``windows`` and a
+        ``summary`` (or itself) holding ``table5`` will do.
+    system : jaxppo.System
+        The scan's system (``cfg.system``).
+    out : str or os.PathLike, optional
+        Folder for ``ppo_or_spot.png``; None (default): no figure.
+    figure : bool, optional
+        Draw the figure (paper Fig. 6 style) when ``out`` is given (default
+        True).
+
+    Returns
+    -------
+    dict
+        Strict JSON: ``method`` (one line), ``dips``: per dip the case,
         alpha [deg], the scan's Delta chi^2, the windows (number, points,
         chi2 of the no-PPO, PPO and spot models, the bump's parameters
         [relative flux, d, d] and the crossing planet), and the totals
         ``delta_chi2`` and ``delta_bic`` of both models against no-PPO,
         ``n_points``, ``k`` and ``preferred`` ("no PPO", "PPO" or "spot":
-        the least BIC of the three);
-        and ``figure`` (the PNG's path, if drawn).
+        the least BIC of the three); and ``figure`` (the PNG's absolute path,
+        if drawn).
+
+    Raises
+    ------
+    ValueError
+        If no start of a bump fit gives a finite chi^2.
+
+    Examples
+    --------
+    One planet (so the PPO model equals the no-PPO one) with a bump of
+    8e-4 injected into its transit: the spot model wins and recovers it.
+    The stand-in scan result holds one window and one dip of Table 5.
+
+    >>> from types import SimpleNamespace
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> planet = jp.Planet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.08, name="b")
+    >>> system = jp.System(jp.Star.quadratic(0.4, 0.26), [planet])
+    >>> t = np.linspace(-0.1, 0.1, 60)
+    >>> transit = np.asarray(jp.sweep(system, t, np.zeros(1), cases=("same",), no_overlap=True)[0, 0])
+    >>> flux = transit + 8e-4 * np.exp(-0.5 * ((t - 0.01) / 0.006) ** 2)
+    >>> window = SimpleNamespace(number=1, time=t, flux=flux, flux_err=np.full(t.size, 1e-5),
+    ...                          exposure=None, event=SimpleNamespace(mid=0.0))
+    >>> dip = {"kind": "dip", "case": "same", "alpha": 10.0, "delta_chi2": -1.0, "transits": [1]}
+    >>> result = SimpleNamespace(windows=[window], summary={"table5": [dip]})
+    >>> verdict = jp.activity.ppo_or_spot(result, system)["dips"][0]
+    >>> verdict["preferred"]
+    'spot'
+    >>> bump = verdict["windows"][0]["bump"]
+    >>> print(f"A = {bump['amplitude']:.1e}, t_c = {bump['centre']:.4f} d, w = {bump['width']:.4f} d")
+    A = 8.0e-04, t_c = 0.0100 d, w = 0.0060 d
     """
     windows = {w.number: w for w in result.windows}
     dips = [r for r in getattr(result, "summary", result)["table5"] if r["kind"] == "dip" and r["delta_chi2"] < 0]
@@ -218,8 +268,44 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
 
 
 def plot_ppo_or_spot(panels, path):
-    """One panel per (dip, window), like the paper's Fig. 6: the data, the
-    no-PPO model, the PPO model at the dip's alpha and the spot model."""
+    """Write a PNG with one panel per (dip, window), like the paper's Fig. 6.
+
+    Each panel shows the detrended data with errors, the no-PPO model, the
+    PPO model at the dip's alpha and the spot (bump) model, their chi^2 in
+    the legend, against the time from the window's mid-time [h].
+
+    Parameters
+    ----------
+    panels : list of tuple
+        (dip, window, tf, null, ppo, spot, chi2_null, chi2_ppo, chi2_spot)
+        per panel: the Table 5 row (a dict with ``case``, ``alpha`` [deg]
+        and ``delta_chi2``), the :class:`jaxppo.ScanWindow` (``time`` [d],
+        ``flux``, ``flux_err``, ``number``, ``event.mid`` [d]), the model
+        times [d], shape [n_fine], the three models' relative fluxes, shape
+        [n_fine], and their chi^2. :func:`ppo_or_spot` builds them.
+    path : str or os.PathLike
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path`` as a Path.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> t = np.linspace(-0.1, 0.1, 40)
+    >>> window = SimpleNamespace(number=1, time=t, flux=1 - 5e-3 * (np.abs(t) < 0.06),
+    ...                          flux_err=np.full(t.size, 2e-4), event=SimpleNamespace(mid=0.0))
+    >>> dip = {"case": "same", "alpha": 10.0, "delta_chi2": -3.2}
+    >>> null = 1 - 5e-3 * (np.abs(t) < 0.06)
+    >>> spot = null + 3e-4 * np.exp(-0.5 * (t / 0.01) ** 2)
+    >>> path = jp.activity.plot_ppo_or_spot([(dip, window, t, null, null, spot, 40.0, 40.0, 36.8)], "fig6.png")
+    >>> print(path.name, path.exists())
+    fig6.png True
+    """
     import matplotlib
 
     matplotlib.use("Agg")

@@ -124,24 +124,93 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
                     bins: int = 50, mask_transits: bool = True, margin: float = 0.1,
                     compare_paper: bool = True, spot_chunk: int | str | None = None, n_spots: int = 3,
                     spot_contrast: float = KEPLER20_SPOT_CONTRAST) -> dict:
-    """Rotation period, per-quarter variability and brightness map.
+    """Run the whole activity analysis of a light curve: rotation period, variability, brightness map.
 
-    Args:
-        time [d], flux (any positive unit): the light curve, 1D.
-        out: directory for activity.json, activity_periodogram.png and
-            activity_map.png (created); None writes nothing.
-        system: jaxppo.System whose transits are masked (default Kepler-20 b, c).
-        quarters: quarter label per point; None: segments split at gaps > 0.5 d.
-        period_min, period_max [d]: periodogram search range (see rotation_period).
-        bootstrap: quarter-bootstrap draws for the period spread (0: none).
-        bins: phase bins per rotation in the map.
-        compare_paper: include Mueller et al. (2021)'s Kepler-20 numbers.
-        spot_chunk: index of the map chunk to invert with ``n_spots``
-            equatorial spots of contrast ``spot_contrast`` (fit_spots), or
-            "all" (every chunk with >= 60 % phase coverage); the spots are
-            drawn on the map, the first fitted chunk in activity_spots.png.
-            None: no inversion.
-    Returns a dict with only finite numbers, strings, lists and dicts.
+    What ``jaxppo activity`` runs (Mueller et al. 2021, Sects. 2.4 and
+    3.2): :func:`prepare_light_curve`, :func:`rotation_period` (with a
+    quarter bootstrap when there is more than one quarter),
+    :func:`quarter_variability`, :func:`brightness_map` at the period found
+    and, optionally, :func:`fit_spots` on map chunks.
+
+    Parameters
+    ----------
+    time : array_like
+        Times [d], shape [n_times].
+    flux : array_like
+        Fluxes (any positive unit), shape [n_times].
+    out : str or os.PathLike, optional
+        Directory (created) for activity.json, activity_periodogram.png,
+        activity_map.png and, with a spot inversion, activity_spots.png;
+        None (default) writes nothing.
+    system : jaxppo.System, optional
+        The system whose transits are masked; None (default): Kepler-20 b
+        and c.
+    quarters : array_like, optional
+        Quarter label per point, shape [n_times]; None (default): segments
+        split at gaps > 0.5 d.
+    period_min, period_max : float, optional
+        Periodogram search range [d] (default 2 and 45; see
+        :func:`rotation_period`).
+    bootstrap : int, optional
+        Quarter-bootstrap draws for the period spread (default 50; 0: none).
+    seed : int, optional
+        Seed of the bootstrap (default 0).
+    bins : int, optional
+        Phase bins per rotation in the map (default 50).
+    mask_transits : bool, optional
+        False keeps the transits in (default True).
+    margin : float, optional
+        Added to each half transit duration [d] in the mask (default 0.1).
+    compare_paper : bool, optional
+        Include Mueller et al. (2021)'s Kepler-20 numbers (period 26.948 d,
+        variability 0.1-0.2 %, 0.6 % in Q17) and the difference to them
+        (default True).
+    spot_chunk : int or str, optional
+        Index of the map chunk to invert with ``n_spots`` equatorial spots of
+        contrast ``spot_contrast`` (:func:`fit_spots`), or ``"all"`` (every
+        chunk with >= 60 % phase coverage); the spots are drawn on the map,
+        the first fitted chunk in activity_spots.png. None (default): no
+        inversion.
+    n_spots : int, optional
+        Spots per inverted chunk (default 3).
+    spot_contrast : float, optional
+        Spot contrast 1 - I_spot / I_phot (default 0.59).
+
+    Returns
+    -------
+    dict
+        Strict JSON (only finite numbers, strings, lists and dicts; NaN
+        becomes None): ``n_points``, ``preparation`` (the
+        :class:`PreparedLightCurve` report), ``rotation`` (period and errors
+        [d], the rule, peaks, false-alarm probability), ``variability_percent``
+        per quarter, ``map``, and ``paper``, ``spots`` and ``figures`` when
+        asked for.
+
+    Raises
+    ------
+    ValueError
+        If ``compare_paper`` is not a bool; if ``spot_chunk`` is neither a
+        chunk index nor ``"all"``, or a chosen chunk holds fewer than 50
+        points; and whatever :func:`prepare_light_curve`,
+        :func:`rotation_period` and :func:`brightness_map` refuse.
+
+    Examples
+    --------
+    >>> import os
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> rng = np.random.default_rng(2)
+    >>> t = np.arange(0.0, 90.0, 0.05)
+    >>> q = np.where(t < 45.0, 1, 2)
+    >>> f = 1000.0 * (1 + 1e-3 * np.sin(2 * np.pi * t / 12.0) + 1e-4 * rng.normal(size=t.size))
+    >>> rep = jp.activity.activity_report(t, f, out="activity", quarters=q, mask_transits=False,
+    ...                                   bootstrap=0, compare_paper=False)
+    >>> print(f"P = {rep['rotation']['period_d']:.2f} +- {rep['rotation']['period_err_d']:.2f} d")
+    P = 12.00 +- 0.71 d
+    >>> print({k: round(v, 2) for k, v in rep["variability_percent"].items()}, rep["map"]["n_chunks"])
+    {'1': 0.2, '2': 0.2} 8
+    >>> sorted(os.listdir("activity"))
+    ['activity.json', 'activity_map.png', 'activity_periodogram.png']
     """
     if not isinstance(compare_paper, bool):
         raise ValueError(f"compare_paper must be True or False, got {compare_paper!r}")

@@ -32,21 +32,78 @@ CONDITION_WARN = 1e6
 
 @dataclasses.dataclass
 class FitResult:
-    """Best-fit ``system``, ``chi2``, ``covariance`` of the free parameters in
-    physical units (``names`` order; "lc.baseline" expanded per window and
-    power), ``errors`` (1 sigma), ``success`` and ``message``;
-    ``reduced_chi2`` = chi^2 / (N - k). With ``"lc.jitter"`` free, ``chi2``
-    is the minimised objective -2 ln L - sum ln(2 pi sigma_i^2) (chi^2 with
-    the inflated errors plus sum ln(1 + s^2 / sigma_i^2)), ``reduced_chi2``
-    its chi^2 part / (N - k), and the covariance is twice the inverse
-    Hessian of the objective (the Gauss-Newton form misses the jitter's
-    curvature). ``derived``: name -> (value, 1-sigma error) of implied
-    quantities (u1, u2 from Kipping's q1, q2). ``condition``: condition
-    number of the Fisher matrix scaled to unit diagonal (above
-    ``CONDITION_WARN`` fit warns: the linearised errors are unreliable,
-    use :func:`jaxppo.sample`). ``union_frames``: the model frames
-    integrated by the exact union integral (overlapping disks at the start
-    or at the solution, with a margin)."""
+    """Result of :func:`jaxppo.fit`: the best-fit system, chi^2 and the covariance of the free parameters.
+
+    The covariance is the linearised one at the solution, in physical units
+    (days, degrees, R*, relative flux), in ``names`` order ("lc.baseline"
+    expanded per window and power). With ``"lc.jitter"`` free, ``chi2`` is
+    the minimised objective -2 ln L - sum ln(2 pi sigma_i^2) (chi^2 with the
+    inflated errors plus sum ln(1 + s^2 / sigma_i^2)), ``reduced_chi2`` its
+    chi^2 part / (N - k), and the covariance is twice the inverse Hessian of
+    the objective (the Gauss-Newton form misses the jitter's curvature).
+    When ``condition`` exceeds ``CONDITION_WARN`` (1e6) fit warns: the
+    linearised errors are unreliable, use :func:`jaxppo.sample`.
+    :meth:`save` and :meth:`load` write and read it as JSON.
+
+    Attributes
+    ----------
+    system : System
+        The best-fit system (the start where the fit could not begin).
+    chi2 : float
+        chi^2 at the solution (with a free jitter: the objective above).
+    covariance : numpy.ndarray
+        Covariance of the free parameters in physical units [k, k] (NaN
+        when it could not be computed).
+    success : bool
+        Whether the fit converged to a minimum (see :func:`jaxppo.fit`).
+    message : str
+        "converged: ..." or "failed: " and why.
+    names : tuple of str
+        The free parameters, k of them.
+    values : numpy.ndarray
+        Best-fit values of the free parameters [k] (physical units).
+    errors : numpy.ndarray
+        Their 1-sigma errors [k], the square roots of the diagonal of
+        ``covariance``.
+    reduced_chi2 : float
+        chi^2 / (N - k), N data points.
+    steps : int
+        Levenberg-Marquardt steps taken in all passes (0 when the fit could
+        not begin).
+    union_frames : numpy.ndarray
+        Indices of the model frames integrated by the exact union integral
+        (overlapping disks at the start or at the solution, with a margin).
+    derived : dict
+        Name -> (value, 1-sigma error) of implied quantities: "star.u1",
+        "star.u2" when Kipping's q1 or q2 is free.
+    condition : float
+        Condition number of the Fisher matrix scaled to unit diagonal (inf
+        when a parameter does not move the model).
+
+    Examples
+    --------
+    Fit the mid-time and radius of a simulated transit, starting off both:
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    >>> lc = jp.simulate(truth, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    >>> start = jp.System(star, [jp.Planet(period=3.0, t0=0.003, a=10.0, inc=89.0, radius=0.09, name="b")])
+    >>> result = jp.fit(start, lc, free=("b.t0", "b.radius"))
+    >>> print(result.table())
+    b.t0                 0.000146... +- 3.01e-04
+    b.radius             0.100244... +- 5.91e-04
+    chi2 = 171.61, reduced 0.867, converged: Newton step would lower chi^2 by ...
+    >>> print(f"{float(result.system.planets[0].radius):.4f}")  # the best-fit system
+    0.1002
+    >>> print(np.round(result.covariance / np.outer(result.errors, result.errors), 3))  # correlations
+    [[ 1.    -0.001]
+     [-0.001  1.   ]]
+    >>> same = jp.FitResult.load(result.save("fit.json"))
+    >>> same.names, bool(np.array_equal(same.covariance, result.covariance))
+    (('b.t0', 'b.radius'), True)
+    """
 
     system: System
     chi2: float
@@ -63,15 +120,41 @@ class FitResult:
     condition: float = float("nan")
 
     def table(self) -> str:
+        """Format the result as text.
+
+        Returns
+        -------
+        str
+            One line per free parameter (name, value, 1-sigma error), one
+            per derived quantity (marked "(derived)"), and a last line with
+            chi^2, the reduced chi^2 and ``message``.
+
+        Examples
+        --------
+        See :class:`FitResult`.
+        """
         rows = [f"{n:14s} {v:16.8f} +- {e:.2e}" for n, v, e in zip(self.names, self.values, self.errors)]
         rows += [f"{n:14s} {v:16.8f} +- {e:.2e} (derived)" for n, (v, e) in self.derived.items()]
         return "\n".join(rows + [f"chi2 = {self.chi2:.2f}, reduced {self.reduced_chi2:.3f}, {self.message}"])
 
     def save(self, path) -> str:
-        """Write the result as JSON (format "jaxppo.FitResult", the jaxppo
-        version, free names, values, errors, covariance, the fitted system);
-        :meth:`load` reads it back exactly (floats are written with 17
-        significant digits; NaN as null). Returns the path."""
+        """Write the result as JSON.
+
+        The file holds the format tag "jaxppo.FitResult", the jaxppo
+        version, every field (free names, values, errors, covariance, chi^2,
+        ...) and the fitted system; :meth:`load` reads it back exactly
+        (floats are written with 17 significant digits; NaN as null).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (overwritten).
+
+        Returns
+        -------
+        str
+            ``path``.
+        """
         from .._version import __version__
 
         out = {"format": "jaxppo.FitResult", "version": __version__, "names": list(self.names),
@@ -88,7 +171,23 @@ class FitResult:
 
     @classmethod
     def load(cls, path) -> "FitResult":
-        """Read a result written by :meth:`save` (or ``jaxppo fit --out``)."""
+        """Read a result written by :meth:`save` (or ``jaxppo fit --out``).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The JSON file.
+
+        Returns
+        -------
+        FitResult
+            The result as saved.
+
+        Raises
+        ------
+        ValueError
+            When the file is not JSON, or not a file written by :meth:`save`.
+        """
         try:
             with open(path) as fh:
                 d = json.load(fh)
@@ -107,14 +206,18 @@ class FitResult:
 def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha: float = 0.0, case: str = "same",
         max_steps: int = 200, rtol: float = 1e-6, atol: float = 1e-6, progress: bool = False,
         fold_inc: bool = True) -> FitResult:
-    """Least-squares fit (optimistix Levenberg-Marquardt) of the named free
-    parameters to the light curve; limb darkening stays fixed unless named
+    """Fit the named free parameters to a light curve by least squares.
+
+    optimistix's Levenberg-Marquardt over the free parameters, in
+    coordinates that keep the physics valid (a > 1, radius > 0, a transiting
+    impact parameter; :mod:`jaxppo.inference._params`); everything else
+    stays at ``system``'s values. Limb darkening stays fixed unless named
     (``"star.u1"``, or Kipping's ``"star.q1"``, ``"star.q2"``); the
     light-curve nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
     ``"lc.baseline"`` / ``"lc.baseline2"`` are described in
-    :mod:`jaxppo.inference._params`. ``lightcurve``: a :class:`LightCurve` or a lightkurve
-    LightCurve. ``progress``: one line per stage on stderr. Never raises for
-    a failed fit: ``success`` is False and ``message`` says why.
+    :mod:`jaxppo.inference._params`; :func:`jaxppo.parameter_names` lists
+    every name. Never raises for a failed fit: ``success`` is False and
+    ``message`` says why.
 
     ``success`` means more points than free parameters, a start and a
     solution at which every planet with a free parameter transits in the
@@ -123,19 +226,72 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     chi^2 by less than 0.01. When optimistix stops elsewhere (its step
     criteria are met where chi^2 is flat, e.g. from a start with a tiny
     radius), the fit restarts from there in coordinates scaled by the
-    Jacobian's columns before it reports failure. A UserWarning (not a
-    failure) says when the linearised covariance is degenerate or
-    ill-conditioned: ``FitResult.condition`` > ``CONDITION_WARN``, or chi^2
-    at 1 sigma along a principal axis of the covariance differs from
-    chi^2_min + 1 by more than a factor 4 (e.g. a and inc of a grazing or
-    single transit): the posterior is then far from Gaussian and
-    :func:`jaxppo.sample` gives the errors.
+    Jacobian's columns before it reports failure.
 
-    ``fold_inc``: the light curve depends on |cos i| only (the sign of cos i
-    cannot be measured, docs/conventions.md), so a fitted inclination is
-    reported folded into [0, 90] deg (the same chi^2 and errors; the
-    correlations of inc change sign). ``fold_inc=False`` keeps the side of
-    90 deg the fit ended on.
+    Parameters
+    ----------
+    system : System
+        The start: the free parameters' starting values and every fixed one.
+    lightcurve : LightCurve or lightkurve.LightCurve
+        The data (its ``exposure`` is integrated).
+    free : sequence of str, optional
+        Names of the free parameters (default ``("b.t0", "b.radius")``).
+    alpha : float, optional
+        Tilt of the tilted planet's orbit [deg] (default 0).
+    case : str or tuple of int, optional
+        Hemisphere case (default "same"; see :meth:`System.flux`).
+    max_steps : int, optional
+        Most Levenberg-Marquardt steps per pass (default 200).
+    rtol, atol : float, optional
+        optimistix's relative and absolute tolerances (default 1e-6).
+    progress : bool, optional
+        Print one line per stage on stderr (default False).
+    fold_inc : bool, optional
+        The light curve depends on |cos i| only (the sign of cos i cannot be
+        measured, docs/conventions.md), so a fitted inclination is reported
+        folded into [0, 90] deg (the same chi^2 and errors; the correlations
+        of inc change sign). False keeps the side of 90 deg the fit ended on.
+        Default True.
+
+    Returns
+    -------
+    FitResult
+        The best-fit system, chi^2, values, errors and covariance of the free
+        parameters, ``success`` and ``message``.
+
+    Raises
+    ------
+    ValueError
+        When a name in ``free`` is unknown or names a parameter twice (or
+        names degenerate pairs, such as "lc.offset" with "lc.baseline", or
+        u1/u2 with q1/q2), or ``lightcurve`` is neither a jaxppo nor a
+        lightkurve LightCurve.
+
+    Warns
+    -----
+    UserWarning
+        When the linearised covariance is degenerate or ill-conditioned (not
+        a failure): ``FitResult.condition`` > ``CONDITION_WARN``, or chi^2 at
+        1 sigma along a principal axis of the covariance differs from
+        chi^2_min + 1 by more than a factor 4 (e.g. a and inc of a grazing or
+        single transit): the posterior is then far from Gaussian and
+        :func:`jaxppo.sample` gives the errors.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    >>> lc = jp.simulate(truth, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    >>> start = jp.System(star, [jp.Planet(period=3.0, t0=0.003, a=10.0, inc=89.0, radius=0.09, name="b")])
+    >>> result = jp.fit(start, lc, free=("b.t0", "b.radius"))
+    >>> result.success
+    True
+    >>> for name, value, error in zip(result.names, result.values, result.errors):
+    ...     print(f"{name} = {value:.4f} +- {error:.4f}")
+    b.t0 = 0.0001 +- 0.0003
+    b.radius = 0.1002 +- 0.0006
     """
     clock = time.perf_counter()
 

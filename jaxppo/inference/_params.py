@@ -49,15 +49,65 @@ BASELINE_GAP = 0.5
 
 
 def kipping_u(q1, q2):
-    """(u1, u2) of the quadratic law from Kipping's (2013, eqs. 15-16)
-    q1, q2 in [0, 1]: u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2)."""
+    """Quadratic limb-darkening coefficients from Kipping's q1, q2.
+
+    Kipping (2013, eqs. 15-16): u1 = 2 sqrt(q1) q2, u2 = sqrt(q1) (1 - 2 q2).
+    Every (q1, q2) in the unit square gives a physical profile (positive
+    everywhere, darkening towards the limb), which is why fits and samplers
+    free ``"star.q1"``, ``"star.q2"`` rather than u1, u2. Inverse:
+    :func:`kipping_q`.
+
+    Parameters
+    ----------
+    q1, q2 : float or array_like
+        Kipping's coefficients, in [0, 1] (any broadcastable shapes).
+
+    Returns
+    -------
+    u1, u2 : jax.Array
+        The linear and quadratic coefficients of the quadratic law,
+        I(mu) / I(1) = 1 - u1 (1 - mu) - u2 (1 - mu)^2 (broadcast shape).
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> u1, u2 = jp.kipping_u(0.36, 0.25)
+    >>> print(f"u1 = {float(u1):.2f}, u2 = {float(u2):.2f}")
+    u1 = 0.30, u2 = 0.30
+    """
     s = jnp.sqrt(q1)
     return 2.0 * s * q2, s * (1.0 - 2.0 * q2)
 
 
 def kipping_q(u1, u2):
-    """Inverse of :func:`kipping_u`: q1 = (u1 + u2)^2, q2 = u1 / (2 (u1 + u2))
-    (Kipping 2013, eqs. 17-18); q2 = 0.5 when u1 + u2 = 0."""
+    """Kipping's q1, q2 from quadratic limb-darkening coefficients.
+
+    The inverse of :func:`kipping_u` (Kipping 2013, eqs. 17-18):
+    q1 = (u1 + u2)^2, q2 = u1 / (2 (u1 + u2)); q2 = 0.5 when u1 + u2 = 0
+    (q1 = 0 then, and any q2 gives u1 = u2 = 0). Coefficients outside the
+    physical region give q1 or q2 outside [0, 1].
+
+    Parameters
+    ----------
+    u1, u2 : float or array_like
+        Linear and quadratic coefficients of the quadratic law (any
+        broadcastable shapes).
+
+    Returns
+    -------
+    q1, q2 : jax.Array
+        Kipping's coefficients (broadcast shape).
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> q1, q2 = jp.kipping_q(0.4, 0.25)
+    >>> print(f"q1 = {float(q1):.4f}, q2 = {float(q2):.4f}")
+    q1 = 0.4225, q2 = 0.3077
+    >>> u1, u2 = jp.kipping_u(q1, q2)  # and back
+    >>> print(f"u1 = {float(u1):.4f}, u2 = {float(u2):.4f}")
+    u1 = 0.4000, u2 = 0.2500
+    """
     s = u1 + u2
     return s**2, jnp.where(s == 0, 0.5, u1 / (2.0 * jnp.where(s == 0, 1.0, s)))
 
@@ -129,8 +179,47 @@ def as_lightcurve(lightcurve) -> LightCurve:
 
 
 def parameter_names(system: System) -> list[str]:
-    """All names ``fit`` and ``sample`` accept for this system ("lc.baseline"
-    and "lc.baseline2" expand to one name per window and power)."""
+    """List the free-parameter names that ``fit`` and ``sample`` accept for a system.
+
+    Per planet (labelled by its name, or its index when it has none):
+    ``"<p>.t0"`` [d], ``"<p>.period"`` [d], ``"<p>.a"`` [R*], ``"<p>.inc"``
+    [deg], ``"<p>.radius"`` [R*], and for a planet with ``transit_times``
+    one ``"<p>.tc[<epoch>]"`` [d] per listed epoch (``"<p>.tc"`` names them
+    all at once). Then the star's limb-darkening coefficients in
+    ``Star.params`` order (u1, u2 of the quadratic law, c1-c4 of the
+    non-linear law, c, alpha of the power-2 law; none for a uniform star),
+    Kipping's ``"star.q1"``, ``"star.q2"`` for a quadratic star, and the
+    light curve's nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
+    ``"lc.baseline"``, ``"lc.baseline2"`` (the module docstring of
+    :mod:`jaxppo.inference._params` defines them). "lc.baseline" and
+    "lc.baseline2" expand to one name per data window and power
+    (``"lc.baseline.w<window>.c<power>"``) when a fit is set up.
+
+    Parameters
+    ----------
+    system : System
+        The star and planets.
+
+    Returns
+    -------
+    list of str
+        The names, planets first, then the star, then the light curve.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")
+    >>> jp.parameter_names(jp.System(jp.Star.quadratic(0.4, 0.25), [b]))
+    ['b.t0', 'b.period', 'b.a', 'b.inc', 'b.radius', 'star.u1', 'star.u2', 'star.q1', 'star.q2',
+     'lc.offset', 'lc.jitter', 'lc.baseline', 'lc.baseline2']
+
+    A planet with listed transit times has one name per epoch:
+
+    >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b",
+    ...               transit_times=[0.001, 2.999], transit_epochs=[0, 1])
+    >>> jp.parameter_names(jp.System(jp.Star.uniform(), [b]))[4:7]
+    ['b.radius', 'b.tc[0]', 'b.tc[1]']
+    """
     names = []
     for i, pl in enumerate(system.planets):
         label = pl.name or str(i)

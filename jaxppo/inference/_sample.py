@@ -55,26 +55,85 @@ __all__ = ["sample", "SampleResult"]
 
 @dataclasses.dataclass
 class SampleResult:
-    """``samples``: name -> array [draw] (physical units: days, degrees, R*;
-    chains concatenated; with Kipping's q1 or q2 free also the implied
-    "star.u1", "star.u2"); ``names``: the free parameters;
-    ``chains``: name -> array [chain, draw];
-    ``log_likelihood``: [chain, draw] (Gaussian, with its normalisation);
-    ``stats``: sample statistics, name -> [chain, draw] (diverging,
-    step_size, tree_depth, n_steps, energy, lp, acceptance_rate);
-    ``best``: the lowest-deviance System; ``intervals``: name -> (median,
-    lower, upper) of the central 68.3 %; ``diagnostics``: name -> {"r_hat",
-    "ess_bulk", "ess_tail", "n_eff"} (rank-normalised split R-hat and
-    effective sample sizes, Vehtari et al. 2021; n_eff = ess_bulk);
-    ``mcmc``: the numpyro MCMC object (its samples are the internal
-    coordinates, see the module docstring); ``union_frames``: the model
-    frames integrated exactly as overlaps (from the start with a margin,
-    widened and sampled again when the posterior brings disks together
-    elsewhere); ``time``, ``flux``, ``flux_err``: the data [d, relative];
-    ``start``: where the chains started: {"optimised": bool, "converged":
-    bool or None, "message": str} (``converged`` False: the optimiser did
-    not find the posterior mode from the given system; a UserWarning said
-    so)."""
+    """Result of :func:`jaxppo.sample`: the posterior draws, intervals and convergence diagnostics.
+
+    Draws are in physical units (days, degrees, R*, relative flux) under
+    the public names of the free parameters (e.g. "b.inc" [deg]).
+    :meth:`save` and :meth:`load` write and read it as a numpy ``.npz``
+    file; ``to_arviz`` and ``to_netcdf`` export it to arviz.
+
+    Attributes
+    ----------
+    samples : dict
+        Name -> draws [n_chains * n_draws] (chains concatenated); with
+        Kipping's q1 or q2 free also the implied "star.u1", "star.u2".
+    best : System
+        The lowest-deviance draw as a System (as the paper reports).
+    intervals : dict
+        Name -> (median, lower, upper) of the central 68.3 %.
+    diagnostics : dict
+        Name -> {"r_hat", "ess_bulk", "ess_tail", "n_eff"}: rank-normalised
+        split R-hat and effective sample sizes (Vehtari et al. 2021;
+        n_eff = ess_bulk).
+    deviance_min : float
+        The lowest deviance of the draws, -2 ln L without the normalisation
+        of the Gaussian likelihood (chi^2 of the best draw; with a free
+        jitter, fit's objective).
+    mcmc : numpyro.infer.MCMC or None
+        The numpyro MCMC object (its samples are the internal coordinates,
+        see the module docstring of :mod:`jaxppo.inference._sample`); None
+        for a loaded result.
+    union_frames : numpy.ndarray
+        Indices of the model frames integrated exactly as overlaps (from the
+        start with a margin, widened and sampled again when the posterior
+        brings disks together elsewhere).
+    chains : dict
+        Name -> draws [n_chains, n_draws] (the names of ``samples``).
+    log_likelihood : numpy.ndarray or None
+        Gaussian log-likelihood of each draw, with its normalisation
+        [n_chains, n_draws].
+    stats : dict
+        Sample statistics, name -> [n_chains, n_draws]: "diverging",
+        "step_size", "tree_depth", "n_steps", "energy", "lp",
+        "acceptance_rate".
+    time, flux, flux_err : numpy.ndarray or None
+        The data: times [d], relative flux and its errors [n_times].
+    pointwise : callable or None
+        Physical free parameters [n, k] -> log-likelihood of each data point
+        [n, n_times] (used by ``to_arviz``; None for a loaded result).
+    names : tuple of str
+        The free parameters (``chains`` also holds the derived u1, u2).
+    start : dict
+        Where the chains started: {"optimised": bool, "converged": bool or
+        None, "message": str} (``converged`` False: the optimiser did not
+        find the posterior mode from the given system, and a UserWarning
+        said so).
+
+    Examples
+    --------
+    A short chain for the radius of a simulated planet (far too short for
+    science: check ``diagnostics``):
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> system = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    >>> lc = jp.simulate(system, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    >>> result = jp.sample(system, lc, free=("b.radius",), num_warmup=30, num_samples=20, num_chains=1,
+    ...                    progress_bar=False)
+    >>> result.samples["b.radius"].shape, result.chains["b.radius"].shape
+    ((20,), (1, 20))
+    >>> median, lower, upper = result.intervals["b.radius"]
+    >>> print(f"radius {median:.3f} R*")
+    radius 0.100 R*
+    >>> sorted(result.diagnostics["b.radius"])
+    ['ess_bulk', 'ess_tail', 'n_eff', 'r_hat']
+    >>> sorted(result.stats)
+    ['acceptance_rate', 'diverging', 'energy', 'lp', 'n_steps', 'step_size', 'tree_depth']
+    >>> same = jp.SampleResult.load(result.save("draws.npz"))
+    >>> bool(np.array_equal(same.samples["b.radius"], result.samples["b.radius"]))
+    True
+    """
 
     samples: dict
     best: System
@@ -94,11 +153,24 @@ class SampleResult:
     start: dict = dataclasses.field(default_factory=dict)  # how the start was found (see ``sample``)
 
     def save(self, path) -> str:
-        """Write the draws, log-likelihood, sample stats, data, intervals,
-        diagnostics and the best system to a numpy ``.npz`` file (no pickle)
-        that :meth:`load` reads back exactly; returns the path. (The MCMC
-        object and the pointwise log-likelihood function are not saved:
-        ``to_arviz`` of a loaded result gives the total log-likelihood.)"""
+        """Write the result to a numpy ``.npz`` file (no pickle).
+
+        The file holds the draws, log-likelihood, sample stats, data,
+        intervals, diagnostics and the best system; :meth:`load` reads it
+        back exactly. The MCMC object and the pointwise log-likelihood
+        function are not saved: ``to_arviz`` of a loaded result gives the
+        total log-likelihood.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (overwritten; no ".npz" is appended).
+
+        Returns
+        -------
+        str
+            ``path``.
+        """
         from .._version import __version__
 
         meta = {"format": "jaxppo.SampleResult", "version": __version__, "names": list(self.names or self.chains),
@@ -118,7 +190,24 @@ class SampleResult:
 
     @classmethod
     def load(cls, path) -> "SampleResult":
-        """Read a result written by :meth:`save` (or ``jaxppo sample --out``)."""
+        """Read a result written by :meth:`save` (or ``jaxppo sample --out``).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.npz`` file.
+
+        Returns
+        -------
+        SampleResult
+            The result as saved, with ``mcmc`` and ``pointwise`` None.
+
+        Raises
+        ------
+        ValueError
+            When the file cannot be read as an ``.npz`` file with the
+            result's metadata, or was not written by :meth:`save`.
+        """
         try:
             z = np.load(path, allow_pickle=False)
             meta = json.loads(str(z["meta"]))
@@ -156,22 +245,37 @@ class SampleResult:
         else:
             ll = {"obs": self.log_likelihood}
             ll_dims = {}
-        coords = {"time": np.asarray(self.time)}
-        return az.from_dict(
-            posterior={n: np.asarray(v) for n, v in self.chains.items()},
-            log_likelihood=ll,
-            sample_stats={k: np.asarray(v) for k, v in self.stats.items()},
-            observed_data={"obs": np.asarray(self.flux)},
-            constant_data={"flux_err": np.asarray(self.flux_err)},
-            coords=coords,
-            dims={"obs": ["time"], "flux_err": ["time"], **ll_dims},
-            attrs={"inference_library": "numpyro", "creator": "jaxppo.sample"},
-        )
+        groups = {
+            "posterior": {n: np.asarray(v) for n, v in self.chains.items()},
+            "log_likelihood": ll,
+            "sample_stats": {k: np.asarray(v) for k, v in self.stats.items()},
+            "observed_data": {"obs": np.asarray(self.flux)},
+            "constant_data": {"flux_err": np.asarray(self.flux_err)},
+        }
+        attrs = {"inference_library": "numpyro", "creator": "jaxppo.sample"}
+        kw = dict(coords={"time": np.asarray(self.time)}, dims={"obs": ["time"], "flux_err": ["time"], **ll_dims})
+        if arviz_major(az) >= 1:  # an xarray DataTree; attributes per group
+            return az.from_dict(groups, attrs={g: dict(attrs) for g in groups}, **kw)
+        return az.from_dict(**groups, attrs=attrs, **kw)  # arviz 0.x: an InferenceData
 
     def to_netcdf(self, path) -> str:
         """Write ``to_arviz()`` to a netCDF file that ``arviz.from_netcdf``
-        reads back; returns the path."""
-        return self.to_arviz().to_netcdf(str(path))
+        reads back (arviz 0.x or 1.x; groups written with h5netcdf);
+        returns the path."""
+        import arviz as az
+
+        data = self.to_arviz()
+        if arviz_major(az) >= 1:
+            data.to_netcdf(str(path), engine="h5netcdf")  # an xarray DataTree
+        else:
+            data.to_netcdf(str(path))
+        return str(path)
+
+
+def arviz_major(az) -> int:
+    """The major version of the arviz module ``az`` (0 or 1: their
+    ``from_dict`` signatures and return types differ)."""
+    return int(str(az.__version__).split(".")[0])
 
 
 def _priors(model: Model, user=None):
@@ -345,38 +449,111 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
            num_samples: int = 1000, seed: int = 0, num_chains: int = 4, alpha: float = 0.0, case: str = "same",
            progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None, optimise: bool = True,
            fold_inc: bool = True) -> SampleResult:
-    """NUTS over the named free parameters with physical priors: t0 within
-    +-0.05 d and P within +-0.1 % of the start, a in [1, 4 a], p log-uniform in
-    [1e-4, 0.5], the impact parameter uniform in 0 <= |b| < 1 + p, limb-darkening
-    coefficients within +-1 of the start, Kipping's q1, q2 uniform in [0, 1],
+    """Sample the posterior of the named free parameters with NUTS (numpyro).
+
+    The same model and free-parameter names as :func:`jaxppo.fit`
+    (:func:`jaxppo.parameter_names`), with physical priors. The defaults:
+    t0 (and listed transit times) within +-0.05 d and P within +-0.1 % of
+    the start, a in [1, 4 a], p log-uniform in [1e-4, 0.5], the impact
+    parameter uniform in 0 <= |b| < 1 + p, limb-darkening coefficients
+    within +-1 of the start, Kipping's q1, q2 uniform in [0, 1],
     "lc.offset" and baseline coefficients uniform in [-0.05, 0.05], the
-    jitter log-uniform in [1e-3, 10] x the median error. ``priors``: name ->
-    numpyro distribution replacing the default of that parameter, in its
-    public units (e.g. ``{"b.t0": dist.Normal(131.5, 1e-4)}``; not for
-    inclinations; a prior on a keeps plain coordinates for that planet, a
-    UserWarning says so). ``lightcurve``: a :class:`LightCurve` or a
-    lightkurve LightCurve. ``num_chains`` chains run vectorised (one
-    program), with a dense mass matrix (``dense_mass``) in the coordinates
-    of the module docstring.
+    jitter log-uniform in [1e-3, 10] x the median error. The chains run
+    vectorised (one program), with a dense mass matrix (``dense_mass``) in
+    the coordinates of the module docstring of
+    :mod:`jaxppo.inference._sample`.
 
-    ``optimise``: first find the posterior mode from ``system``
-    (optimistix BFGS in NUTS's coordinates; the priors stay centred on
-    ``system``) and start the chains there, in coordinates whitened by the
-    Laplace covariance at the mode (:mod:`._start`). ``result.start`` says
-    how: {"optimised", "converged", "message"}; when the mode was not found
-    (``converged`` False) a UserWarning says so and the chains start at the
-    better of ``system`` and the optimiser's last point.
-    ``optimise=False``: start at ``system`` with the Laplace covariance there.
+    Parameters
+    ----------
+    system : System
+        The start: the free parameters' starting values (the default priors
+        are centred on them) and every fixed one.
+    lightcurve : LightCurve or lightkurve.LightCurve
+        The data (its ``exposure`` is integrated).
+    free : sequence of str, optional
+        Names of the free parameters (default ``("b.t0", "b.radius")``).
+    num_warmup : int, optional
+        Warm-up (adaptation) steps per chain (default 1000), >= 1.
+    num_samples : int, optional
+        Draws kept per chain (default 1000), >= 1.
+    seed : int, optional
+        Random seed of the chains and their starting points (default 0).
+    num_chains : int, optional
+        Number of chains (default 4), >= 1.
+    alpha : float, optional
+        Tilt of the tilted planet's orbit [deg] (default 0).
+    case : str or tuple of int, optional
+        Hemisphere case (default "same"; see :meth:`System.flux`).
+    progress_bar : bool, optional
+        Show numpyro's progress bar (default True).
+    dense_mass : bool, optional
+        Adapt a dense mass matrix (default True); False: a diagonal one.
+    priors : dict or None, optional
+        Name -> scalar numpyro distribution replacing the default prior of
+        that parameter, in its public units (e.g.
+        ``{"b.t0": dist.Normal(131.5, 1e-4)}``); not for inclinations. A
+        prior on a keeps plain coordinates (a, b) for that planet instead of
+        (T14, b), and a UserWarning says so.
+    optimise : bool, optional
+        First find the posterior mode from ``system`` (optimistix BFGS in
+        NUTS's coordinates; the priors stay centred on ``system``) and start
+        the chains there, in coordinates whitened by the Laplace covariance
+        at the mode (:mod:`jaxppo.inference._start`); when the mode is not
+        found a UserWarning says so and the chains start at the better of
+        ``system`` and the optimiser's last point. False: start at
+        ``system`` with the Laplace covariance there. Default True.
+    fold_inc : bool, optional
+        The sign of cos i cannot be measured (the model uses |cos i|,
+        docs/conventions.md), so inclinations are reported folded into
+        [0, 90] deg. False samples the signed b (the old behaviour): the
+        posterior of inc is then two mirrored modes, i and 180 deg - i, of
+        equal height, and its intervals mean nothing. Default True.
 
-    ``fold_inc``: the sign of cos i cannot be measured (the model uses
-    |cos i|, docs/conventions.md), so inclinations are reported folded into
-    [0, 90] deg. ``fold_inc=False`` samples the signed b (the old
-    behaviour): the posterior of inc is then two mirrored modes, i and
-    180 deg - i, of equal height, and its intervals mean nothing.
+    Returns
+    -------
+    SampleResult
+        The draws (and the implied u1, u2 when q1 or q2 is free), the
+        lowest-deviance solution (as the paper reports), 68.3 % intervals,
+        rank-normalised R-hat and bulk / tail ESS, the sample statistics,
+        and ``start``: how the chains started, {"optimised", "converged",
+        "message"}.
 
-    Returns samples (and the implied u1, u2 when q1 or q2 is free), the
-    lowest-deviance solution (as the paper reports), 68.3 % intervals,
-    rank-normalised R-hat and bulk / tail ESS, and ``start``."""
+    Raises
+    ------
+    ValueError
+        When ``num_warmup``, ``num_samples`` or ``num_chains`` is < 1; a
+        name in ``free`` is unknown or repeated; ``priors`` names a
+        parameter that is not free or an inclination, gives a distribution
+        that is not a scalar numpyro distribution, or one whose support
+        excludes the start; a planet with a free inclination does not
+        transit at the start; or the log-likelihood at the start is not
+        finite.
+
+    Warns
+    -----
+    UserWarning
+        When the optimiser did not find the posterior mode
+        (``start["converged"]`` False), or a user prior on a planet's a
+        keeps plain coordinates for it.
+
+    Examples
+    --------
+    A short chain for the radius of a simulated planet, with a prior of our
+    own (far too short for science: check ``result.diagnostics``):
+
+    >>> import numpy as np
+    >>> import numpyro.distributions as dist
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> system = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    >>> lc = jp.simulate(system, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    >>> result = jp.sample(system, lc, free=("b.radius",), num_warmup=30, num_samples=20, num_chains=1,
+    ...                    progress_bar=False, priors={"b.radius": dist.Uniform(0.05, 0.15)})
+    >>> result.start["optimised"], result.start["converged"]
+    (True, True)
+    >>> print(f"radius {result.intervals['b.radius'][0]:.3f} R* ({len(result.samples['b.radius'])} draws)")
+    radius 0.100 R* (20 draws)
+    """
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")

@@ -153,10 +153,51 @@ def _joint_grid(model: Model, theta, slots, names, search, grid: int, windows, l
 
 
 def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
-    """Weighted least-squares linear ephemeris tc = t0 + n P of measured
-    mid-times: (t0 [d], P [d], their 2x2 covariance). Needs two distinct
-    epochs; without errors the weights are equal and the covariance is
-    scaled by the scatter."""
+    """Fit a linear ephemeris tc = t0 + n P to measured mid-times.
+
+    Weighted least squares (weights 1 / tc_err^2). Without errors the
+    weights are equal and the covariance is scaled by the scatter about the
+    line (chi^2 / (N - 2), with N - 2 taken as 1 for two epochs). The
+    observed minus calculated (O-C) times are ``tc - t0 - epoch * P``.
+
+    Parameters
+    ----------
+    epoch : array_like of int
+        Transit epochs n [n_times] (at least two distinct ones).
+    tc : array_like
+        Measured mid-times [d] [n_times].
+    tc_err : array_like or None, optional
+        1-sigma errors of ``tc`` [d] [n_times], positive and finite; None
+        (default): equal weights.
+
+    Returns
+    -------
+    t0 : float
+        Mid-time of epoch 0 [d].
+    period : float
+        Period P [d].
+    covariance : numpy.ndarray
+        Covariance of (t0, P) [d^2] [2, 2].
+
+    Raises
+    ------
+    ValueError
+        When ``epoch`` and ``tc`` differ in length or hold fewer than two
+        distinct epochs, or when ``tc_err`` is not one positive, finite
+        error per time.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> epoch, tc = [0, 1, 2, 4], [10.0012, 13.4987, 17.0003, 23.9996]
+    >>> t0, period, cov = jp.linear_ephemeris(epoch, tc, [0.001, 0.001, 0.001, 0.002])
+    >>> print(f"t0 = {t0:.4f} +- {np.sqrt(cov[0, 0]):.4f} d, P = {period:.5f} +- {np.sqrt(cov[1, 1]):.5f} d")
+    t0 = 10.0004 +- 0.0008 d, P = 3.49970 +- 0.00050 d
+    >>> oc = np.array(tc) - t0 - period * np.array(epoch)  # O-C [d]
+    >>> print(np.round(oc * 1440, 2))  # [min]
+    [ 1.15 -2.02  0.72  0.58]
+    """
     n = np.asarray(epoch, float)
     t = np.asarray(tc, float)
     if n.size != t.size or n.size < 2 or np.unique(n).size < 2:
@@ -192,31 +233,100 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
                           progress: bool = False):
     """Measure the mid-time of every transit in the data.
 
-    ``system``: the model (its ephemerides give the starting times; a planet
-    with ``transit_times`` starts from them); ``lightcurve``: a
-    :class:`jaxppo.LightCurve` or a lightkurve LightCurve (its ``exposure``
-    is integrated); ``planets``: the names (or indices) of the planets whose
-    times are measured (default: all; the others keep their ephemerides);
-    ``free``: other parameters fitted together with the times (names of
-    :func:`jaxppo.parameter_names`, e.g. ``("b.radius", "b.a", "b.inc",
-    "lc.baseline")``; default none: the times alone, the rest fixed at
-    ``system``); ``search`` [d]: half-width of the grid of starting shifts
-    per planet (default the half-duration of its transit, first to last
-    contact), ``grid`` shifts; ``min_points``: a transit is measured when at
-    least this many points lie between its first and last contact.
-    Overlapping transits (two planets on the star at once, occulting each
-    other or not) are fitted together with the exact model.
+    Each chosen planet gets a listed mid-time for every epoch with data
+    (``Planet(transit_times=, transit_epochs=)``); each time starts at the
+    best of a grid of shifts (the chi^2 of that transit's own points), and
+    then all of them are fitted together, with the parameters named in
+    ``free``, by :func:`jaxppo.fit` (Levenberg-Marquardt) with the exact
+    model. Overlapping transits (two planets on the star at once, occulting
+    each other or not) are fitted together with the exact model. The errors
+    are those of the fit's linearised covariance (each mid-time's marginal
+    error, the other free parameters free too). The times feed
+    :func:`linear_ephemeris` and an O-C diagram (``jaxppo ttv`` writes both).
 
-    Returns an astropy Table with columns ``planet``, ``epoch`` (0: the
-    transit at the planet's t0), ``tc`` [d], ``tc_err`` [d] (1 sigma, from
-    the fit's covariance), ``chi2`` and ``n_points`` (the chi^2 and number
-    of the points between first and last contact of that transit, padded by
-    the exposure), sorted by planet and epoch; ``meta`` holds the fit's
-    ``chi2``, ``n_points``, ``reduced_chi2``, ``success``, ``message``,
-    ``free`` and ``parameters`` (name -> [value, 1-sigma error] of the free
-    parameters other than the times). A failed fit warns (UserWarning) and leaves ``success`` False.
-    ``return_fit=True`` returns ``(table, FitResult)``; the FitResult's
-    ``system`` carries the measured times.
+    Parameters
+    ----------
+    system : System
+        The model: its ephemerides give the starting times (a planet with
+        ``transit_times`` starts from them).
+    lightcurve : LightCurve or lightkurve.LightCurve
+        The data (its ``exposure`` is integrated).
+    planets : str or int or sequence of str or int, optional
+        The names (or indices) of the planets whose times are measured
+        (default None: all; the others keep their ephemerides).
+    free : str or sequence of str, optional
+        Other parameters fitted together with the times (names of
+        :func:`jaxppo.parameter_names`, e.g. ``("b.radius", "b.a", "b.inc",
+        "lc.baseline")``). Default none: the times alone, the rest fixed at
+        ``system``.
+    search : float or None, optional
+        Half-width of the grid of starting shifts per planet [d] (default
+        None: the half-duration of its transit, first to last contact).
+    grid : int, optional
+        Number of starting shifts per transit (default 41), >= 3.
+    min_points : int, optional
+        A transit is measured when at least this many points lie between its
+        first and last contact (default 3), >= 1.
+    alpha : float, optional
+        Tilt of the tilted planet's orbit [deg] (default 0).
+    case : str or tuple of int, optional
+        Hemisphere case (default "same"; see :meth:`System.flux`).
+    return_fit : bool, optional
+        Also return the joint fit (default False).
+    progress : bool, optional
+        Print one line per stage (default False).
+
+    Returns
+    -------
+    table : astropy.table.Table
+        One row per transit, sorted by planet and epoch, with columns
+        ``planet``, ``epoch`` (0: the transit at the planet's t0), ``tc``
+        [d], ``tc_err`` [d] (1 sigma, from the fit's covariance), ``chi2``
+        and ``n_points`` (the chi^2 and number of the points between first
+        and last contact of that transit, padded by the exposure). ``meta``
+        holds the fit's ``chi2``, ``n_points``, ``reduced_chi2``,
+        ``success``, ``message``, ``free`` and ``parameters`` (name ->
+        [value, 1-sigma error] of the free parameters other than the times).
+    fit : FitResult
+        Only with ``return_fit=True``, as ``(table, fit)``: the joint fit,
+        whose ``system`` carries the measured times.
+
+    Raises
+    ------
+    ValueError
+        When the light curve has no points; ``grid`` is not an integer >= 3
+        or ``min_points`` not an integer >= 1; ``planets`` names an unknown
+        planet or one planet twice; ``free`` names a transit time or the t0
+        of a measured planet (those are measured here); ``search`` is not a
+        positive number of days; or no transit of the chosen planets has
+        ``min_points`` points between first and last contact.
+
+    Warns
+    -----
+    UserWarning
+        When the joint fit does not converge (``meta["success"]`` is then
+        False), or when a transit fits far worse than the median transit (a
+        time in a wrong minimum, or a transit the model does not describe).
+
+    Examples
+    --------
+    Two simulated transits of one planet:
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")
+    >>> system = jp.System(jp.Star.quadratic(0.4, 0.25), [b])
+    >>> t = np.concatenate([np.linspace(-0.15, 0.15, 100), np.linspace(2.85, 3.15, 100)])
+    >>> lc = jp.simulate(system, t, noise=1e-3, seed=1)
+    >>> table = jp.measure_transit_times(system, lc)
+    >>> table.colnames
+    ['planet', 'epoch', 'tc', 'tc_err', 'chi2', 'n_points']
+    >>> for row in table:
+    ...     print(f"{row['planet']} {row['epoch']}: tc = {row['tc']:.4f} d +- {row['tc_err'] * 1440:.1f} min")
+    b 0: tc = 0.0005 d +- 0.6 min
+    b 1: tc = 2.9994 d +- 0.6 min
+    >>> table.meta["success"]
+    True
     """
     lc = as_lightcurve(lightcurve)
     time = np.asarray(lc.time, float)

@@ -121,56 +121,108 @@ def occultation_flux(
     raster=None,
     times=None,
 ) -> Array:
-    """Relative flux of ``star`` behind opaque disks.
+    """Compute the relative flux of a star behind opaque disks.
 
-    Args:
-        star: a :class:`Star`.
-        x, y, r: disk centres and radii [R*]; the last axis indexes the disks
-            (any number, overlapping or not), leading axes broadcast. All disks
-            are in front of the star; a disk of radius 0 is absent.
-        method: ``"exact"`` integrates the union of the disks exactly (Green's
-            theorem, ``jaxppo.core.occult``); ``"auto"`` (default) models no
-            more than each frame needs: frames with no disk on the star cost
-            nothing; disks off the star or inside another disk are dropped;
-            where each disk crosses at most one other, the flux is the sum of
-            one-disk terms minus the lens of each crossing pair (a midpoint
-            rule for disks well inside the star, Gauss-Legendre on lenses
-            where ``lens_rho`` says it converges); only the remaining frames
-            (three disks meeting, lenses at the limb) run the union integral.
-            Its error is the same as ``"exact"``'s (both ~4e-12 at worst,
-            measured). Piecewise-table stars take the union integral for every
-            overlap. Under ``jit``/``grad``/``vmap`` (traced inputs) the same
-            plan runs on the device (``jaxppo.model._plan.traced_auto_frames``):
-            each rule on the frames that need it, at the host plan's numbers,
-            gradients by shape derivatives. Under ``vmap`` (with or without
-            ``jit``, either nesting) it takes the union integral (a batched
-            plan would run every rule on every frame; ``device_auto``);
-            better, broadcast leading axes instead of vmapping.
-            ``"raster"`` is the pixel-grid method.
-        order: Gauss-Legendre nodes per arc piece (24: worst measured error
-            ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
-        chunk: frames per compiled batch (bounds memory).
-        raster: ``RasterSettings`` for ``method="raster"`` (default: windowed,
-            exact pixel coverage, each disk's own pixels: its visible part / 32,
-            i.e. r / 16; accuracy in ``RasterSettings``).
-        times: time [d] of each frame (broadcast against the leading axes),
-            needed only by a star with rotating spots (``Star.with_spots``);
-            :meth:`System.flux` passes its t.
+    The disks (planets) are all in front of the star; any number of them,
+    overlapping or not, so planet-planet occultations are modelled exactly.
+    The flux is relative to the star's unocculted flux (1: nothing hidden).
 
-    Returns:
+    Parameters
+    ----------
+    star : Star
+        The star (any limb-darkening law or table; a star with a surface map
+        or spots is modelled by the raster).
+    x, y : array_like
+        Disk centres [R*], [..., n_disks]: the last axis indexes the disks,
+        leading axes (frames) broadcast. A scalar is one frame of one disk.
+    r : array_like
+        Disk radii [R*], >= 0 and <= ``MAX_RADIUS`` (1e6), broadcast against
+        ``x`` and ``y``; a disk of radius 0 is absent.
+    method : {"auto", "exact", "raster"}, optional
+        ``"exact"`` integrates the union of the disks exactly (Green's
+        theorem, ``jaxppo.core.occult``); ``"auto"`` (default) models no
+        more than each frame needs: frames with no disk on the star cost
+        nothing; disks off the star or inside another disk are dropped;
+        where each disk crosses at most one other, the flux is the sum of
+        one-disk terms minus the lens of each crossing pair (a midpoint
+        rule for disks well inside the star, Gauss-Legendre on lenses
+        where ``lens_rho`` says it converges); only the remaining frames
+        (three disks meeting, lenses at the limb) run the union integral.
+        Its error is the same as ``"exact"``'s (both ~4e-12 at worst,
+        measured). Piecewise-table stars take the union integral for every
+        overlap. Under ``jit``/``grad``/``vmap`` (traced inputs) the same
+        plan runs on the device (``jaxppo.model._plan.traced_auto_frames``):
+        each rule on the frames that need it, at the host plan's numbers,
+        gradients by shape derivatives. Under ``vmap`` (with or without
+        ``jit``, either nesting) it takes the union integral (a batched
+        plan would run every rule on every frame; ``device_auto``);
+        better, broadcast leading axes instead of vmapping.
+        ``"raster"`` is the pixel-grid method (:class:`RasterSettings`).
+    order : int, optional
+        Gauss-Legendre nodes per arc piece (default 24: worst measured error
+        ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
+    chunk : int, optional
+        Frames per compiled batch (bounds memory; default 65536).
+    raster : RasterSettings, optional
+        Settings for ``method="raster"`` (default: windowed, exact pixel
+        coverage, each disk's own pixels: its visible part / 32, i.e.
+        r / 16; accuracy in :class:`RasterSettings`).
+    times : array_like, optional
+        Time [d] of each frame (broadcast against the leading axes), needed
+        only by a star with rotating spots (``Star.with_spots``);
+        :meth:`System.flux` passes its t.
+
+    Returns
+    -------
+    flux : jax.Array
         Relative flux, shape = the broadcast leading axes (1 per frame when
         the disk axis is empty; an empty array when there are no frames).
 
+    Raises
+    ------
+    ValueError
+        When ``method`` is unknown, ``star`` is not a :class:`Star`,
+        ``order`` or ``chunk`` is not a positive integer, ``x``, ``y``, ``r``
+        do not broadcast, a concrete value is not finite or a concrete
+        radius is negative or above ``MAX_RADIUS`` (the message names x, y
+        or r), ``method="exact"`` is asked of a star with a surface map, or
+        (raster) a spotted star has no ``times`` or the settings exceed the
+        memory cap.
+
+    Warns
+    -----
+    UserWarning
+        Once per process, when JAX's float64 is off (float32 policy below).
+
+    Notes
+    -----
     float32: when JAX's x64 is off every input is float32; the first call
     in a process then warns once (docs/methods.md, float32 policy). With x64
     on, float32 inputs (explicitly float32 arrays and star) run in float32.
 
-    Bad input: concrete arrays with a non-finite value, a negative radius or
-    a radius above ``MAX_RADIUS`` (1e6) raise ``ValueError`` naming x, y or r.
-    Under ``jit``/``grad``/``vmap`` (traced input) such a frame's flux is NaN
-    (and so is its gradient), never a finite plausible value, so that an
+    Bad input under ``jit``/``grad``/``vmap`` (traced input): a frame with a
+    non-finite value, a negative radius or one above ``MAX_RADIUS`` has a
+    NaN flux (and gradient), never a finite plausible value, so that an
     optimiser or sampler sees it; the exact and union methods do this per
     frame, so one bad frame does not poison a batch.
+
+    Examples
+    --------
+    Three frames of one disk on a limb-darkened star (centre, halfway, off
+    the star), then one frame of two overlapping disks: the overlap is
+    hidden once.
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> x = np.array([[0.0], [0.5], [2.0]])  # [frame, disk]
+    >>> f = jp.occultation_flux(star, x, 0.0, 0.1)
+    >>> f.shape
+    (3,)
+    >>> print(np.round(np.asarray(f), 6))
+    [0.987891 0.988604 1.      ]
+    >>> print(f"{float(jp.occultation_flux(star, [0.0, 0.15], 0.0, [0.1, 0.1])):.6f}")
+    0.977584
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")

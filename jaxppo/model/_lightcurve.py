@@ -22,21 +22,73 @@ __all__ = ["LightCurve", "QUALITY_FLAGS", "QUALITY_BITMASKS", "quality_bitmask",
 
 @dataclasses.dataclass(frozen=True)
 class LightCurve:
-    """Time [d], relative flux and its 1-sigma error; ``exposure`` [d] is the
-    integration time of each point (e.g. 0.0204 for Kepler long cadence), used
-    to average the model over the exposure (a time Quantity or TimeDelta is
-    converted to days and stored as a float). ``report`` says what loading
-    dropped (:meth:`report_line` in words). ``errors_estimated``: the file had
-    no errors and ``flux_err`` is an estimate from the scatter (the scan
-    re-estimates it per window).
+    """Photometry: time [d], relative flux and its 1-sigma error.
 
-    ``time`` may be an astropy ``Time`` (converted to BJD_TDB - ``time_zero``
-    [d]; formats "bkjd" and "btjd" carry their own zero point, 2454833 and
-    2457000) or a time Quantity; ``flux`` and ``flux_err`` may be
-    dimensionless Quantities (raw fluxes in e-/s: :meth:`from_arrays` with
-    ``normalize=True``). The constructor is strict: every value finite,
-    errors > 0, no repeated time stamp (it would count twice in chi^2); the
-    loaders drop such points and say so in ``report``."""
+    A frozen dataclass; the points are stored sorted by time, as float
+    numpy arrays. The constructor is strict: every value finite, errors > 0,
+    no repeated time stamp (it would count twice in chi^2). The loaders
+    (:meth:`from_arrays`, :meth:`from_csv`, :meth:`from_fits`,
+    :meth:`from_lightkurve`) drop such points instead and say so in
+    ``report``.
+
+    Parameters
+    ----------
+    time : array_like or astropy.time.Time or Quantity
+        Times [d], shape [n_times]. An astropy ``Time`` is converted to
+        BJD_TDB - ``time_zero`` [d] (formats "bkjd" and "btjd" carry their
+        own zero point, 2454833 and 2457000); a time Quantity to days.
+    flux : array_like or Quantity
+        Relative flux [n_times] (numbers or a dimensionless Quantity; raw
+        fluxes in e-/s: :meth:`from_arrays` with ``normalize=True``).
+    flux_err : array_like or Quantity
+        1-sigma errors of ``flux`` [n_times], > 0.
+    exposure : float or Quantity or TimeDelta or None, optional
+        Integration time of each point [d] (e.g. 0.0204 for Kepler long
+        cadence), used to average the model over the exposure; a time
+        Quantity or TimeDelta is converted to days and stored as a float.
+        None (default): instantaneous points.
+    report : dict, optional
+        What loading kept and dropped (:meth:`report_line` says it in words).
+    errors_estimated : bool, optional
+        True when the file had no errors and ``flux_err`` is an estimate from
+        the scatter (the scan re-estimates it per window). Default False.
+    time_zero : float or None, optional
+        Zero point [JD] of an astropy ``Time`` given as ``time``, and the
+        light curve's zero point for :meth:`to_time_zero`.
+
+    Raises
+    ------
+    ValueError
+        When time, flux and flux_err are not 1D of equal length, empty, or
+        hold a non-finite value; an error is <= 0; a time stamp is repeated;
+        ``exposure`` is not one positive number of days; ``time`` is a
+        lightkurve object (use :meth:`from_lightkurve`) or an astropy
+        ``Time`` without a known zero point.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> lc = jp.LightCurve(np.array([0.04, 0.0, 0.02]), np.array([1.0, 0.999, 1.001]), np.full(3, 1e-3),
+    ...                    exposure=0.0204)
+    >>> len(lc), lc.time
+    (3, array([0.  , 0.02, 0.04]))
+
+    The loaders clean the points and report what they dropped:
+
+    >>> lc = jp.LightCurve.from_arrays([1.0, 2.0, 3.0, np.nan], [1.0, 0.999, np.nan, 1.0], [1e-3] * 4)
+    >>> lc.report_line()
+    '2 of 4 points kept from arrays; dropped: 0 flagged (quality bitmask none: no quality column),
+    2 non-finite or with error <= 0, 0 repeated time stamps'
+
+    A bundled piece of Kepler-20's quarter 1 (PDCSAP flux, divided by its median):
+
+    >>> from importlib.resources import files
+    >>> path = files("jaxppo") / "data" / "kepler20_kic6850504_q1_llc_BKJD159.0-161.5.csv"
+    >>> lc = jp.LightCurve.from_csv(path, exposure=0.0204, mission="kepler")
+    >>> print(len(lc), f"{np.median(lc.flux):.6f}", f"{lc.flux_err[0]:.1e}", lc.report["flags_kept"])
+    122 1.000000 7.0e-05 7
+    """
 
     time: np.ndarray
     flux: np.ndarray
@@ -86,7 +138,15 @@ class LightCurve:
         return self.time.size
 
     def report_line(self) -> str:
-        """What loading kept and dropped, in one line (also in the scan summary)."""
+        """What loading kept and dropped, in one line (also in the scan summary).
+
+        Returns
+        -------
+        str
+            Points kept of those read, from which source, and how many were
+            dropped as flagged, non-finite (or with error <= 0) and repeated;
+            flags outside the bitmask that were kept; the time system.
+        """
         r = self.report
         parts = r.get("sources", [r]) if r else []
         if not parts or "points" not in parts[0]:
@@ -177,16 +237,53 @@ class LightCurve:
                     time_zero: float | None = None, source: str = "arrays") -> "LightCurve":
         """A light curve from arrays as they come, cleaned and reported.
 
-        ``time``: days, a time Quantity, or an astropy ``Time`` (BJD_TDB -
-        ``time_zero`` [d]; "bkjd" / "btjd" formats need no ``time_zero``).
-        ``flux``, ``flux_err``: numbers or Quantities (a physical unit such as
-        e-/s means raw flux: divided by its median). ``quality``: flag
-        integers, dropped where ``quality & bitmask != 0`` (``quality_bitmask``
-        and ``mission``: see :func:`quality_bitmask`). Points that are
-        flagged, non-finite, with error <= 0 or at a repeated time stamp are
-        dropped and counted in ``report``. ``normalize``: divide by the median
-        flux; default: for fluxes with a physical unit or a median > 10.
-        ``flux_err=None``: errors estimated from the scatter."""
+        Points that are flagged, non-finite, with error <= 0 or at a repeated
+        time stamp (all but the first) are dropped and counted in ``report``.
+
+        Parameters
+        ----------
+        time : array_like or astropy.time.Time or Quantity
+            Times [n_times]: days, a time Quantity, or an astropy ``Time``
+            (BJD_TDB - ``time_zero`` [d]; "bkjd" / "btjd" formats need no
+            ``time_zero``).
+        flux : array_like or Quantity
+            Flux [n_times]; a physical unit such as e-/s means raw flux,
+            divided by its median.
+        flux_err : array_like or Quantity or None, optional
+            1-sigma errors [n_times]; None (default): one error per light
+            curve estimated from the point-to-point scatter
+            (``errors_estimated``).
+        quality : array_like of int or None, optional
+            Quality flags [n_times]; a point is dropped where
+            ``quality & bitmask != 0``.
+        exposure : float or None, optional
+            Integration time of each point [d]; None: instantaneous.
+        normalize : bool or None, optional
+            Divide flux and errors by the median flux; default (None): for
+            fluxes with a physical unit or a median > 10.
+        quality_bitmask : str or int, optional
+            "none", "default" (default), "hard", "hardest" or an integer
+            (see ``jaxppo.model._lightcurve.quality_bitmask``).
+        mission : str or None, optional
+            "kepler", "k2" or "tess": the meaning of the named bitmasks;
+            without one every non-zero flag drops the point.
+        time_zero : float or None, optional
+            Zero point [JD] of an astropy ``Time`` in another format.
+        source : str, optional
+            Name of the source in ``report`` (default "arrays").
+
+        Returns
+        -------
+        LightCurve
+            The kept points, sorted by time.
+
+        Raises
+        ------
+        ValueError
+            When no point is usable, the median flux is 0 or not finite, the
+            errors cannot be estimated, the bitmask or mission is unknown,
+            or the time has no known zero point.
+        """
         t, note = to_days(time, time_zero)
         f, e, normalize = flux_values(flux, flux_err, normalize)
         q = None if quality is None else plain_values(quality, "quality")[0]
@@ -199,17 +296,45 @@ class LightCurve:
     @classmethod
     def from_lightkurve(cls, lc, flux_column: str = "flux", quality_bitmask="default", exposure: float | None = None,
                         normalize: bool | None = None, time_zero: float | None = None) -> "LightCurve":
-        """A lightkurve ``LightCurve`` (e.g. ``lk.read(path)`` or
-        ``search_lightcurve(...).download()``), without importing lightkurve.
+        """A light curve from a lightkurve ``LightCurve``, without importing lightkurve.
 
-        Time: its ``time`` (BKJD for Kepler, BTJD for TESS; see
-        :func:`_days`); flux: ``flux_column`` and ``<flux_column>_err``
-        (Quantities in e-/s are divided by their median; a normalised,
-        dimensionless flux is taken as is); quality: the ``quality`` column
-        with ``quality_bitmask`` of the mission in ``lc.meta`` (lightkurve
-        itself drops its "default" bitmask when reading, and drops NaN times
-        silently; ``report["lightkurve_quality_bitmask"]`` records what it
-        used). ``exposure`` [d]: default TIMEDEL from ``lc.meta``."""
+        E.g. ``lk.read(path)`` or ``search_lightcurve(...).download()``. Time:
+        its ``time`` (an astropy ``Time``, BKJD for Kepler, BTJD for TESS,
+        converted to days since its zero point); flux: ``flux_column`` and
+        ``<flux_column>_err`` (Quantities in e-/s are divided by their
+        median; a normalised, dimensionless flux is taken as is); quality:
+        the ``quality`` column with ``quality_bitmask`` of the mission in
+        ``lc.meta`` (lightkurve itself drops its "default" bitmask when
+        reading, and drops NaN times silently;
+        ``report["lightkurve_quality_bitmask"]`` records what it used).
+
+        Parameters
+        ----------
+        lc : lightkurve.LightCurve
+            The light curve (anything with ``time``, ``flux`` and ``meta``).
+        flux_column : str, optional
+            Column of the flux (default "flux"); errors from
+            ``<flux_column>_err``.
+        quality_bitmask : str or int, optional
+            "none", "default" (default), "hard", "hardest" or an integer.
+        exposure : float or None, optional
+            Integration time [d]; default TIMEDEL from ``lc.meta``.
+        normalize : bool or None, optional
+            Divide by the median flux; default (None): for fluxes with a
+            physical unit or a median > 10.
+        time_zero : float or None, optional
+            Zero point [JD] for a time in a format without one.
+
+        Returns
+        -------
+        LightCurve
+            The kept points, sorted by time.
+
+        Raises
+        ------
+        ValueError
+            When ``lc`` lacks time, flux or meta, or no point is usable.
+        """
         if not (hasattr(lc, "time") and hasattr(lc, "flux") and hasattr(lc, "meta")):
             raise ValueError(f"lc must be a lightkurve LightCurve (with time, flux, meta), got {type(lc).__name__}")
         f, e, q, mission, meta = lightkurve_columns(lc, flux_column)
@@ -230,21 +355,49 @@ class LightCurve:
     @classmethod
     def from_csv(cls, path, exposure: float | None = None, normalize: bool | None = None,
                  columns: dict | None = None, quality_bitmask="default", mission: str | None = None) -> "LightCurve":
-        """CSV (or gzip-compressed .csv.gz) with a header row.
+        """A light curve from a CSV file (or a gzip-compressed .csv.gz) with a header row.
 
-        ``columns`` maps the roles time, flux, flux_err, quality, quarter to
-        the file's column names (case-insensitive), e.g. ``{"flux_err":
-        "error"}``; roles not given are looked up under the usual names
-        (time, time_bkjd; flux, pdcsap_flux; flux_err, pdcsap_flux_err;
-        quality, sap_quality; quarter). Flagged rows are dropped by
-        ``quality_bitmask`` of ``mission`` ("kepler" or "tess"; without a
-        mission every non-zero flag drops the row, see
-        :func:`quality_bitmask`); an empty quality cell counts as flagged. A
-        file without an error column gets errors estimated from its scatter
-        (``errors_estimated``, and ``report["flux_err"]`` says so). A quarter
-        column divides each quarter by its own median flux. ``normalize``:
-        divide by the median; default: for raw Kepler columns (pdcsap_flux,
-        sap_flux) or fluxes far from 1 (median > 10)."""
+        Flagged rows (an empty quality cell counts as flagged), non-finite
+        values and repeated time stamps are dropped and counted in
+        ``report``. A file without an error column gets errors estimated from
+        its scatter (``errors_estimated``, and ``report["flux_err"]`` says
+        so). A quarter column divides each quarter by its own median flux.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The file.
+        exposure : float or None, optional
+            Integration time of each point [d]; None: instantaneous.
+        normalize : bool or None, optional
+            Divide by the median flux; default (None): for raw Kepler columns
+            (pdcsap_flux, sap_flux) or fluxes far from 1 (median > 10).
+        columns : dict or None, optional
+            Maps the roles time, flux, flux_err, quality, quarter to the
+            file's column names (case-insensitive), e.g. ``{"flux_err":
+            "error"}``; roles not given are looked up under the usual names
+            (time, time_bkjd; flux, pdcsap_flux; flux_err, pdcsap_flux_err;
+            quality, sap_quality; quarter).
+        quality_bitmask : str or int, optional
+            "none", "default" (default), "hard", "hardest" or an integer; a
+            row is dropped where ``quality & bitmask != 0``.
+        mission : str or None, optional
+            "kepler" or "tess": the meaning of the named bitmasks; without a
+            mission every non-zero flag drops the row.
+
+        Returns
+        -------
+        LightCurve
+            The kept points, sorted by time.
+
+        Raises
+        ------
+        ValueError
+            When the file does not exist, is a folder or cannot be read (no
+            header row, a cell that is not a number), ``columns`` names an
+            unknown role or column, a needed column is missing, the bitmask
+            or mission is unknown, or no point is usable.
+        """
         path = Path(path)
         if not path.exists():
             raise ValueError(f"light-curve file not found: {path}")
@@ -263,9 +416,28 @@ class LightCurve:
 
     @classmethod
     def concatenate(cls, parts, exposure: float | None = None) -> "LightCurve":
-        """Join light curves (e.g. one file per quarter, each already divided
-        by its own median). Their exposures must agree unless ``exposure``
-        [d] is given; duplicated time stamps are an error."""
+        """Join light curves, e.g. one file per quarter, each already divided by its own median.
+
+        Parameters
+        ----------
+        parts : iterable of LightCurve
+            The light curves; their exposures must agree unless ``exposure``
+            is given.
+        exposure : float or None, optional
+            Integration time of the joined light curve [d].
+
+        Returns
+        -------
+        LightCurve
+            All points, sorted by time; ``report["sources"]`` holds the
+            parts' reports.
+
+        Raises
+        ------
+        ValueError
+            When ``parts`` is empty, the exposures differ and ``exposure`` is
+            not given, or two parts share a time stamp.
+        """
         parts = list(parts)
         if not parts:
             raise ValueError("concatenate needs at least one light curve")
@@ -284,19 +456,45 @@ class LightCurve:
     @classmethod
     def from_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default",
                   mission: str | None = None) -> "LightCurve":
-        """A Kepler, K2 or TESS SPOC light-curve FITS file.
+        """A light curve from a Kepler, K2 or TESS SPOC light-curve FITS file.
 
         The mission comes from the primary header (TELESCOP, else MISSION)
         unless ``mission`` is given; it sets the quality column (Kepler:
         SAP_QUALITY, TESS: QUALITY), the meaning of the named bitmasks
-        (:data:`QUALITY_BITMASKS`, default "default": only cadences the
-        missions call unusable are dropped) and the time system: TIME [d] is
-        BJD_TDB - (BJDREFI + BJDREFF), 2454833 (BKJD) for Kepler, 2457000
-        (BTJD) for TESS, kept as it is (``report["time"]`` states it).
-        Flagged, non-finite and repeated points are dropped and counted in
-        ``report``; the flux is divided by its median; exposure from the
-        header (TIMEDEL; Kepler long cadence 29.4 min, TESS 2 min; see
-        :func:`_kepler_exposure`)."""
+        (``jaxppo.model._lightcurve.QUALITY_BITMASKS``; "default": only
+        cadences the missions call unusable are dropped) and the time
+        system: TIME [d] is BJD_TDB - (BJDREFI + BJDREFF), 2454833 (BKJD) for
+        Kepler, 2457000 (BTJD) for TESS, kept as it is (``report["time"]``
+        states it). Flagged, non-finite and repeated points are dropped and
+        counted in ``report``; the flux is divided by its median; the
+        exposure comes from the header (TIMEDEL; Kepler long cadence
+        29.4 min, TESS 2 min).
+
+        Parameters
+        ----------
+        path : str or path-like
+            The FITS file.
+        flux_column : str, optional
+            Flux column (default "PDCSAP_FLUX"; errors from
+            ``<flux_column>_ERR``).
+        quality_bitmask : str or int, optional
+            "none", "default" (default), "hard", "hardest" or an integer.
+        mission : str or None, optional
+            "kepler", "k2" or "tess"; default: from the header.
+
+        Returns
+        -------
+        LightCurve
+            The kept points, sorted by time.
+
+        Raises
+        ------
+        ValueError
+            When the bitmask name is unknown, the file does not exist, is a
+            folder or cannot be read as a light-curve FITS file, a column is
+            missing, the mission is missing or not Kepler, K2 or TESS, or no
+            point is usable.
+        """
         resolve_bitmask(quality_bitmask, None)  # a bad name fails before the file is read
         path = Path(path)
         if not path.exists():
@@ -309,10 +507,36 @@ class LightCurve:
 
     @classmethod
     def from_kepler_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default") -> "LightCurve":
-        """:meth:`from_fits` for a Kepler file (also without a TELESCOP key)."""
+        """:meth:`from_fits` for a Kepler file (also without a TELESCOP key).
+
+        Parameters
+        ----------
+        path : str or path-like
+            The FITS file.
+        flux_column : str, optional
+            Flux column (default "PDCSAP_FLUX").
+        quality_bitmask : str or int, optional
+            "none", "default" (default), "hard", "hardest" or an integer
+            (Kepler's flag bits).
+
+        Returns
+        -------
+        LightCurve
+            The kept points, sorted by time.
+        """
         return cls.from_fits(path, flux_column, quality_bitmask, mission="kepler")
 
     def to_csv(self, path) -> None:
+        """Write time, flux and flux_err to a CSV file that :meth:`from_csv` reads back.
+
+        The file is written next to ``path`` and then renamed, so a reader
+        never sees half of it. The exposure and report are not written.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The file to write (replaced if it exists).
+        """
         path = Path(path)
         tmp = path.with_suffix(path.suffix + ".tmp")
         with open(tmp, "w") as fh:
@@ -322,13 +546,32 @@ class LightCurve:
         tmp.replace(path)
 
     def to_time_zero(self, time_zero, current=None) -> "LightCurve":
-        """The light curve with its times counted from another zero point:
-        ``time_zero`` "bkjd" (BJD_TDB - 2454833, Kepler), "btjd" (BJD_TDB -
-        2457000, TESS) or a number [JD]. The current zero point is
-        ``current`` (same forms), else the light curve's ``time_zero``,
-        else its mission's (a Kepler or TESS FITS file); so a TESS light
-        curve joins Kepler data with ``lc.to_time_zero("bkjd")`` (times +
-        2167 d). The shift is exact: both are BJD_TDB."""
+        """The light curve with its times counted from another zero point.
+
+        A TESS light curve joins Kepler data with ``lc.to_time_zero("bkjd")``
+        (times + 2167 d). The shift is exact: both are BJD_TDB.
+
+        Parameters
+        ----------
+        time_zero : str or float
+            The new zero point: "bkjd" (BJD_TDB - 2454833, Kepler), "btjd"
+            (BJD_TDB - 2457000, TESS) or a number [JD].
+        current : str or float or None, optional
+            The current zero point (same forms); default the light curve's
+            ``time_zero``, else its mission's (a Kepler or TESS FITS file).
+
+        Returns
+        -------
+        LightCurve
+            The shifted light curve (``time_zero`` set, ``report["time"]``
+            saying so).
+
+        Raises
+        ------
+        ValueError
+            When a zero point is not "bkjd", "btjd" or a finite number, or the
+            current zero point is unknown.
+        """
         new, now = _zero_point(time_zero, "time_zero"), None
         if current is not None:
             now = _zero_point(current, "current")
@@ -346,6 +589,23 @@ class LightCurve:
 
     # ---- selections -------------------------------------------------------------
     def select(self, mask) -> "LightCurve":
+        """The points where ``mask`` is True.
+
+        Parameters
+        ----------
+        mask : array_like of bool
+            One entry per point [n_times].
+
+        Returns
+        -------
+        LightCurve
+            The selected points (same exposure, report and zero point).
+
+        Raises
+        ------
+        ValueError
+            When the mask keeps no point.
+        """
         mask = np.asarray(mask, bool)
         if not mask.any():
             raise ValueError("the selection keeps no points")
@@ -353,18 +613,52 @@ class LightCurve:
                           self.errors_estimated, self.time_zero)
 
     def windows(self, intervals) -> "LightCurve":
-        """Points inside any of the (start, end) intervals."""
+        """The points inside any of the (start, end) intervals.
+
+        Parameters
+        ----------
+        intervals : iterable of (float, float)
+            Time windows [d], ends included.
+
+        Returns
+        -------
+        LightCurve
+            The points in the windows.
+
+        Raises
+        ------
+        ValueError
+            When no point lies in any window.
+        """
         keep = np.zeros(self.time.size, bool)
         for a, b in intervals:
             keep |= (self.time >= a) & (self.time <= b)
         return self.select(keep)
 
     def normalized(self, intervals, in_transit) -> "LightCurve":
-        """Divide each window by a second-order polynomial fitted to its
-        out-of-transit points (Mueller et al. 2021, Sect. 2.2).
+        """Divide each window by a second-order polynomial fitted to its out-of-transit points.
 
-        ``intervals``: (start, end) windows; ``in_transit``: boolean mask of
-        points to exclude from the fit (same length as the light curve)."""
+        As in Mueller et al. (2021), Sect. 2.2; the fit weights points by
+        1 / flux_err. Points outside every window are left as they are.
+
+        Parameters
+        ----------
+        intervals : iterable of (float, float)
+            The (start, end) windows [d].
+        in_transit : array_like of bool
+            Points to exclude from the fit [n_times] (same length as the
+            light curve).
+
+        Returns
+        -------
+        LightCurve
+            The light curve with flux and flux_err divided by the trend.
+
+        Raises
+        ------
+        ValueError
+            When a window has fewer than 4 out-of-transit points.
+        """
         in_transit = np.asarray(in_transit, bool)
         flux, err = self.flux.copy(), self.flux_err.copy()
         for a, b in intervals:
@@ -381,11 +675,31 @@ class LightCurve:
                           self.time_zero)
 
     def supersampled_times(self, n: int | None = None) -> tuple[np.ndarray, int]:
-        """Times [d] at which to evaluate a model so that averaging groups of
-        ``n`` (``jaxppo.model._exposure.exposure_mean``) reproduces the
-        exposure (midpoint rule; default n odd with sub-exposures <=
-        SUB_EXPOSURE = 30 s, 59 for a 29.4-min Kepler long cadence; the rule
-        and why 30 s: ``jaxppo.model._exposure``). Returns (times, n)."""
+        """Times [d] at which to evaluate a model so that averaging groups of ``n`` reproduces the exposure.
+
+        Midpoint rule, cadence by cadence; averaging consecutive groups of
+        ``n`` (``jaxppo.model._exposure.exposure_mean``) gives the model of
+        each exposure (the rule and why 30 s: ``jaxppo.model._exposure``).
+
+        Parameters
+        ----------
+        n : int or None, optional
+            Sub-exposures per cadence; default: odd, with sub-exposures <=
+            SUB_EXPOSURE = 30 s (59 for a 29.4-min Kepler long cadence).
+
+        Returns
+        -------
+        times : numpy.ndarray
+            Sub-exposure midpoints [d], shape [n_times * n]; the times themselves
+            when ``exposure`` is None.
+        n : int
+            Sub-exposures per cadence (1 without an exposure).
+
+        Raises
+        ------
+        ValueError
+            When ``n`` is not a positive integer.
+        """
         return supersampled_times(self.time, self.exposure, n)
 
 

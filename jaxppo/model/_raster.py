@@ -22,37 +22,86 @@ _SAMPLE_BUDGET = 8_000_000
 
 
 class RasterSettings:
-    """Raster options.
+    """Options of the pixel-grid method (``method="raster"``).
 
-    mode: "window" (pixels around each disk, exact unocculted flux; default)
+    Pass them as ``raster=`` to :func:`occultation_flux` (or through
+    ``System.flux``). The window mode (default) rasterizes only a window
+    around each disk and takes the unocculted flux exactly; the full mode
+    rasterizes the whole star, like a Blender frame, and divides by the same
+    raster of the unocculted star.
+
+    Parameters
+    ----------
+    mode : {"window", "full"}, optional
+        "window" (pixels around each disk, exact unocculted flux; default)
         or "full" (an n x n grid over the whole star, like a Blender frame).
-    n: full-disk grid size.
-    n_window: window mode without ``scale``: pixels across each disk's
-        window (default 32). Each disk gets its own pixel size, the side of
-        the bounding box of its part on the star / n_window, i.e. r / 16 for a
-        disk inside the star, so every disk's coverage is resolved to the same
-        relative accuracy whatever the other disks' sizes, and a frame costs
-        (n_window + 2)^2 pixels per disk. Measured against the exact engine
-        with the defaults (tests/model/test_raster.py): below 1e-7 for
-        planet-size disks (Kepler-20), 2e-5 for r = 0.5 (the error goes as
-        pixel^2, mostly the intensity gradient across edge pixels), 1.5e-3 for
-        a disk of nearly the star's size (r = 0.99; ss=4: 2e-4); a disk
-        covering the star gives 0, and the flux is never negative. A star
-        with rotating spots gets more
-        pixels when needed, so that none is larger than a quarter of the spot
-        edge width.
-    scale: window mode: one fixed pixel size [R*] for every disk instead
-        (default None: sized per disk as above); the window then spans the
+    n : int, optional
+        Full mode: grid size, >= 8 (default 500; pixels of 2 / n [R*]).
+    scale : float, optional
+        Window mode: one fixed pixel size [R*], > 0, for every disk (default
+        None: sized per disk, see ``n_window``); the window then spans the
         largest disk's part on the star.
-    aa: anti-aliasing of disk edges: "exact" (window mode: closed-form area of
-        each pixel inside the disk; default), "supersample" (ss x ss points per
-        pixel; default in full mode), or "edge" (full mode: coverage linear in
-        the distance to the edge).
-    ss: samples per pixel per axis (coverage with "supersample", intensity
-        with "exact").
-    times: the time [d] of each frame (broadcast against the frames), needed
-        by a star with rotating spots (``Star.with_spots``) when the call has no
-        ``times`` of its own (``System.flux`` passes its t).
+    ss : int, optional
+        Samples per pixel per axis, >= 1 (coverage with "supersample",
+        intensity with "exact"); default 1, or 4 for ``aa="supersample"``
+        in window mode.
+    aa : {"exact", "supersample", "edge"}, optional
+        Anti-aliasing of disk edges: "exact" (window mode: closed-form area
+        of each pixel inside the disk; default there), "supersample" (ss x ss
+        points per pixel; default in full mode), or "edge" (full mode:
+        coverage linear in the distance to the edge).
+    times : array_like, optional
+        The time [d] of each frame (broadcast against the frames), needed
+        by a star with rotating spots (``Star.with_spots``) when the call has
+        no ``times`` of its own (``System.flux`` passes its t).
+    n_window : int, optional
+        Window mode without ``scale``: pixels across each disk's window,
+        >= 8 (default 32). Each disk gets its own pixel size, the side of
+        the bounding box of its part on the star / n_window, i.e. r / 16 for
+        a disk inside the star, so every disk's coverage is resolved to the
+        same relative accuracy whatever the other disks' sizes, and a frame
+        costs (n_window + 2)^2 pixels per disk. Measured against the exact
+        engine with the defaults (tests/model/test_raster.py): below 1e-7 for
+        planet-size disks (Kepler-20), 2e-5 for r = 0.5 (the error goes as
+        pixel^2, mostly the intensity gradient across edge pixels), 1.5e-3
+        for a disk of nearly the star's size (r = 0.99; ss=4: 2e-4); a disk
+        covering the star gives 0, and the flux is never negative. A star
+        with rotating spots gets more pixels when needed, so that none is
+        larger than a quarter of the spot edge width.
+
+    Attributes
+    ----------
+    mode, n, scale, ss, aa, times, n_window : object
+        As above, with the defaults resolved (``n``, ``ss``, ``n_window`` as
+        int).
+
+    Raises
+    ------
+    ValueError
+        When ``mode`` or ``aa`` (for the mode) is unknown, n < 8, ss < 1,
+        scale <= 0, n_window < 8, or one disk's window would need more than
+        8,000,000 samples ((n_window + 2)^2 ss^2). Settings that exceed that
+        cap per frame for a given call are refused by the call.
+
+    Examples
+    --------
+    A disk of radius 0.1 inside a uniform star hides 1 % of its light (the
+    default settings, exact pixel coverage, give 0.99 to rounding). Window
+    pixels supersampled 4 x 4 instead, then a coarse full-disk raster:
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> settings = jp.RasterSettings(aa="supersample", ss=4)
+    >>> settings
+    RasterSettings(mode='window', n=500, scale=None, n_window=32, ss=4, aa='supersample')
+    >>> star = jp.Star.uniform()
+    >>> x = np.array([[0.3], [0.6]])  # two frames, one disk each
+    >>> f = jp.occultation_flux(star, x, 0.0, 0.1, method="raster", raster=settings)
+    >>> print(np.round(np.asarray(f), 6))
+    [0.989981 0.989981]
+    >>> f = jp.occultation_flux(star, x, 0.0, 0.1, method="raster", raster=jp.RasterSettings(mode="full", n=200))
+    >>> print(np.round(np.asarray(f), 6))
+    [0.989945 0.989945]
     """
 
     def __init__(self, mode="window", n=500, scale=None, ss=None, aa=None, times=None, n_window=32):  # noqa: PLR0913

@@ -117,25 +117,80 @@ class Spots(eqx.Module):
 
     Every field but ``edge`` is an array, so ``jax.grad``/``jit`` see them
     (spot sizes, positions, contrasts and the rotation are fit parameters).
+    Attach them to a star with :meth:`Star.with_spots`; only the raster
+    models a spotted star, and its flux is relative to the unspotted star's
+    total flux F0 (docs/activity.md). Spots must not overlap: contrasts add
+    (1 - sum_k c_k S_k).
 
-    * ``lat``, ``lon``, ``radius``: latitude, longitude and angular radius
-      of each spot [deg], 1D over spots. The longitude is the rotational
-      phase (x 360 deg) at which the spot crosses the central meridian, as in
-      ``jaxppo.activity.spot_flux``.
-    * ``contrast``: 1 - I_spot / I_phot per spot (1: black; < 0: a facula).
-    * ``period`` [d], ``t_ref`` [d]: rotation period and time of phase 0.
-    * ``inc`` [deg]: angle between the rotation axis and the line of sight
-      (90: equator-on). The axis points to +y on the sky, rotated by
-      ``obliquity`` [deg] the way ``System``'s ``alpha`` rotates the tilted
-      planet's orbit, so a star with obliquity = alpha spins with that orbit;
-      spots near the central meridian move to +x, like a transiting planet.
-    * ``edge`` [deg] (static): width of the smooth (C1, cubic smoothstep)
-      edge; the contrast falls from c to 0 over radius +- edge/2 in angular
-      distance. The edge keeps the raster's flux smooth in the spot
-      parameters (finite, useful gradients); a hard edge is the limit
-      edge -> 0 (the raster's pixels must stay several times smaller).
+    Parameters
+    ----------
+    lat : array_like
+        Latitude of each spot [deg], in [-90, 90]; a scalar or [n_spots].
+    lon : array_like
+        Longitude of each spot [deg], a scalar or [n_spots]: the rotational
+        phase (x 360 deg) at which the spot crosses the central meridian, as
+        in ``jaxppo.activity.spot_flux``.
+    radius : array_like
+        Angular radius of each spot [deg], in (0, 90); a scalar or [n_spots].
+    contrast : array_like
+        1 - I_spot / I_phot per spot, <= 1 (1: black; < 0: a facula); a
+        scalar or [n_spots]. ``lat``, ``lon``, ``radius`` and ``contrast``
+        broadcast to one length, the number of spots.
+    period : float
+        Rotation period [d], > 0.
+    inc : float, optional
+        Angle between the rotation axis and the line of sight [deg], in
+        [0, 180] (default 90: equator-on). The axis points to +y on the sky,
+        rotated by ``obliquity``.
+    t_ref : float, optional
+        Time of rotational phase 0 [d] (default 0).
+    obliquity : float, optional
+        Rotation of the axis on the sky [deg] (default 0), the way
+        ``System``'s ``alpha`` rotates the tilted planet's orbit, so a star
+        with obliquity = alpha spins with that orbit; spots near the central
+        meridian move to +x, like a transiting planet.
+    edge : float, optional
+        Width of the smooth (C1, cubic smoothstep) edge [deg], in (0, 30)
+        (default 0.5; static, not traced): the contrast falls from c to 0
+        over radius +- edge/2 in angular distance. The edge keeps the
+        raster's flux smooth in the spot parameters (finite, useful
+        gradients); a hard edge is the limit edge -> 0 (the raster's pixels
+        must stay several times smaller).
 
-    Spots must not overlap: contrasts add (1 - sum_k c_k S_k).
+    Attributes
+    ----------
+    lat, lon, radius, contrast : jax.Array
+        As above, broadcast to [n_spots].
+    period, inc, t_ref, obliquity : jax.Array
+        As above, 0-d arrays.
+    edge : float
+        As above.
+
+    Raises
+    ------
+    ValueError
+        When a value is not finite, ``lat``, ``lon``, ``radius`` or
+        ``contrast`` is more than 1D or their lengths do not broadcast,
+        ``period``, ``inc``, ``t_ref`` or ``obliquity`` is not a scalar,
+        ``edge`` is not a number in (0, 30), or a concrete value is out of
+        its range (lat in [-90, 90], radius in (0, 90), contrast <= 1,
+        period > 0, inc in [0, 180]).
+
+    Examples
+    --------
+    One half-dark spot at latitude 20 deg on an equator-on star; with no
+    planet on the disk the flux is the rotational modulation:
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> spots = jp.Spots(lat=20.0, lon=0.0, radius=10.0, contrast=0.5, period=10.0)
+    >>> spots.n
+    1
+    >>> star = jp.Star.quadratic(0.4, 0.25).with_spots(spots)
+    >>> t = np.array([0.0, 2.5, 5.0])  # [d]: spot at the centre, near the limb, behind the star
+    >>> f = jp.occultation_flux(star, x=np.full((3, 1), 5.0), y=0.0, r=0.1, times=t)  # a planet off the star
+    >>> print(np.round(np.asarray(f), 6))
+    [0.983305 0.999701 1.      ]
     """
 
     lat: Array
@@ -183,7 +238,7 @@ class Spots(eqx.Module):
 
     @property
     def n(self) -> int:
-        """Number of spots."""
+        """Number of spots (the length of ``lat``)."""
         return self.lat.shape[0]
 
 
@@ -212,6 +267,59 @@ class Star(eqx.Module):
     ``"linear"`` (the paper's scheme) and ``"cubic"`` (natural spline) pass
     through every point; they have kinks at the nodes, so the exact engine's
     error for them is larger (measured in docs/accuracy.md).
+
+    The fields below are filled by the constructors; the class's own
+    ``__init__`` takes them as keywords (an internal form).
+
+    Attributes
+    ----------
+    law : str
+        "uniform", "quadratic", "nonlinear", "power2" or "tabulated" (static).
+    params : jax.Array
+        The law's coefficients, [0] (uniform), [2] (u1, u2), [4] (c1..c4),
+        [2] (c, alpha), or the table's intensities [n_nodes] (traceable:
+        differentiate the flux with respect to them).
+    mu_nodes : jax.Array or None
+        The table's mu [n_nodes], from 0 to 1 (tables only).
+    interpolation : str
+        The table's interpolation, "sqrt-poly", "linear" or "cubic" ("" for
+        a law; static).
+    degree : int
+        Degree of the "sqrt-poly" polynomial (0 otherwise; static).
+    fit_matrix : jax.Array or None
+        "sqrt-poly": the linear map from table intensities to the Chebyshev
+        coefficients of I in x = 2 sqrt(mu) - 1, [degree + 1, n_nodes].
+    q_matrix : jax.Array or None
+        "sqrt-poly": the linear map from table intensities to the
+        Chebyshev coefficients of the radial primitive that the exact engine
+        integrates (``jaxppo.core.intensity.sqrt_cheb_operators``),
+        [degree + 4, n_nodes].
+    table_residual : float
+        "sqrt-poly": the largest |fit - table| at the nodes (-1: unknown,
+        traced intensities; 0 otherwise; static).
+    surface : callable or None
+        A surface map ``surface(x, y)`` (:meth:`with_surface`; static).
+    spots : Spots or None
+        Rotating spots (:meth:`with_spots`).
+
+    See Also
+    --------
+    phoenix_star : a tabulated star from a PHOENIX model atmosphere.
+    claret_quadratic : a quadratic law from Claret (2018).
+    claret_power2 : a power-2 law from Claret & Southworth (2023).
+    kepler20_star : the default Kepler-20-like star.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> star = jp.Star.quadratic(0.4, 0.25)
+    >>> star
+    Star.quadratic(0.4, 0.25)
+    >>> print(f"I(mu=0.5) = {float(star.intensity(0.5)):.4f}, F0 = {float(star.total_flux):.6f}")
+    I(mu=0.5) = 0.7375, F0 = 2.591814
+    >>> f = jp.occultation_flux(star, x=0.0, y=0.0, r=0.1)  # a disk at the centre
+    >>> print(f"{float(f):.6f}")
+    0.987891
     """
 
     law: str = eqx.field(static=True)
@@ -228,10 +336,59 @@ class Star(eqx.Module):
     # ---- constructors --------------------------------------------------------
     @classmethod
     def uniform(cls) -> "Star":
+        """Build a star of uniform brightness, I = 1 (no limb darkening).
+
+        Returns
+        -------
+        star : Star
+            ``law="uniform"``; F0 = pi.
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> print(f"{float(jp.Star.uniform().total_flux):.6f}")
+        3.141593
+        """
         return cls(law="uniform", params=jnp.zeros(0))
 
     @classmethod
     def quadratic(cls, u1: ArrayLike, u2: ArrayLike) -> "Star":
+        """Build a quadratic-law star, I = 1 - u1 (1 - mu) - u2 (1 - mu)^2.
+
+        F0 = pi (1 - u1 / 3 - u2 / 6). The coefficients may be traced
+        (``jit``, ``grad``); then they are not checked.
+
+        Parameters
+        ----------
+        u1 : array_like
+            Linear coefficient (a scalar).
+        u2 : array_like
+            Quadratic coefficient (a scalar).
+
+        Returns
+        -------
+        star : Star
+            ``law="quadratic"``, ``params = [u1, u2]``.
+
+        Raises
+        ------
+        ValueError
+            When a concrete coefficient is not finite, or the total flux
+            F0 <= 0.
+
+        Warns
+        -----
+        UserWarning
+            When I(mu) < 0 somewhere on [0, 1] (not a physical profile,
+            though the engine integrates it exactly; concrete values only).
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> star = jp.Star.quadratic(0.4, 0.25)
+        >>> print(f"{float(star.intensity(0.0)):.4f} {float(star.total_flux):.6f}")
+        0.3500 2.591814
+        """
         _check_finite("u1", u1)
         _check_finite("u2", u2)
         star = cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
@@ -239,6 +396,40 @@ class Star(eqx.Module):
 
     @classmethod
     def nonlinear(cls, c1: ArrayLike, c2: ArrayLike, c3: ArrayLike, c4: ArrayLike) -> "Star":
+        """Build a non-linear-law star (Claret 2000).
+
+        I = 1 - sum_k c_k (1 - mu^(k/2)), k = 1..4. The coefficients may be
+        traced (``jit``, ``grad``); then they are not checked.
+
+        Parameters
+        ----------
+        c1, c2, c3, c4 : array_like
+            The coefficients of mu^(1/2), mu, mu^(3/2), mu^2 (scalars).
+
+        Returns
+        -------
+        star : Star
+            ``law="nonlinear"``, ``params = [c1, c2, c3, c4]``.
+
+        Raises
+        ------
+        ValueError
+            When a concrete coefficient is not finite, or the total flux
+            F0 <= 0.
+
+        Warns
+        -----
+        UserWarning
+            When I(mu) < 0 somewhere on [0, 1] (not a physical profile,
+            though the engine integrates it exactly; concrete values only).
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> star = jp.Star.nonlinear(0.6, -0.2, 0.5, -0.2)
+        >>> print(f"{float(star.intensity(0.0)):.4f} {float(star.total_flux):.6f}")
+        0.3000 2.615002
+        """
         for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
             _check_finite(name, v)
         star = cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
@@ -246,6 +437,43 @@ class Star(eqx.Module):
 
     @classmethod
     def power2(cls, c: ArrayLike, alpha: ArrayLike) -> "Star":
+        """Build a power-2 law star, I = 1 - c (1 - mu^alpha).
+
+        Hestroffer (1997); Claret & Southworth (2023) tabulate c as ``g``
+        and alpha as ``h`` (:func:`claret_power2`). The coefficients may be
+        traced (``jit``, ``grad``); then they are not checked.
+
+        Parameters
+        ----------
+        c : array_like
+            Strength of the darkening (a scalar).
+        alpha : array_like
+            Exponent, > 0 (a scalar).
+
+        Returns
+        -------
+        star : Star
+            ``law="power2"``, ``params = [c, alpha]``.
+
+        Raises
+        ------
+        ValueError
+            When a concrete coefficient is not finite, alpha <= 0, or the
+            total flux F0 <= 0.
+
+        Warns
+        -----
+        UserWarning
+            When I(mu) < 0 somewhere on [0, 1] (not a physical profile,
+            though the engine integrates it exactly; concrete values only).
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> star = jp.Star.power2(0.6, 0.6)
+        >>> print(f"{float(star.intensity(0.0)):.4f} {float(star.total_flux):.6f}")
+        0.4000 2.706603
+        """
         _check_finite("c", c)
         _check_finite("alpha", alpha)
         # any concrete value (Python or numpy scalar, 0-d array) is checked
@@ -265,7 +493,7 @@ class Star(eqx.Module):
         degree: int | None = None,
         pad_ends: bool = False,
     ) -> "Star":
-        """A star from a table of specific intensities I(mu).
+        """Build a star from a table of specific intensities I(mu).
 
         ``mu`` must be strictly increasing in [0, 1] (at least 3 points) and the
         intensities finite and >= 0. The table must reach mu = 0 and mu = 1:
@@ -286,6 +514,67 @@ class Star(eqx.Module):
         "sqrt-poly" needs ``degree`` (the adaptive choice needs the values;
         take it from the concrete table, ``Star.tabulated(mu, I0).degree``)
         and ``table_residual`` is -1 (unknown).
+
+        Parameters
+        ----------
+        mu : array_like
+            The nodes, strictly increasing in [0, 1], [n_nodes] (concrete).
+        intensity : array_like
+            I at each node, >= 0, not all zero, [n_nodes] (any scale; the
+            flux is normalised by F0). May be traced.
+        interpolation : {"sqrt-poly", "linear", "cubic"}, optional
+            The representation between nodes (default "sqrt-poly").
+        max_degree : int, optional
+            "sqrt-poly": the largest degree the adaptive choice tries
+            (default 12; it warns and smooths when none meets ``rtol``).
+        rtol : float, optional
+            "sqrt-poly": the largest residual at the nodes, relative to
+            max(I), that the adaptive choice accepts (default 1e-6).
+        degree : int, optional
+            "sqrt-poly": a fixed degree, from 1 to n_nodes - 1 (default None:
+            the adaptive choice).
+        pad_ends : bool, optional
+            Repeat the end intensities at mu = 0 and 1 when the table stops
+            short of them (default False: such a table raises).
+
+        Returns
+        -------
+        star : Star
+            ``law="tabulated"``.
+
+        Raises
+        ------
+        ValueError
+            When ``interpolation`` is unknown; ``mu`` is traced, has fewer
+            than 3 points, is not finite, leaves [0, 1], is not strictly
+            increasing, or stops short of 0 or 1 without ``pad_ends``; ``mu``
+            and ``intensity`` are not 1D of equal length; ``degree`` is not
+            an integer from 1 to n_nodes - 1; concrete intensities are not
+            finite, negative somewhere or zero everywhere; or "sqrt-poly"
+            has traced intensities and no ``degree``.
+
+        Warns
+        -----
+        UserWarning
+            When no "sqrt-poly" degree <= ``max_degree`` meets ``rtol`` (the
+            table is smoothed).
+
+        Examples
+        --------
+        A quadratic law as a table: "sqrt-poly" represents it exactly (mu is
+        a polynomial in sqrt(mu)), "linear" misses F0 by its kinks.
+
+        >>> import numpy as np
+        >>> import jaxppo as jp
+        >>> mu = np.linspace(0.0, 1.0, 11)
+        >>> inten = 1.0 - 0.4 * (1.0 - mu) - 0.25 * (1.0 - mu) ** 2
+        >>> star = jp.Star.tabulated(mu, inten)
+        >>> star.degree
+        4
+        >>> print(f"{float(star.total_flux):.6f}")
+        2.591814
+        >>> print(f"{float(jp.Star.tabulated(mu, inten, interpolation='linear').total_flux):.6f}")
+        2.590505
         """
         if interpolation not in _INTERPOLATIONS:
             raise ValueError(
@@ -338,7 +627,33 @@ class Star(eqx.Module):
 
     @classmethod
     def from_law(cls, law: str, coefficients=()) -> "Star":
-        """Build a star from a law name and its coefficients (used by configs)."""
+        """Build a star from a law name and its coefficients (used by configs).
+
+        Parameters
+        ----------
+        law : str
+            "uniform", "quadratic", "nonlinear" or "power2" (any case).
+        coefficients : array_like, optional
+            The law's coefficients, in the order of its constructor: none,
+            (u1, u2), (c1, c2, c3, c4) or (c, alpha).
+
+        Returns
+        -------
+        star : Star
+            ``Star.<law>(*coefficients)``.
+
+        Raises
+        ------
+        ValueError
+            When the law is unknown (tables: :meth:`tabulated`) or the number
+            of coefficients is not the law's; and as the law's constructor.
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> jp.Star.from_law("quadratic", [0.4, 0.25])
+        Star.quadratic(0.4, 0.25)
+        """
         law = str(law).lower()
         coefficients = list(np.atleast_1d(np.asarray(coefficients, dtype=float))) if len(np.atleast_1d(coefficients)) else []
         need = {"uniform": 0, "quadratic": 2, "nonlinear": 4, "power2": 2}
@@ -371,7 +686,29 @@ class Star(eqx.Module):
 
     # ---- what the kernels need ----------------------------------------------
     def intensity(self, mu: ArrayLike) -> Array:
-        """Specific intensity I(mu) (not normalised; divide by ``total_flux``)."""
+        """Evaluate the specific intensity I(mu).
+
+        Relative to the law's centre (1 at mu = 1) or in the table's units;
+        not normalised: divide by ``total_flux`` for intensity per unit flux.
+
+        Parameters
+        ----------
+        mu : array_like
+            mu = sqrt(1 - r^2) in [0, 1], any shape.
+
+        Returns
+        -------
+        intensity : jax.Array
+            I(mu), the shape of ``mu``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jaxppo as jp
+        >>> star = jp.Star.quadratic(0.4, 0.25)
+        >>> print(np.asarray(star.intensity(np.array([0.0, 0.5, 1.0]))))
+        [0.35   0.7375 1.    ]
+        """
         half = self._halfint()
         if half is not None:
             a, twice_e = half
@@ -385,7 +722,27 @@ class Star(eqx.Module):
         return _I.table_intensity(mu, mu_nodes, b)
 
     def radial_kernel(self):
-        """(g, Phi(1)) with g(s) = Phi(sqrt(s)) / s, for ``jaxppo.core.occult``."""
+        """Return the radial kernel that the exact engine integrates.
+
+        Phi(r) = int_0^r s I(s) ds = int_mu^1 m I(m) dm is the radial
+        primitive of the profile (``jaxppo.core.intensity``); by Green's
+        theorem the flux inside a region is the contour integral of
+        g(r^2) (x dy - y dx), with g(s) = Phi(sqrt(s)) / s.
+
+        Returns
+        -------
+        g : callable
+            s -> g(s) for s = r^2 in [0, 1] (jnp-traceable; g(0) = I(1) / 2).
+        phi1 : jax.Array
+            Phi(1) = F0 / (2 pi).
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> g, phi1 = jp.Star.quadratic(0.4, 0.25).radial_kernel()
+        >>> print(f"{float(g(0.0)):.4f} {float(phi1):.4f}")
+        0.5000 0.4125
+        """
         half = self._halfint()
         if half is not None:
             a, twice_e = half
@@ -402,8 +759,23 @@ class Star(eqx.Module):
         return (lambda s: _I.table_g(s, mu_nodes, b, phin)), phin[0]
 
     def radial_intensity(self):
-        """s -> I(mu) at s = r^2 = 1 - mu^2 (s clipped to [0, 1]): what the
-        exact engine's derivatives integrate along the disks' arcs."""
+        """Return the intensity as a function of s = r^2.
+
+        What the exact engine's derivatives integrate along the disks' arcs.
+
+        Returns
+        -------
+        intensity : callable
+            s -> I(mu) at s = r^2 = 1 - mu^2 (s clipped to [0, 1];
+            jnp-traceable).
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> radial = jp.Star.quadratic(0.4, 0.25).radial_intensity()
+        >>> print(f"{float(radial(0.75)):.4f}")  # r^2 = 0.75: mu = 0.5
+        0.7375
+        """
 
         half = self._halfint()
         if half is not None:
@@ -424,7 +796,11 @@ class Star(eqx.Module):
 
     @property
     def total_flux(self) -> Array:
-        """F0 = 2 pi int_0^1 I(mu) mu dmu, exact."""
+        """Total flux F0 = 2 pi int_0^1 I(mu) mu dmu, exact (a closed form).
+
+        A 0-d ``jax.Array`` (differentiable in the star's parameters); pi for
+        a uniform star.
+        """
         return 2.0 * jnp.pi * self.radial_kernel()[1]
 
     @property
@@ -440,22 +816,74 @@ class Star(eqx.Module):
         return self.surface is None and self.spots is None
 
     def with_surface(self, surface) -> "Star":
-        """This star times a surface map ``surface(x, y)`` in sky coordinates
-        [R*] (spots, faculae; a jnp-traceable function). Such a star is not
-        radially symmetric: only ``method="raster"`` can model it, and
-        ``"auto"`` uses the raster for it."""
+        """Return this star times a surface map.
+
+        Such a star is not radially symmetric: only ``method="raster"`` can
+        model it, and ``"auto"`` uses the raster for it (its flux is relative
+        to the mapped star's own unocculted flux).
+
+        Parameters
+        ----------
+        surface : callable
+            ``surface(x, y)`` in sky coordinates [R*], a jnp-traceable
+            function of arrays, multiplying I (spots, faculae).
+
+        Returns
+        -------
+        star : Star
+            A copy with ``surface`` set (``symmetric`` is False).
+
+        Raises
+        ------
+        ValueError
+            When ``surface`` is not callable.
+
+        Examples
+        --------
+        >>> import jax.numpy as jnp
+        >>> import jaxppo as jp
+        >>> star = jp.Star.uniform().with_surface(lambda x, y: jnp.where(x > 0.5, 0.5, 1.0))
+        >>> star.symmetric
+        False
+        """
         if not callable(surface):
             raise ValueError(f"surface must be a function surface(x, y), got {type(surface).__name__}")
         return dataclasses.replace(self, surface=surface)
 
     def with_spots(self, spots: Spots | None = None, **kwargs) -> "Star":
-        """This star with rotating circular spots: a :class:`Spots`, or its
-        arguments (``lat``, ``lon``, ``radius``, ``contrast``, ``period``,
-        ``inc``, ``t_ref``, ``obliquity``, ``edge``). The surface depends on
-        time, so the flux needs the time of every frame: ``System.flux``
-        passes its t (``occultation_flux`` and ``raster_flux`` take
-        ``times=``). Only the raster models it; the flux
+        """Return this star with rotating circular spots.
+
+        The surface depends on time, so the flux needs the time of every
+        frame: ``System.flux`` passes its t (``occultation_flux`` and
+        ``raster_flux`` take ``times=``). Only the raster models it; the flux
         is relative to the unspotted star's total flux F0 (docs/activity.md).
+
+        Parameters
+        ----------
+        spots : Spots, optional
+            The spots; or None, and give their arguments as keywords.
+        **kwargs
+            The arguments of :class:`Spots` (``lat``, ``lon``, ``radius``,
+            ``contrast``, ``period``, ``inc``, ``t_ref``, ``obliquity``,
+            ``edge``), when ``spots`` is None.
+
+        Returns
+        -------
+        star : Star
+            A copy with ``spots`` set (``symmetric`` is False).
+
+        Raises
+        ------
+        ValueError
+            When both ``spots`` and keywords are given, ``spots`` is not a
+            :class:`Spots`, or (from :class:`Spots`) the keywords are invalid.
+
+        Examples
+        --------
+        >>> import jaxppo as jp
+        >>> star = jp.Star.quadratic(0.4, 0.25).with_spots(lat=20.0, lon=0.0, radius=10.0, contrast=0.5, period=10.0)
+        >>> star.spots.n, star.symmetric
+        (1, False)
         """
         if spots is None:
             spots = Spots(**kwargs)

@@ -62,20 +62,79 @@ def sweep(
     return_stats: bool = False,
     no_overlap: bool = False,
 ):
-    """Relative flux on the grid [case, alpha, time].
+    """Compute the relative flux on the grid [case, alpha, time].
 
-    Args:
-        system: the planets; ``system.tilted`` is rotated by alpha.
-        t: times [d], 1D (a time Quantity or TimeDelta is converted; an
-            absolute astropy Time is refused, see :meth:`System.flux`).
-        alpha: tilt angles [deg], 1D (an angle Quantity is converted).
-        cases: sequence of hemisphere cases: "same", "opposite" or tuples of
-            +-1 signs of the untilted planets (see ``hemisphere_cases``).
-        method: "auto" (default; see module doc), "exact" (union integral for
-            every frame) or "raster".
-        return_stats: also return a :class:`SweepStats`.
-        no_overlap: model every frame as if no two disks overlapped (the null
-            model of the obliquity scan: each planet's own transit only).
+    Rotating the tilted planet about the star's centre does not change its
+    distance from the centre, and mirroring the other planets into the other
+    hemisphere does not change theirs. So with ``method="auto"`` every frame
+    in which no two disks overlap is a sum of one-disk terms computed once per
+    time; only the (case, alpha, time) frames in which two disks overlap run
+    the exact union integral, in bounded chunks. Other methods, and stars
+    that are not radially symmetric, evaluate :meth:`System.flux` on the
+    whole grid.
+
+    Parameters
+    ----------
+    system : System
+        The star and planets; ``system.tilted`` is rotated by alpha.
+    t : array_like
+        Times [d], [n_times] (a time Quantity or TimeDelta is converted; an
+        absolute astropy Time is refused, see :meth:`System.flux`).
+    alpha : array_like
+        Tilt angles [deg], a scalar or [n_alpha] (an angle Quantity is
+        converted).
+    cases : str or sequence, optional
+        Hemisphere cases: "same", "opposite" or tuples of +-1 signs of the
+        untilted planets (see :func:`hemisphere_cases`); one string is one
+        case (default ("same", "opposite")).
+    method : {"auto", "exact", "raster"}, optional
+        "auto" (default; as above), "exact" (union integral for every
+        frame) or "raster".
+    order : int, optional
+        Gauss-Legendre nodes per arc piece (default 24; as in
+        :func:`occultation_flux`).
+    chunk : int, optional
+        Frames per compiled batch (default 65536).
+    return_stats : bool, optional
+        Also return a ``SweepStats`` (default False).
+    no_overlap : bool, optional
+        Model every frame as if no two disks overlapped (the null model of
+        the obliquity scan: each planet's own transit only; default False).
+
+    Returns
+    -------
+    flux : numpy.ndarray
+        Relative flux, [n_cases, n_alpha, n_times].
+    stats : SweepStats
+        Only with ``return_stats=True``: ``frames`` (the grid's size),
+        ``single`` (one-disk evaluations, alpha- and case-independent) and
+        ``union`` (frames that ran the union integral).
+
+    Raises
+    ------
+    ValueError
+        When ``t`` is not 1D or ``alpha`` more than 1D, a value is not finite,
+        or a case is invalid for the system (and as :meth:`System.flux` for
+        other methods).
+
+    Examples
+    --------
+    Two planets in transit together at t = 0: along the same chord
+    (alpha = 0) the disks overlap at both times, at alpha = 90 deg only at
+    t = 0, where they are concentric:
+
+    >>> import jaxppo as jp
+    >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=90.0, radius=0.1, name="b")
+    >>> c = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=90.0, radius=0.1, name="c")
+    >>> system = jp.System(jp.Star.quadratic(0.4, 0.25), [b, c], tilted="b")
+    >>> flux, stats = jp.sweep(system, t=[0.0, 0.02], alpha=[0.0, 90.0], cases="same", return_stats=True)
+    >>> flux.shape
+    (1, 2, 2)
+    >>> print(flux.round(6))
+    [[[0.987891 0.97733 ]
+      [0.987891 0.97642 ]]]
+    >>> stats
+    SweepStats(frames=4, single=4, union=3)
     """
     t = np.asarray(from_quantity("t", t, "d"), float)
     alpha = np.atleast_1d(np.asarray(from_quantity("alpha", alpha, "deg"), float))

@@ -69,8 +69,37 @@ def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
 
 
 def case_label(case) -> str:
-    """Text name of a case: "same", "opposite", or a "+"/"-" string for mixed
-    sign tuples (safe in CSV files; :func:`case_signs` reads it back)."""
+    """Name a hemisphere case as text.
+
+    Uniform sign tuples become "same" (all +1) or "opposite" (all -1); mixed
+    ones become a string of "+"/"-" (one character per untilted planet, in
+    planet order). The text is safe in CSV files, and
+    ``jaxppo.model._system.case_signs`` reads it back.
+
+    Parameters
+    ----------
+    case : str or tuple of int
+        A case as :func:`hemisphere_cases` gives it: "same", "opposite"
+        (returned unchanged, as is any string), or a tuple of +1/-1 signs of
+        the untilted planets relative to the tilted one.
+
+    Returns
+    -------
+    label : str
+        "same", "opposite" or the "+"/"-" string.
+
+    See Also
+    --------
+    hemisphere_cases : the distinct cases of a system.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> jp.case_label((1, -1))
+    '+-'
+    >>> jp.case_label((1, 1)), jp.case_label((-1, -1)), jp.case_label("same")
+    ('same', 'opposite', 'same')
+    """
     if isinstance(case, str):
         return case
     rel = tuple(int(v) for v in case)
@@ -112,14 +141,39 @@ def scan_cases(system: "System", cases) -> tuple[str, ...]:
 
 
 def hemisphere_cases(system: "System") -> tuple:
-    """The 2^(k-1) hemisphere configurations of a k-planet system that give
-    different light curves, "same" first and "opposite" last; mixed ones as
-    tuples of +-1 (one per untilted planet, in planet order).
+    """List the hemisphere configurations of a system that give different light curves.
 
-    Only the untilted planets' signs relative to the tilted planet matter: a
-    mirror y -> -y of the whole sky maps any configuration at alpha to its
-    mirror image at 360 - alpha, and a radially symmetric star gives both the
-    same flux, so a full alpha scan covers both signs of the tilted planet.
+    A k-planet system has 2^(k-1) of them: each untilted planet crosses the
+    stellar disk either in the tilted planet's hemisphere (+1) or in the
+    other one (-1). Only the untilted planets' signs relative to the tilted
+    planet matter: a mirror y -> -y of the whole sky maps any configuration
+    at alpha to its mirror image at 360 - alpha, and a radially symmetric
+    star gives both the same flux, so a full alpha scan covers both signs of
+    the tilted planet.
+
+    Parameters
+    ----------
+    system : System
+        The star and planets; ``system.tilted`` is the tilted planet.
+
+    Returns
+    -------
+    cases : tuple
+        "same" first (every untilted planet in the tilted planet's
+        hemisphere, paper case 1) and "opposite" last (every one in the
+        other, paper case 4); the mixed ones in between as tuples of +1/-1
+        (one per untilted planet, in planet order). A single-planet system
+        gives ``("same",)``. Each is a valid ``case`` of :meth:`System.flux`;
+        :func:`case_label` names them as text.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> jp.hemisphere_cases(jp.kepler20_system())
+    ('same', 'opposite')
+    >>> planets = [jp.Planet(3.0 * k, 0.0, 10.0 * k, 89.5, 0.02, name=n) for k, n in ((1, "b"), (2, "c"), (3, "d"))]
+    >>> jp.hemisphere_cases(jp.System(jp.Star.uniform(), planets))
+    ('same', (1, -1), (-1, 1), 'opposite')
     """
     k = len(system.planets) - 1
     if k == 0:
@@ -213,34 +267,101 @@ def user_stacklevel() -> int:
 class Planet(eqx.Module):
     """A planet on a Keplerian orbit (circular by default).
 
-    Args:
-        period: orbital period P [d], > 0.
-        t0: a time of conjunction = mid-transit [d] (any consistent zero
-            point, e.g. BKJD), also for eccentric orbits.
-        a: semi-major axis [R*], > 1.
-        inc: inclination i [deg] in [0, 180]; b = a cos(i) (1 - e^2) /
-            (1 + e sin omega).
-        radius: radius ratio p = R_p / R*, > 0.
-        name: optional label used in free-parameter names ("b.t0").
-        e: eccentricity, 0 <= e < 1; the periastron distance a (1 - e)
-            must exceed 1 + radius (the planet would hit the star).
-        omega: argument of periastron [deg], as in Winn (2010), batman
-            (``w``) and jaxoplanet: omega = 90 deg puts periastron at
-            transit, 270 deg apoastron.
-        transit_times: measured (or free) mid-times [d] of the epochs in
-            ``transit_epochs`` (default 0..n-1; epoch 0 is the transit at
-            t0), each within half a period of t0 + n P. The orbit is then
-            shifted, at every time, by the offset tc_n - t0 - n P of the
-            listed transit nearest in time (docs/conventions.md, "Transit
-            times"); None: the linear ephemeris t0 + n P.
-        transit_epochs: integer epochs of ``transit_times`` (static).
-
+    An equinox module (a JAX pytree): its numeric fields can be traced,
+    fitted and differentiated; ``name`` and ``transit_epochs`` are static.
     astropy Quantities are converted (inc, omega: any angle unit; period,
     t0: any time unit; a, radius, e: dimensionless, e.g.
     ``(a / R_star).decompose()``; a bare length is refused as ambiguous).
-    Plain numbers mean deg and days. A planet whose |b| >= 1 + radius can
-    never transit: that warns (``inc=1.53`` in radians by habit means
-    1.53 deg, b ~ a).
+    Plain numbers mean deg and days. Frame and orbit equations:
+    docs/conventions.md (Mueller et al. 2021, Sect. 2.5; eccentric orbits as
+    in Winn 2010).
+
+    Parameters
+    ----------
+    period : float or Quantity
+        Orbital period P [d], > 0.
+    t0 : float or Quantity
+        A time of conjunction = mid-transit [d] (any consistent zero point,
+        e.g. BKJD = BJD - 2454833), also for eccentric orbits.
+    a : float or Quantity
+        Semi-major axis [R*], > 1.
+    inc : float or Quantity
+        Inclination i [deg] in [0, 180]; the impact parameter is
+        b = a cos(i) (1 - e^2) / (1 + e sin omega).
+    radius : float or Quantity
+        Radius ratio p = R_p / R* [R*], > 0.
+    name : str, optional
+        Label used in free-parameter names ("b.t0") and in tables; default "".
+    e : float or Quantity, optional
+        Eccentricity, 0 <= e < 1 (default 0, circular); the periastron
+        distance a (1 - e) must exceed 1 + radius (else the planet would hit
+        the star).
+    omega : float or Quantity, optional
+        Argument of periastron [deg], as in Winn (2010), batman (``w``) and
+        jaxoplanet: omega = 90 deg (default) puts periastron at transit,
+        270 deg apoastron. Unused when e = 0.
+    transit_times : array_like or None, optional
+        Measured (or free) mid-times [d] of the epochs in ``transit_epochs``
+        [n_listed], each within half a period of t0 + n P. The orbit is then
+        shifted, at every time, by the offset tc_n - t0 - n P of the listed
+        transit nearest in time (docs/conventions.md, "Transit times").
+        None (default): the linear ephemeris t0 + n P.
+    transit_epochs : sequence of int or None, optional
+        Integer epochs of ``transit_times`` (static; default 0..n-1; epoch 0
+        is the transit at t0).
+
+    Attributes
+    ----------
+    period, t0, a, inc, radius, e, omega : jax.Array
+        The orbit, as float arrays in the units above.
+    name : str
+        The label.
+    transit_times : jax.Array or None
+        The listed mid-times [d], shape [n_listed], or None.
+    transit_epochs : tuple of int or None
+        Their epochs, or None.
+
+    Raises
+    ------
+    ValueError
+        When a concrete parameter is out of range or not finite: period <= 0,
+        a <= 1, radius <= 0, inc outside [0, 180] deg, e outside [0, 1),
+        periastron a (1 - e) <= 1 + radius, a non-finite t0 or omega; a
+        Quantity of the wrong kind (e.g. a length for ``a``, an absolute
+        astropy ``Time`` for ``t0``); ``transit_times`` that are not a finite
+        1D list, whose count differs from ``transit_epochs``, with repeated
+        epochs, or a time more than half a period from t0 + n P.
+
+    Warns
+    -----
+    UserWarning
+        When the orbit can never transit (|b| >= 1 + radius and no contact):
+        ``inc=1.53`` given in radians by habit means 1.53 deg, b ~ a.
+
+    See Also
+    --------
+    System : a star with its planets, and their flux.
+
+    Examples
+    --------
+    Kepler-20 b (Mueller et al. 2021, Table 3):
+
+    >>> import jaxppo as jp
+    >>> b = jp.Planet(period=3.6961159, t0=134.501962, a=10.60, inc=87.687, radius=0.01805, name="b")
+    >>> print(f"b = {float(b.impact):.4f}, T14 = {2 * 24 * float(b.half_duration()):.3f} h")
+    b = 0.4278, T14 = 2.466 h
+    >>> print(f"{b.mid_time(3):.6f}")
+    145.590310
+    >>> x, y, z = b.position(134.501962)  # at mid-transit: x = 0, y = b, z > 0 (in front)
+    >>> print(f"{float(x):.4f} {float(y):.4f} {float(z):.4f}")
+    0.0000 0.4278 10.5914
+
+    An eccentric orbit, whose transit is not symmetric about conjunction:
+
+    >>> p = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.0, radius=0.03, e=0.3, omega=30.0)
+    >>> t1, t4 = p.contacts()
+    >>> print(f"{24 * float(t1):.3f} h, {24 * float(t4):.3f} h")
+    -1.575 h, 1.571 h
     """
 
     period: Array
@@ -314,27 +435,59 @@ class Planet(eqx.Module):
 
     @property
     def circular(self) -> bool:
-        """True when e is a concrete 0: the circular code path (exactly the
-        equations of a circular orbit) serves the planet. A traced e (being
-        fitted or differentiated) takes the Keplerian path, whose gradient
-        in e is right also at e = 0."""
+        """Whether the circular code path serves the planet.
+
+        True when e is a concrete 0: the equations of a circular orbit, exactly.
+        A traced e (being fitted or differentiated) takes the Keplerian path,
+        whose gradient in e is right also at e = 0.
+
+        Returns
+        -------
+        bool
+            True for a concrete e = 0.
+        """
         return not isinstance(self.e, jax.core.Tracer) and not np.any(np.asarray(self.e))
 
     @property
     def impact(self) -> Array:
-        """Impact parameter b = a cos(i) (1 - e^2) / (1 + e sin omega) [R*]
-        (the sky distance at conjunction), signed as the inclination gives
-        it. Transits measure only |b|: :meth:`System.positions` places the
-        planets by |b| and the hemisphere case (docs/conventions.md)."""
+        """Impact parameter b = a cos(i) (1 - e^2) / (1 + e sin omega) [R*].
+
+        The sky distance at conjunction, signed as the inclination gives it.
+        Transits measure only |b|: :meth:`System.positions` places the
+        planets by |b| and the hemisphere case (docs/conventions.md).
+
+        Returns
+        -------
+        jax.Array
+            b [R*], a scalar (or the shape of the parameters).
+        """
         b = self.a * jnp.cos(jnp.deg2rad(self.inc))
         if self.circular:
             return b
         return b * (1.0 - self.e**2) / (1.0 + self.e * jnp.sin(jnp.deg2rad(self.omega)))
 
     def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
-        """Sky position (x, y, z) [R*] at times t [d] (docs/conventions.md:
-        circular or Keplerian orbit). ``xp=numpy`` evaluates eagerly in numpy
-        (geometry on the host)."""
+        """Sky position (x, y, z) [R*] at times t [d].
+
+        Circular or Keplerian orbit in the sky frame of docs/conventions.md
+        (x right, y up, z towards the observer), before any tilt; with
+        transit times, at :meth:`orbit_time`. Parameters outside
+        :meth:`in_domain` (reached under jit/grad/vmap) give NaN positions.
+
+        Parameters
+        ----------
+        t : array_like
+            Times [d], any shape.
+        xp : module, optional
+            Array namespace: ``jax.numpy`` (default) or ``numpy``, which
+            evaluates eagerly on the host (geometry for concrete inputs).
+
+        Returns
+        -------
+        x, y, z : array
+            Coordinates [R*], each of the shape of ``t``; z > 0 in front of
+            the star.
+        """
         t = self.orbit_time(t, xp)
         inc = xp.deg2rad(xp.asarray(self.inc))
         a = xp.asarray(self.a)
@@ -352,10 +505,22 @@ class Planet(eqx.Module):
         return tuple(xp.where(ok, v, xp.nan) for v in pos)
 
     def in_domain(self, xp=jnp):
-        """True where the parameters are ones the constructor accepts: period
-        > 0, a > 1, radius > 0, inc in [0, 180] deg, e in [0, 1), periastron
-        a (1 - e) > 1 + radius, everything finite. Concrete values are
-        checked at construction; this is the same rule for traced ones."""
+        """Whether the parameters are ones the constructor accepts.
+
+        period > 0, a > 1, radius > 0, inc in [0, 180] deg, e in [0, 1),
+        periastron a (1 - e) > 1 + radius, everything finite. Concrete values
+        are checked at construction; this is the same rule for traced ones.
+
+        Parameters
+        ----------
+        xp : module, optional
+            Array namespace: ``jax.numpy`` (default) or ``numpy``.
+
+        Returns
+        -------
+        ok : array of bool
+            True where the parameters are valid (the parameters' shape).
+        """
         period, a, radius = xp.asarray(self.period), xp.asarray(self.a), xp.asarray(self.radius)
         inc, e, t0, omega = xp.asarray(self.inc), xp.asarray(self.e), xp.asarray(self.t0), xp.asarray(self.omega)
         finite = (xp.isfinite(period) & xp.isfinite(a) & xp.isfinite(radius) & xp.isfinite(inc) & xp.isfinite(e)
@@ -364,20 +529,47 @@ class Planet(eqx.Module):
                 & (a * (1.0 - e) > 1.0 + radius))
 
     def orbit_time(self, t: ArrayLike, xp=jnp):
-        """The time [d] at which the Keplerian orbit is evaluated for time t:
+        """The time [d] at which the Keplerian orbit is evaluated for time t.
+
         t itself on a linear ephemeris; with transit times, t minus the
         offset tc_n - t0 - n P of the listed transit nearest to t (ties: the
-        later one; docs/conventions.md, "Transit times")."""
+        later one; docs/conventions.md, "Transit times").
+
+        Parameters
+        ----------
+        t : array_like
+            Times [d], any shape.
+        xp : module, optional
+            Array namespace: ``jax.numpy`` (default) or ``numpy``.
+
+        Returns
+        -------
+        array
+            Orbit times [d], the shape of ``t``.
+        """
         if self.transit_times is None:
             return t
         return shifted_time(t, self.transit_times, self.transit_epochs, self.period, self.t0, xp)
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
-        """First and last contact relative to conjunction t0 + n P [d]:
-        ``(t1 - t0, t4 - t0)`` (t1 < 0 < t4; both 0 if it never transits).
+        """First and last contact relative to conjunction t0 + n P [d].
+
         Circular orbits: -+ :meth:`half_duration`. Eccentric ones are solved
         on the host (concrete parameters only) on the exact orbit, where the
-        transit is not symmetric about conjunction."""
+        transit is not symmetric about conjunction.
+
+        Returns
+        -------
+        t1, t4 : numpy.ndarray
+            ``(t1 - t0, t4 - t0)`` [d], with t1 < 0 < t4; both 0 if the
+            planet never transits.
+
+        Raises
+        ------
+        ValueError
+            When the orbit is eccentric and its parameters are traced (under
+            jit/grad/vmap).
+        """
         if self.circular:
             half = np.asarray(self.half_duration(), float)
             return -half, half
@@ -387,11 +579,17 @@ class Planet(eqx.Module):
         return f(*(np.asarray(getattr(self, k), float) for k in ("period", "a", "inc", "radius", "e", "omega")))
 
     def half_duration(self) -> Array:
-        """Half-width [d] of the window about conjunction t0 + n P that holds
-        the whole transit (0 if it never transits): half the time from first
-        to last contact for circular orbits; for eccentric ones, whose
-        transits are not symmetric about conjunction, the larger of the two
-        contact offsets (see :meth:`contacts`)."""
+        """Half-width [d] of the window about conjunction t0 + n P that holds the whole transit.
+
+        Half the time from first to last contact for circular orbits; for
+        eccentric ones, whose transits are not symmetric about conjunction,
+        the larger of the two contact offsets (see :meth:`contacts`).
+
+        Returns
+        -------
+        jax.Array
+            The half-width [d]; 0 if the planet never transits.
+        """
         if not self.circular:
             t1, t4 = self.contacts()
             return jnp.asarray(np.maximum(-t1, t4))
@@ -420,15 +618,43 @@ class Planet(eqx.Module):
         return "Planet(" + ", ".join(parts) + ")"
 
     def mid_time(self, epoch: int) -> float:
-        """Predicted mid-transit time [d] of ``epoch`` (0: the transit at
-        t0): the listed time of a listed epoch, else t0 + n P, plus the
-        offset of the nearest listed epoch when the planet has transit
-        times (concrete parameters)."""
+        """Predicted mid-transit time [d] of one epoch.
+
+        The listed time of a listed epoch, else t0 + n P, plus the offset of
+        the nearest listed epoch when the planet has transit times (concrete
+        parameters).
+
+        Parameters
+        ----------
+        epoch : int
+            Transit number n (0: the transit at t0; negative before it).
+
+        Returns
+        -------
+        float
+            Mid-transit time [d].
+        """
         if self.transit_times is None:
             return float(self.t0) + int(epoch) * float(self.period)
         return mid_time(int(epoch), self.transit_times, self.transit_epochs, self.period, self.t0)
 
     def replace(self, **changes) -> "Planet":
+        """A copy of the planet with some constructor arguments changed.
+
+        The copy goes through the constructor, so its checks (and warnings)
+        apply to the new values.
+
+        Parameters
+        ----------
+        **changes
+            New values by constructor argument name (period, t0, a, inc,
+            radius, name, e, omega, transit_times, transit_epochs).
+
+        Returns
+        -------
+        Planet
+            The new planet.
+        """
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega",
                                                   "transit_times", "transit_epochs")}
         fields.update(changes)
@@ -436,11 +662,65 @@ class Planet(eqx.Module):
 
 
 class System(eqx.Module):
-    """A star and its planets; planet ``tilted`` is the one whose orbit is
-    rotated by alpha about the line of sight.
+    """A star and its planets, one of which may be tilted.
 
-    ``System(star, planets, tilted=0)``; ``.star``, ``.planets`` (in order),
-    ``.tilted`` (index).
+    Planet ``tilted`` is the one whose orbit is rotated by alpha about the
+    line of sight (Mueller et al. 2021, Sect. 2.5); the others keep their
+    orbits, in the tilted planet's hemisphere or mirrored into the other
+    one as the hemisphere ``case`` says (:func:`hemisphere_cases`). An
+    equinox module (a JAX pytree): the star's and planets' parameters can be
+    traced; ``tilted`` is static.
+
+    Parameters
+    ----------
+    star : Star
+        The stellar intensity profile (and spots, if any).
+    planets : sequence of Planet
+        At least one planet; names, where given, must be unique.
+    tilted : int or str, optional
+        Index or name of the tilted planet (default 0, the first).
+
+    Attributes
+    ----------
+    star : Star
+        The star.
+    planets : tuple of Planet
+        The planets, in the order given.
+    tilted : int
+        Index of the tilted planet.
+
+    Raises
+    ------
+    ValueError
+        When ``star`` is not a :class:`Star`, ``planets`` is empty or holds
+        something other than a :class:`Planet`, two planets share a name, or
+        ``tilted`` is neither an index in range nor a planet's name.
+
+    See Also
+    --------
+    Planet, Star, hemisphere_cases, alpha_limits, multi_transits
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> b = jp.Planet(period=3.6961159, t0=134.501962, a=10.60, inc=87.687, radius=0.01805, name="b")
+    >>> c = jp.Planet(period=10.85408479, t0=138.60847, a=22.764, inc=89.967, radius=0.02878, name="c")
+    >>> system = jp.System(jp.Star.quadratic(0.4, 0.25), [b, c], tilted="b")
+    >>> system.tilted, system.index("c")
+    (0, 1)
+    >>> f = system.flux(np.array([134.0, 134.501962, 138.60847]))  # out of transit, b and c at mid-transit
+    >>> print(np.round(np.asarray(f), 6))
+    [1.       0.999621 0.998996]
+
+    A tilt alpha [deg] rotates b's orbit about the line of sight (an array
+    of tilts in :meth:`flux` gives one light curve per tilt, [n_alpha,
+    n_times]). At b's mid-transit, alpha = 90 deg puts b on the x axis at
+    x = |b|; c is behind the star (r = 0). ``xp=np`` computes on the host:
+
+    >>> x, y, r = system.positions(134.501962, alpha=90.0, xp=np)
+    >>> print(np.round(x, 4), np.round(r, 4))
+    [  0.4278 -15.7555] [0.018 0.   ]
     """
 
     star: Star
@@ -471,24 +751,65 @@ class System(eqx.Module):
         self.tilted = int(tilted)
 
     def index(self, name: str) -> int:
+        """Index of the planet named ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A planet's name.
+
+        Returns
+        -------
+        int
+            Its position in :attr:`planets`.
+
+        Raises
+        ------
+        ValueError
+            When no planet has that name.
+        """
         for i, pl in enumerate(self.planets):
             if pl.name == name:
                 return i
         raise ValueError(f"no planet named {name!r}; names are {[p.name for p in self.planets]}")
 
     def positions(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", xp=jnp):
-        """Sky positions (x, y, r) with the disks on the last axis; planets
-        behind the star get r = 0. ``alpha`` [deg] broadcasts against ``t``.
-        ``xp=numpy`` computes on the host without tracing (fast geometry for
-        concrete inputs). ``t`` and ``alpha`` may be astropy Quantities (and
-        ``t`` a TimeDelta), converted as in :meth:`flux`.
+        """Sky positions and radii (x, y, r) [R*] of the planets' disks.
 
         Hemispheres come from |b| only (transits cannot measure the sign of
         cos i): before the tilt every planet crosses y > 0 (y uses |cos i|);
         then ``case`` mirrors untilted planets (y -> -y) into the other
-        hemisphere ("same": none, "opposite": all, or a tuple of +-1 signs,
-        see :func:`case_signs`), and the tilted planet is rotated by alpha.
-        So i -> 180 - i of any planet changes nothing.
+        hemisphere, and the tilted planet is rotated by alpha about the line
+        of sight. So i -> 180 - i of any planet changes nothing.
+
+        Parameters
+        ----------
+        t : array_like or Quantity or TimeDelta
+            Times [d]; converted as in :meth:`flux`.
+        alpha : array_like or Quantity, optional
+            Tilt of the tilted planet's orbit [deg] (default 0); broadcasts
+            against ``t``.
+        case : str or tuple of int, optional
+            Hemisphere case: "same" (default, no planet mirrored),
+            "opposite" (every untilted planet mirrored), a tuple of +1/-1
+            signs (one per untilted planet, in planet order) or its
+            "+"/"-" string (:func:`case_label`).
+        xp : module, optional
+            Array namespace: ``jax.numpy`` (default) or ``numpy``, which
+            computes on the host without tracing (fast geometry for concrete
+            inputs).
+
+        Returns
+        -------
+        x, y, r : array
+            Disk centres and radii [R*], shape [*broadcast(t, alpha), n_planets]
+            (the disks on the last axis); planets behind the star get r = 0.
+
+        Raises
+        ------
+        ValueError
+            When ``case`` is not a valid case for this system, or ``t`` or
+            ``alpha`` is a Quantity of the wrong kind.
         """
         signs = case_signs(len(self.planets), self.tilted, case)
         t = xp.asarray(from_quantity("t", t, "d"), dtype=float)
@@ -510,17 +831,46 @@ class System(eqx.Module):
         return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
 
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
-        """Relative flux at times t [d].
+        """Relative flux at times t [d], planet-planet occultations included.
 
-        ``t`` may be a time Quantity or an astropy ``TimeDelta`` (converted
-        to days); an absolute astropy ``Time`` is refused, because the
-        planets' t0 are days since a zero point only the caller knows:
-        pass ``t.jd - JD0`` or the TimeDelta ``t - Time(JD0, format="jd")``
-        with JD0 the zero point of t0 (2454833.0 for BKJD).
+        The disks of :meth:`positions` in front of the star, integrated by
+        :func:`occultation_flux` (1 out of transit). A star with rotating
+        spots gets the times too (its surface changes with time).
 
-        ``alpha`` [deg]: a scalar gives shape t.shape; an array gives
-        [alpha, time]. ``case``: "same", "opposite" or a tuple of +-1 signs
-        of the untilted planets (see :meth:`positions`, :func:`hemisphere_cases`).
+        Parameters
+        ----------
+        t : array_like or Quantity or TimeDelta
+            Times [d], any shape. A time Quantity or an astropy
+            ``TimeDelta`` is converted to days; an absolute astropy ``Time``
+            is refused, because the planets' t0 are days since a zero point
+            only the caller knows: pass ``t.jd - JD0`` or the TimeDelta
+            ``t - Time(JD0, format="jd")`` with JD0 the zero point of t0
+            (2454833.0 for BKJD).
+        alpha : float or array_like or Quantity, optional
+            Tilt of the tilted planet's orbit [deg] (default 0): a scalar, or
+            a 1D array [n_alpha] for one light curve per tilt.
+        case : str or tuple of int, optional
+            Hemisphere case: "same" (default), "opposite" or a tuple of +1/-1
+            signs of the untilted planets (see :meth:`positions`,
+            :func:`hemisphere_cases`).
+        method : str, optional
+            "auto" (default), "exact" or "raster"; see :func:`occultation_flux`.
+        **kwargs
+            Passed on to :func:`occultation_flux` (``order``, ``chunk``,
+            ``raster``, ``times``).
+
+        Returns
+        -------
+        jax.Array
+            Relative flux: the shape of ``t`` for a scalar ``alpha``,
+            [n_alpha, *t.shape] for a 1D ``alpha``.
+
+        Raises
+        ------
+        ValueError
+            When a concrete ``t`` or ``alpha`` is not finite, ``alpha`` has
+            more than one dimension, ``case`` is not valid for this system,
+            or an input is a Quantity of the wrong kind.
         """
         t = jnp.asarray(from_quantity("t", t, "d"), float)
         if not isinstance(t, jax.core.Tracer):
@@ -551,6 +901,22 @@ class System(eqx.Module):
         return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r})"
 
     def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
+        """A copy of the system with the star, the planets or the tilted planet changed.
+
+        Parameters
+        ----------
+        star : Star, optional
+            The new star (default: the same).
+        planets : sequence of Planet, optional
+            The new planets (default: the same).
+        tilted : int or str, optional
+            Index or name of the new tilted planet (default: the same index).
+
+        Returns
+        -------
+        System
+            The new system (checked as by the constructor).
+        """
         return System(
             star if star is not None else self.star,
             planets if planets is not None else self.planets,
@@ -558,8 +924,20 @@ class System(eqx.Module):
         )
 
     def transit_times(self, t_start, t_end):
-        """The predicted mid-transit times in [t_start, t_end] [d]: a table
-        (planet, epoch, tc); :func:`jaxppo.transit_times`."""
+        """The predicted mid-transit times from t_start to t_end [d].
+
+        Same as :func:`jaxppo.transit_times` of this system.
+
+        Parameters
+        ----------
+        t_start, t_end : float
+            The time span [d].
+
+        Returns
+        -------
+        astropy.table.Table
+            Columns ``planet``, ``epoch``, ``tc`` [d], sorted by time.
+        """
         from ._transits import transit_times  # _transits builds on System
 
         return transit_times(self, t_start, t_end)

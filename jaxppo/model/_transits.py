@@ -16,16 +16,48 @@ __all__ = ["transit_times", "alpha_limits", "MultiTransit", "multi_transits", "m
 
 
 def transit_times(system: System, t_start, t_end):
-    """The mid-transit times [d] the model predicts in [t_start, t_end]: an
-    astropy Table with columns ``planet`` (name, or index when unnamed),
-    ``epoch`` (0 is the transit at the planet's t0) and ``tc`` [d], sorted by
-    time. Every planet's transits are its conjunctions t0 + n P (t0 is the
-    time of inferior conjunction, eccentric orbits included); a planet with
+    """List the mid-transit times [d] the model predicts in [t_start, t_end].
+
+    Every planet's transits are its conjunctions t0 + n P (t0 is the time of
+    inferior conjunction, eccentric orbits included); a planet with
     ``transit_times`` has the listed times at its listed epochs and t0 + n P
     plus the offset of the nearest listed epoch elsewhere
     (:meth:`Planet.mid_time`). A planet that never crosses the stellar disk
-    has none. The question every orbit model
-    answers alike, so users and checks can compare them.
+    has none. The question every orbit model answers alike, so users and
+    checks can compare them.
+
+    Parameters
+    ----------
+    system : System
+        The planets.
+    t_start, t_end : float
+        The time span [d], inclusive; finite, with t_start <= t_end.
+
+    Returns
+    -------
+    astropy.table.Table
+        Columns ``planet`` (name, or index as text when unnamed), ``epoch``
+        (int; 0 is the transit at the planet's t0) and ``tc`` [d], one row per
+        transit, sorted by time.
+
+    Raises
+    ------
+    ValueError
+        When t_start or t_end is not finite, or t_end < t_start.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> table = jp.transit_times(jp.kepler20_system(), 130.0, 145.0)
+    >>> table.colnames
+    ['planet', 'epoch', 'tc']
+    >>> for row in table:
+    ...     print(row["planet"], row["epoch"], f"{row['tc']:.4f}")
+    b -1 130.8058
+    b 0 134.5020
+    b 1 138.1981
+    c 0 138.6085
+    b 2 141.8942
     """
     from astropy.table import Table
 
@@ -63,11 +95,38 @@ def _epochs_between(pl, t_start: float, t_end: float, pad: float = 0.0) -> list[
 
 
 def alpha_limits(system: System, other: int | str | None = None) -> tuple[float, float, float, float]:
-    """(alpha_a, alpha_b, alpha_c, alpha_d) [deg]: the tilt angles between which
-    planet-planet occultations can occur (Mueller et al. 2021, Eqs. 3-6).
+    """Give the tilt angles alpha [deg] between which two planets can occult each other.
 
-    ``other``: the second planet (index or name); default the first planet that
-    is not tilted.
+    Mueller et al. (2021), Eqs. 3-6: from the planets' |b| and radii,
+    planet-planet occultations of the tilted planet and ``other`` can occur
+    only for alpha in [alpha_a, alpha_b] or [alpha_c, alpha_d]. Each range is
+    widened by 1 deg at both ends.
+
+    Parameters
+    ----------
+    system : System
+        The planets; ``system.tilted`` is the tilted one.
+    other : int or str or None, optional
+        The second planet (index or name); default the first planet that is
+        not tilted.
+
+    Returns
+    -------
+    alpha_a, alpha_b, alpha_c, alpha_d : float
+        The limits [deg]; alpha_c = 360 - alpha_b, alpha_d = 360 - alpha_a.
+
+    Raises
+    ------
+    ValueError
+        When the system has a single planet, ``other`` is not a planet's
+        name or an index in range, or ``other`` is the tilted planet itself.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> limits = jp.alpha_limits(jp.kepler20_system())
+    >>> print(", ".join(f"{v:.2f}" for v in limits))
+    20.79, 157.71, 202.29, 339.21
     """
     tb = system.planets[system.tilted]
     if other is None:
@@ -96,12 +155,37 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
 
 @dataclasses.dataclass(frozen=True)
 class MultiTransit:
-    """Two or more planets on the star at once.
+    """Two or more planets on the star at once: one event of :func:`multi_transits`.
 
-    ``start``/``end``: first contact of the earliest and last contact of the
-    latest of the overlapping transits [d]; ``mid`` their midpoint;
-    ``overlap_start``/``overlap_end``: when all of ``planets`` are on the star;
-    ``transit_mid``: each planet's mid-transit time.
+    A frozen dataclass.
+
+    Attributes
+    ----------
+    number : int
+        Running number of the event in its list (from 1).
+    planets : tuple of str
+        The planets on the disk together (names, or indices as text), in
+        planet order.
+    start, end : float
+        First contact of the earliest and last contact of the latest of the
+        overlapping transits [d].
+    mid : float
+        Their midpoint [d].
+    overlap_start, overlap_end : float
+        When all of ``planets`` are on the star [d].
+    transit_mid : tuple of float
+        Each planet's mid-transit time [d], in the order of ``planets``.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> event = jp.multi_transits(jp.kepler20_system(), 330.0, 340.0)[0]
+    >>> event.planets
+    ('b', 'c')
+    >>> print(f"{event.mid:.2f} d, both on the star for {24 * 60 * (event.overlap_end - event.overlap_start):.1f} min")
+    334.02 d, both on the star for 27.7 min
+    >>> sorted(event.as_dict())
+    ['end', 'mid', 'number', 'overlap_end', 'overlap_start', 'planets', 'start', 'transit_mid']
     """
 
     number: int
@@ -114,6 +198,13 @@ class MultiTransit:
     transit_mid: tuple[float, ...]
 
     def as_dict(self) -> dict:
+        """The event as a plain dict (field name: value), e.g. for JSON or a table row.
+
+        Returns
+        -------
+        dict
+            The fields of :class:`MultiTransit`.
+        """
         return dataclasses.asdict(self)
 
 
@@ -164,17 +255,49 @@ def simultaneous_sets(windows: list) -> list[list]:
 def multi_transits(
     system: System, t_start: float, t_end: float, planets: tuple | None = None
 ) -> list[MultiTransit]:
-    """Events in [t_start, t_end] in which two or more planets are on the
-    stellar disk at the same time (their first-to-last-contact windows share
-    a common time).
+    """Find the events in [t_start, t_end] with two or more planets on the stellar disk at once.
 
-    An event lists exactly the planets that are all on the disk at once: a
-    triple needs a moment with all three in transit; a chain b-c then c-d
-    with no common time is two double transits, not a triple.
+    Two planets are on the disk at once when their first-to-last-contact
+    windows share a common time. An event lists exactly the planets that are
+    all on the disk at once: a triple needs a moment with all three in
+    transit; a chain b-c then c-d with no common time is two double
+    transits, not a triple. Windows come from the orbits' contact times
+    (:meth:`Planet.contacts`), so events that fall in data gaps are listed
+    too (see :func:`multi_transit_counts` for observed ones).
 
-    ``planets``: restrict to these planets (names or indices); default all.
-    Windows come from the orbits' contact times (:meth:`Planet.contacts`), so events that fall in
-    data gaps are listed too (see :func:`multi_transit_counts` for observed ones).
+    Parameters
+    ----------
+    system : System
+        The planets.
+    t_start, t_end : float
+        The time span [d]; an event counts when some transit of it touches
+        the span.
+    planets : sequence of str or int, optional
+        Restrict to these planets (names or indices); default all.
+
+    Returns
+    -------
+    list of MultiTransit
+        The events, sorted by time and numbered from 1.
+
+    Raises
+    ------
+    ValueError
+        When t_start or t_end is not finite, t_end <= t_start, or a name in
+        ``planets`` is not a planet's.
+
+    Examples
+    --------
+    The double transits of Kepler-20 b and c in 300..700 d (Mueller et al.
+    2021, Table 2, lists those observed):
+
+    >>> import jaxppo as jp
+    >>> for e in jp.multi_transits(jp.kepler20_system(), 300.0, 700.0):
+    ...     print(e.number, e.planets, f"{e.mid:.2f}")
+    1 ('b', 'c') 323.08
+    2 ('b', 'c') 334.02
+    3 ('b', 'c') 496.77
+    4 ('b', 'c') 670.46
     """
     for name, v in (("t_start", t_start), ("t_end", t_end)):
         if not np.isfinite(v):
@@ -202,21 +325,49 @@ def multi_transits(
 def multi_transit_counts(
     system: System, times, exposure: float | None = None, planets: tuple | None = None
 ) -> dict[tuple[str, ...], int]:
-    """Number of observed multi-transits for each set of planets (paper
-    Table 2: each event counted once, under all the planets on the disk at
-    once, so a triple is not also counted as three doubles).
+    """Count the observed multi-transits of each set of planets.
 
-    Args:
-        system: the planets.
-        times: observation time stamps [d] (e.g. the cadence mid-times of
-            the light curve), 1D.
-        exposure: cadence length [d]; a cadence covers t +- exposure / 2.
-            None: the time stamps are instants.
-        planets: restrict to these planets (names or indices).
+    As in Mueller et al. (2021), Table 2: each event counted once, under all
+    the planets on the disk at once, so a triple is not also counted as
+    three doubles. An event (:func:`multi_transits`) counts as observed when
+    some cadence covers part of the time during which all its planets are on
+    the disk (``overlap_start`` .. ``overlap_end``); events in data gaps do
+    not count.
 
-    An event counts as observed when some cadence covers part of the time
-    during which all its planets are on the disk (``overlap_start`` ..
-    ``overlap_end``); events in data gaps do not count.
+    Parameters
+    ----------
+    system : System
+        The planets.
+    times : array_like
+        Observation time stamps [d] (e.g. the cadence mid-times of the light
+        curve) [n_times].
+    exposure : float or None, optional
+        Cadence length [d]; a cadence covers t +- exposure / 2. None
+        (default): the time stamps are instants.
+    planets : sequence of str or int, optional
+        Restrict to these planets (names or indices); default all.
+
+    Returns
+    -------
+    dict
+        Planet-name tuple (e.g. ``("b", "c")``) -> number of observed events,
+        ordered by the number of planets, then by name; sets never observed
+        are absent.
+
+    Raises
+    ------
+    ValueError
+        When ``times`` is empty or not finite, or ``exposure`` is negative.
+
+    Examples
+    --------
+    Kepler-20 b + c with Kepler long cadence (29.4 min) from 300 to 1600 d:
+
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> times = np.arange(300.0, 1600.0, 0.0204)
+    >>> jp.multi_transit_counts(jp.kepler20_system(), times, exposure=0.0204)
+    {('b', 'c'): 9}
     """
     t = np.sort(np.asarray(times, float).ravel())
     if t.size == 0:

@@ -37,6 +37,75 @@ def synthetic_config_path() -> Path:
 
 @dataclasses.dataclass
 class ScanConfig:
+    """A checked obliquity-scan configuration: the system, the data and the scan settings.
+
+    Built by :func:`load_config` from a TOML file (docs/config.md), or by
+    :func:`jaxppo.scan` and :func:`jaxppo.marginal_scan` from their
+    arguments; every field has been checked by then, so a bad config fails
+    before any work starts, with the field named. Pass it to
+    :func:`jaxppo.scan`, :func:`jaxppo.scan_windows` or
+    :func:`jaxppo.marginal_scan`; it carries its own settings, so those
+    functions refuse the keyword arguments that would override them.
+
+    Attributes
+    ----------
+    system : System
+        The planets and star; ``system.tilted`` is the planet rotated by the
+        tilt angle alpha (``tilted = true`` in the file, else the first).
+    lightcurve : LightCurve
+        The photometry ([data]): time [d], normalised flux and its errors.
+    alpha : numpy.ndarray
+        The tilt grid [deg], [n_alpha]: evenly spaced over the whole circle
+        with a step that divides 360 ([scan] alpha, default 0, 1, ..., 359).
+    cases : tuple of str
+        The hemisphere cases scanned: "same" (paper case 1), "opposite"
+        (paper case 4), or "+"/"-" signs per untilted planet.
+    margin : float
+        Out-of-transit data [d] kept in the chi^2 on each side of an event.
+    block : int
+        Alphas per progress record (how much an interrupted scan can lose).
+    raw : dict
+        The parsed TOML (for :func:`jaxppo.scan`: its arguments); what
+        :attr:`digest` hashes.
+    source : str
+        The config file's path, or ``"<jaxppo.scan>"`` when built from
+        Python arguments.
+    detrend : int or None
+        Order 0..5 of each event's out-of-transit polynomial; None: the flux
+        is used as loaded.
+    baseline : float
+        Baseline [d] fitted on each side of an event (> ``margin``).
+    clip : float or None
+        Outlier threshold [robust sigmas] for the baseline points; None: no
+        clipping.
+    events : tuple of float or None
+        Mid-times [d] of the multi-transits to use ([scan] multi_transits);
+        None: every multi-transit of the tilted planet with data.
+    base : str or None
+        The absolute folder of the config file; relative paths start there.
+    marginalize : int
+        [scan] marginalize: draws of the marginalised scan (0: off).
+    fit_free : tuple of str or None
+        [fit] free: the parameters the marginalised scan samples, such as
+        ``"b.t0"``; None: the default set.
+    ttv : dict
+        The checked [ttv] section (the settings of ``jaxppo ttv``).
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> import jaxppo as jp
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml")
+    >>> [pl.name for pl in cfg.system.planets], cfg.system.tilted
+    (['b', 'c'], 0)
+    >>> cfg.alpha.size, cfg.cases, cfg.margin, cfg.detrend
+    (360, ('same', 'opposite'), 0.05, None)
+    >>> cfg.lightcurve.time.size
+    2926
+    >>> len(cfg.digest)  # the hash a resumed scan checks
+    16
+    """
+
     system: System
     lightcurve: LightCurve
     alpha: np.ndarray
@@ -250,10 +319,54 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
 
 
 def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
-    """Read and check a scan config; ``None`` gives the bundled default.
+    """Read and check a scan config (TOML); ``None`` gives the bundled default.
 
-    ``alpha``: ``[start, stop, step]`` [deg] replacing ``[scan] alpha`` (the
-    command line's ``--alpha``); checked the same way, and part of the digest."""
+    Every section and key is checked before any work starts (docs/config.md):
+    an unknown key is an error naming it and the closest valid key, so a typo
+    never runs with a default. Relative data paths start at the config
+    file's folder.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None, optional
+        The config file. None: the bundled default, real Kepler-20
+        long-cadence data (``jaxppo/data/kepler20_real_llc.toml``); the
+        bundled synthetic example is ``jaxppo/data/kepler20_synthetic.toml``.
+    alpha : sequence of 3 float or None, optional
+        ``[start, stop, step]`` [deg] (stop exclusive) replacing
+        ``[scan] alpha`` (the command line's ``--alpha``); checked the same
+        way, and part of the digest. None: the file's grid.
+
+    Returns
+    -------
+    ScanConfig
+        The checked configuration, for :func:`jaxppo.scan`,
+        :func:`jaxppo.scan_windows` or :func:`jaxppo.marginal_scan`.
+
+    Raises
+    ------
+    ValueError
+        When the file does not exist, is a folder or is not valid TOML, or
+        when a section or key is missing, unknown or invalid (the message
+        names the file and the key), e.g. an alpha grid that does not cover
+        the whole circle evenly.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> import jaxppo as jp
+    >>> path = files("jaxppo") / "data" / "kepler20_synthetic.toml"
+    >>> cfg = jp.load_config(path, alpha=[0, 360, 30])
+    >>> cfg.alpha
+    array([  0.,  30.,  60.,  90., 120., 150., 180., 210., 240., 270., 300., 330.])
+    >>> jp.load_config(path, alpha=[0, 180, 1])
+    Traceback (most recent call last):
+    ...
+    ValueError: ...: [scan] alpha = [0, 180, 1]: alpha covers 0 .. 179 deg (180 angles): ...
+    >>> real = jp.load_config()  # the bundled real Kepler-20 data
+    >>> real.lightcurve.time.size, real.detrend
+    (64792, 2)
+    """
     path = Path(path) if path is not None else default_config_path()
     source = str(path)
     if not path.exists():

@@ -314,47 +314,124 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
                   cases=Default(("same", "opposite")), margin: float = Default(0.05), detrend=Default(2),
                   baseline: float = Default(0.3), clip=Default(5.0), multi_transits=Default(None),
                   min_ess: float = MIN_IMPORTANCE_ESS) -> MarginalResult:
-    """The obliquity scan marginalised over the transit parameters (issue 11;
-    the paper's proposal at the end of Sect. 4.2). docs/marginal.md.
+    """Run the obliquity scan marginalised over the transit parameters.
+
+    The paper's proposal at the end of Sect. 4.2 (issue 11; docs/marginal.md):
+    the scan repeated for N draws of the transit parameters from their
+    posterior under the no-PPO model, averaged by importance weights,
+
+        p(alpha | D) ~ E_theta [ exp(-(chi^2(alpha, theta) - chi^2_ref(theta)) / 2) ],
+
+    with chi^2_ref the draw's chi^2 at the tilt alpha_ref the NUTS draws were
+    taken at (a tilt without planet-planet occultations), or its chi^2_0 for
+    draws given by the caller. The draws are NUTS draws of the no-PPO
+    transit posterior, taken at alpha_ref, unless ``samples`` gives them.
 
     ``jp.marginal_scan(jp.load_config(path), draws=64, out="dir")`` or
     ``jp.marginal_scan(system, lightcurve, alpha=np.arange(0, 360, 1.0), ...)``.
+    The results are written as they go; a run in the same ``out`` resumes
+    without recomputing finished draws. Needs float64.
 
-    Args:
-        system: a :class:`ScanConfig` (its own scan settings) or a
-            :class:`System` with ``lightcurve``.
-        draws: N, the number of posterior draws (>= 1).
-        out: folder for marginal.csv, marginal.json, marginal.png, the draws
-            and the progress file (resumes); None: a temporary folder.
-        free: the sampled transit parameters (default: t0, period, a, inc and
-            radius of every planet); the a/R* named here are tied to one
-            stellar density (Kepler's third law; :func:`nuts_draws`).
-        samples: name -> array of N draws to use instead of NUTS (e.g. your
-            own posterior); ``draws`` is then their number.
-        num_warmup, thin, seed, chains: NUTS settings (N x thin samples over
-            ``chains`` vectorised chains, every thin-th kept).
-        stellar_density: (mean, sd) [g/cm^3], the Gaussian prior on rho*
-            when an a/R* is free; default: a config's ``[fit]
-            stellar_density``, else the density the system's a/R* imply,
-            10 % wide.
-        chunk: draws per batched computation and per progress record flush
-            (memory grows with chunk x alphas x cases x frames / 8 bytes).
-        fixed: the fixed-parameter :class:`ScanResult` of the same config, if
-            already computed (else it is computed, without figures).
-        restart: discard this folder's marginal progress and draws.
-        min_ess: the guard: a case's geometry probabilities, posterior peak
-            and rating are given only when the importance weights of each
-            geometry's mass and of the total have a Kish ESS >= ``min_ess``
-            and a Pareto k-hat <= min(0.7, 1 - 1/log10 N)
-            (:func:`jaxppo.inference._importance.importance_reliability`); otherwise
-            they are None and the case says why.
-        alpha, cases, margin, detrend, baseline, clip, multi_transits: as
-            :func:`jaxppo.scan`: only with a System; with a ScanConfig they
-            are refused (the config's own settings are used; set them there).
+    Parameters
+    ----------
+    system : ScanConfig or System
+        A :class:`ScanConfig` (with its own scan settings), or a
+        :class:`System` with ``lightcurve``.
+    lightcurve : LightCurve, optional
+        The data, with a System; not with a config.
+    draws : int, optional
+        N, the number of posterior draws (>= 1; default 64).
+    out : str or pathlib.Path or None, optional
+        Folder for marginal.csv, marginal.json, marginal.png, the draws
+        (marginal_draws.json) and the progress file (resumes); None: a
+        temporary folder, removed afterwards (and no figure).
+    free : sequence of str or None, optional
+        The sampled transit parameters, such as ``"b.t0"`` (default: t0,
+        period, a, inc and radius of every planet; not the t0 of a planet
+        with transit times); the a/R* named here are tied to one stellar
+        density (Kepler's third law).
+    samples : dict of str to array_like, optional
+        Name (``"b.inc"``) -> array [N] of draws to use instead of NUTS
+        (e.g. your own posterior); ``draws`` is then their number.
+    num_warmup : int, optional
+        NUTS warm-up steps per chain (default 300).
+    thin : int, optional
+        Keep every thin-th NUTS sample (N x thin samples are drawn).
+    seed : int, optional
+        NUTS random seed.
+    chains : int, optional
+        NUTS chains, run vectorised (default 4).
+    stellar_density : sequence of 2 float or None, optional
+        (mean, sd) [g/cm^3], the Gaussian prior on rho* when an a/R* is
+        free; default: a config's ``[fit] stellar_density``, else the density
+        the system's a/R* imply, 10 % wide.
+    chunk : int, optional
+        Draws per batched computation and per progress flush (memory grows
+        with chunk x alphas x cases x frames / 8 bytes; default 16).
+    fixed : ScanResult or None, optional
+        The fixed-parameter scan of the same config, if already computed
+        (else it is computed, without figures).
+    restart : bool, optional
+        Discard this folder's marginal progress and draws first.
+    progress : bool, optional
+        Show progress bars.
+    figures : bool, optional
+        With ``out``, draw marginal.png (default True).
+    alpha, cases, margin, detrend, baseline, clip, multi_transits : optional
+        As in :func:`jaxppo.scan`; only with a System. With a ScanConfig
+        they are refused (the config's own settings are used; set them
+        there).
+    min_ess : float, optional
+        The guard (default 25): a case's geometry probabilities, posterior
+        peak and rating are given only when the importance weights of each
+        geometry's mass and of the total have a Kish ESS >= ``min_ess`` and
+        a Pareto k-hat <= min(0.7, 1 - 1/log10 N) (from 100 draws on);
+        otherwise they are None and the case says why.
 
-    Returns:
-        :class:`MarginalResult`: ``summary`` (marginal.json), ``table``
-        (marginal.csv), ``delta_chi2`` [draw, case, alpha], ``fixed``.
+    Returns
+    -------
+    MarginalResult
+        ``summary`` (marginal.json), ``table`` (marginal.csv),
+        ``delta_chi2`` [n_draws, n_cases, n_alpha] and ``fixed``.
+
+    Raises
+    ------
+    ValueError
+        When ``lightcurve`` or a scan setting is given with a
+        :class:`ScanConfig`; when ``draws``, ``min_ess``, ``chunk``,
+        ``thin``, ``num_warmup``, ``chains``, ``samples`` (unknown parameter,
+        unequal lengths, non-finite values), ``stellar_density`` or a scan
+        setting is invalid; when ``fixed`` is a scan of another
+        configuration; when ``out`` holds draws of a different marginal scan
+        (use ``restart=True``); when every tilt produces a PPO, so the no-PPO
+        posterior cannot be sampled (pass ``samples``); when float64 is not
+        enabled.
+
+    Warns
+    -----
+    UserWarning
+        When ``draws`` < ``min_ess`` (no probability can then be given).
+
+    Examples
+    --------
+    Three given draws of planet b's inclination [deg] and radius [R*] on a
+    coarse grid (``min_ess=1`` only because three draws can never pass the
+    default guard; real use keeps it, with >= 64 draws):
+
+    >>> from importlib.resources import files
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    >>> draws = {"b.inc": np.array([87.65, 87.687, 87.72]), "b.radius": np.array([0.0179, 0.01805, 0.0182])}
+    >>> res = jp.marginal_scan(cfg, samples=draws, min_ess=1, out="marginal_out", figures=False, progress=False)
+    >>> import os; sorted(os.listdir("marginal_out"))
+    ['marginal.csv', 'marginal.json', 'marginal_draws.json', 'marginal_progress.jsonl']
+    >>> geo = res.probabilities["same"]
+    >>> print(geo["favoured"], f"{geo['retrograde, different hemispheres']['probability']:.3f}")
+    retrograde, different hemispheres 0.676
+    >>> again = jp.marginal_scan(cfg, samples=draws, min_ess=1, out="marginal_out", figures=False, progress=False)
+    >>> again.summary["seconds"]["draws_computed"]  # resumed: nothing recomputed
+    0
     """
     from tqdm import tqdm
     t_begin = time.perf_counter()

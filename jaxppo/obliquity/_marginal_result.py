@@ -26,27 +26,60 @@ def logmeanexp(v: np.ndarray, axis: int) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class MarginalResult(DeprecatedSummaryAccess):
-    """The marginal scan (immutable).
+    """The obliquity scan marginalised over the transit parameters (immutable).
 
-    Fields:
-        summary: what marginal.json holds: per case (``cases``) the geometry
-            probabilities from the marginal posterior, their spread over the
-            draws, the Bayes factor and Jeffreys rating (withheld, with the
-            reason, when the importance weights are unreliable), the
-            posterior peak [deg], the importance-sampling effective sample
-            size; ``probabilities``, ``draws``, ``sampler``, ``parameters``,
-            ``seconds`` [s], ``cpu``, ``progress_notes`` and, with the
-            figure, ``figures``. Treat it as read-only.
-        table: the rows of marginal.csv, a structured array with ``case``,
-            ``alpha`` [deg], ``posterior`` [1/deg], ``marginal_delta_chi2``,
-            ``delta_chi2_median`` / ``_p16`` / ``_p84`` (over the draws) and
-            ``fixed_delta_chi2``.
-        delta_chi2: [draw, case, alpha] the per-draw Delta chi^2 curves.
-        fixed: the fixed-parameter :class:`~jaxppo.ScanResult`.
+    As :func:`jaxppo.marginal_scan` returns it: the per-draw Delta chi^2
+    curves, their importance-weighted average (the marginal Delta chi^2 and
+    posterior p(alpha | D)), the geometry probabilities from it and their
+    spread over the draws, beside the fixed-parameter scan. A case whose
+    importance weights rest on too few draws gives no probability, peak or
+    rating (None), with the reason (docs/marginal.md).
 
     ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
     ``summary`` (the result used to be that dict) but warn: deprecated, gone
     in the next release.
+
+    Attributes
+    ----------
+    summary : dict
+        What marginal.json holds: per case (``cases``) the geometry
+        probabilities from the marginal posterior, their spread over the
+        draws, the Bayes factor and Jeffreys rating (withheld, with the
+        reason, when the importance weights are unreliable), the posterior
+        peak [deg], the importance-sampling effective sample size;
+        ``probabilities``, ``draws``, ``sampler``, ``parameters``,
+        ``seconds`` [s], ``cpu``, ``progress_notes`` and, with the figure,
+        ``figures``. Treat it as read-only.
+    table : numpy.ndarray
+        The rows of marginal.csv, a structured array [n_cases * n_alpha]
+        with ``case``, ``alpha`` [deg], ``posterior`` [1/deg],
+        ``marginal_delta_chi2``, ``delta_chi2_median`` / ``_p16`` / ``_p84``
+        (over the draws), ``fixed_delta_chi2`` and ``importance_ess``.
+    delta_chi2 : numpy.ndarray
+        The per-draw Delta chi^2 curves, [n_draws, n_cases, n_alpha].
+    fixed : ScanResult
+        The fixed-parameter scan of the same config.
+
+    Examples
+    --------
+    Three given draws of planet b's inclination [deg] on a coarse grid
+    (``min_ess=1`` only because three draws can never pass the default
+    guard of 25 effective draws; real use keeps it, with >= 64 draws):
+
+    >>> from importlib.resources import files
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    >>> draws = {"b.inc": np.array([87.65, 87.687, 87.72])}
+    >>> res = jp.marginal_scan(cfg, samples=draws, min_ess=1, progress=False)
+    >>> res.delta_chi2.shape
+    (3, 2, 12)
+    >>> res.cases["same"]["peak"]["alpha"], res.fixed.probabilities["same"]["favoured"]
+    (150.0, 'retrograde, different hemispheres')
+    >>> print(f"{res.probabilities['same']['bayes_factor']:.2f}")
+    2.09
+    >>> print(res.summary_lines()[0])
+    marginalised over 3 draws (given by the caller)
     """
 
     summary: dict
@@ -56,19 +89,27 @@ class MarginalResult(DeprecatedSummaryAccess):
 
     @property
     def probabilities(self) -> dict:
-        """Per case: the marginal geometry probabilities, Bayes factor, rating."""
+        """Per case: the marginal geometry probabilities, Bayes factor and rating (None when withheld)."""
         return self.summary["probabilities"]
 
     @property
     def cases(self) -> dict:
-        """Per case: geometries, spread over draws, the guard, peak, ESS, chi^2_0."""
+        """Per case: geometries, spread over draws, the guard, posterior peak [deg], importance ESS, chi^2_0."""
         return self.summary["cases"]
 
     def summary_lines(self) -> list[str]:
-        """What ``jaxppo scan --marginalize N`` prints: per case, each
-        geometry's marginal probability (16-84 % over draws) beside the fixed
-        scan's, the Bayes factor and rating, the posterior peak, the
-        importance ESS; then the timings."""
+        """The report ``jaxppo scan --marginalize N`` prints.
+
+        Per case, each geometry's marginal probability (16-84 % over draws)
+        beside the fixed scan's, the Bayes factor and rating, the posterior
+        peak, the importance ESS (or why they are withheld); then the
+        timings.
+
+        Returns
+        -------
+        list of str
+            The lines, without newlines.
+        """
         lines = [f"marginalised over {self.summary['draws']} draws ({self.summary['sampler'].get('method', '')})"]
         for case, c in self.summary["cases"].items():
             geo, fx = c["geometries"], self.fixed.probabilities[case]

@@ -66,23 +66,54 @@ def _detrend_summary(cfg) -> dict:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class ScanResult(DeprecatedSummaryAccess):
-    """A finished scan (immutable).
+    """A finished obliquity scan (immutable), as :func:`jaxppo.scan` returns it.
 
-    Fields:
-        summary: what summary.json holds: ``chi2_0`` and ``probabilities``
-            per case, ``cases`` (per case: ground level, geometries, Delta
-            chi^2 extremes [deg], ``ppo_transits``), the ``multi_transits``
-            used, ``detrending``, ``alpha`` [deg], ``table5``, ``resumed``,
-            ``seconds`` [s] of the scan; after the figures also ``figures``
-            (paths), after the command line's verdict ``ppo_or_spot``. Treat
-            it as read-only: :func:`with_summary` gives a new result.
-        table: the rows of scan.csv, a structured array with ``case``,
-            ``alpha`` [deg], ``chi2``, ``delta_chi2`` and ``posterior`` [1/deg].
-        windows: the :class:`ScanWindow` data the chi^2 used.
+    Delta chi^2(alpha) = chi^2(alpha) - chi^2_0 per hemisphere case, with the
+    ground level chi^2_0 the median chi^2 over the alphas without a
+    planet-planet occultation (PPO) in any frame; the posterior
+    p(alpha | D) ~ exp(-Delta chi^2 / 2) (uniform prior, normalised over
+    [0, 360) deg); the geometry probabilities, Bayes factor and Jeffreys
+    rating (Mueller et al. 2021, Table 6); the peaks and dips (Table 5).
 
     ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
     ``summary`` (the result used to be that dict) but warn: deprecated, gone
     in the next release.
+
+    Attributes
+    ----------
+    summary : dict
+        What summary.json holds: ``chi2_0`` and ``probabilities`` per case,
+        ``cases`` (per case: ground level, geometries, Delta chi^2 extremes
+        [deg], ``ppo_transits``), the ``multi_transits`` used,
+        ``detrending``, ``alpha`` [deg], ``table5``, ``resumed``, ``seconds``
+        [s] of the scan; after the figures also ``figures`` (paths), after
+        the command line's verdict ``ppo_or_spot``. Treat it as read-only:
+        :func:`with_summary` gives a new result.
+    table : numpy.ndarray
+        The rows of scan.csv, a structured array [n_cases * n_alpha] with
+        ``case``, ``alpha`` [deg], ``chi2``, ``delta_chi2`` and
+        ``posterior`` [1/deg].
+    windows : tuple of ScanWindow
+        The detrended multi-transit windows the chi^2 used.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> import jaxppo as jp
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    >>> result = jp.scan(cfg)
+    >>> result.table.dtype.names
+    ('case', 'alpha', 'chi2', 'delta_chi2', 'posterior')
+    >>> print(f"{result.chi2_0['same']:.3f}")
+    2869.108
+    >>> alpha, dchi2 = result.delta_chi2("same")
+    >>> print(alpha[5], f"{dchi2[5]:.2f}")
+    150.0 -3.86
+    >>> geo = result.probabilities["same"]
+    >>> print(geo["favoured"], f"K = {geo['bayes_factor']:.2f}", f"({geo['jeffreys']})")
+    retrograde, different hemispheres K = 2.15 (barely worth mentioning)
+    >>> len(result.windows), result.resumed["finished_before"]
+    (7, False)
     """
 
     summary: dict
@@ -115,20 +146,60 @@ class ScanResult(DeprecatedSummaryAccess):
         return self.summary["resumed"]
 
     def by_case(self) -> dict:
-        """{case: {"alpha", "chi2", "delta_chi2", "posterior"}} arrays of :attr:`table`."""
+        """The columns of :attr:`table` per case.
+
+        Returns
+        -------
+        dict
+            ``{case: {"alpha", "chi2", "delta_chi2", "posterior"}}``, each an
+            array [n_alpha] (alpha [deg], posterior [1/deg]), cases in scan
+            order.
+        """
         t = self.table
         return {str(c): {k: t[k][t["case"] == c] for k in ("alpha", "chi2", "delta_chi2", "posterior")}
                 for c in dict.fromkeys(t["case"])}
 
     def delta_chi2(self, case: str) -> tuple[np.ndarray, np.ndarray]:
-        """(alpha [deg], Delta chi^2) of one case."""
+        """The Delta chi^2 curve of one hemisphere case.
+
+        Parameters
+        ----------
+        case : str
+            A case the scan ran, e.g. "same" or "opposite".
+
+        Returns
+        -------
+        alpha : numpy.ndarray
+            The tilt grid [deg], [n_alpha].
+        delta_chi2 : numpy.ndarray
+            chi^2(alpha) - chi^2_0, [n_alpha].
+
+        Raises
+        ------
+        ValueError
+            When ``case`` is not one of the scanned cases.
+        """
         if case not in set(self.table["case"]):
             raise ValueError(f"case must be one of {sorted(set(self.table['case']))}, got {case!r}")
         sel = self.table["case"] == case
         return self.table["alpha"][sel], self.table["delta_chi2"][sel]
 
     def plot(self, ax=None):
-        """Delta chi^2(alpha) of every case (paper Fig. 5); returns the axes."""
+        """Plot Delta chi^2(alpha) of every case (paper Fig. 5).
+
+        Each case is labelled with its favoured geometry and that
+        geometry's probability.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes or None, optional
+            The axes to draw into; None: a new 8 x 3.6 inch figure.
+
+        Returns
+        -------
+        matplotlib.axes.Axes
+            The axes drawn into.
+        """
         import matplotlib.pyplot as plt
 
         if ax is None:
@@ -419,37 +490,107 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
          margin: float = Default(0.05), detrend: int | str | None = Default(2), baseline: float = Default(0.3),
          clip: float | str | None = Default(5.0), multi_transits=Default(None), block: int = Default(60),
          restart: bool = False, progress: bool = False, figures: bool = False) -> ScanResult:
-    """The orbital obliquity scan (Mueller et al. 2021, Sects. 2.1 and 3.3).
+    """Run the orbital obliquity scan (Mueller et al. 2021, Sects. 2.1 and 3.3).
+
+    chi^2(alpha) of every tilt of the tilted planet's orbit about the line of
+    sight, over all its multi-transits with data at once (the detrended
+    windows of :func:`jaxppo.scan_windows`), for each hemisphere case; then
+    the ground level chi^2_0, Delta chi^2, the posterior p(alpha | D), the
+    geometry probabilities with the Bayes factor and its Jeffreys rating, and
+    the peaks and dips of Delta chi^2 (paper Table 5).
 
     ``jp.scan(system, lightcurve, alpha=np.arange(0, 360, 1.0))`` or
     ``jp.scan(jp.load_config(path))``. A config carries its own settings:
     with one, alpha, cases, margin, detrend, baseline, clip, multi_transits
     and block are refused (ValueError naming them; set them in the file, the
     alpha grid also by ``jp.load_config(path, alpha=[start, stop, step])``).
+    With a System, ``margin``, ``detrend``, ``baseline``, ``clip``,
+    ``multi_transits`` and ``block`` are the config keys of the same names
+    (docs/config.md), checked by the same rules (:func:`check_scan_settings`).
 
-    Args:
-        system: :class:`System` (``system.tilted`` is rotated by alpha), or a
-            :class:`ScanConfig` from :func:`load_config`.
-        lightcurve: :class:`LightCurve`, or a lightkurve ``LightCurve``
-            (converted by :meth:`LightCurve.from_lightkurve`); not with a config.
-        alpha: tilt grid [deg]; evenly spaced over 360 deg with a step that
-            divides 360 (default 0, 1, ..., 359).
-        cases: hemisphere cases, "same" (paper case 1) and/or "opposite" (4).
-        out: folder for scan.csv, summary.json, the progress file (resumes)
-            and, with ``figures``, the figures; None: a temporary folder.
-        figures: with ``out``, draw the figures of ``jaxppo scan`` after the
-            scan has finished (:func:`draw_figures`; skipped when a finished
-            scan's figures are all there). The PPO-or-spot verdict of the
-            command line is :func:`jaxppo.activity.ppo_or_spot` (result,
-            system, out=out).
-        margin [d], detrend (order or "none"), baseline [d], clip (robust
-            sigmas or "none"), multi_transits (mid-times [d]), block: as the
-            config keys of the same names (docs/config.md), checked by the
-            same rules (:func:`check_scan_settings`); only with a System.
+    The scan writes its progress as it goes and resumes in the same ``out``
+    without recomputing; a scan that already finished there with the same
+    config and data is returned as stored (``result.resumed["finished_before"]``).
+    Needs float64 (``jax.config.update("jax_enable_x64", True)``).
 
-    Returns:
-        :class:`ScanResult`: ``summary`` (summary.json), ``table``,
-        ``windows`` and ``plot()``.
+    Parameters
+    ----------
+    system : System or ScanConfig
+        The system (``system.tilted`` is rotated by alpha), or a
+        :class:`ScanConfig` from :func:`load_config`.
+    lightcurve : LightCurve or lightkurve.LightCurve, optional
+        The data; a lightkurve ``LightCurve`` is converted by
+        :meth:`LightCurve.from_lightkurve`. Not with a config.
+    alpha : array_like, optional
+        Tilt grid [deg], [n_alpha]; evenly spaced over 360 deg with a step
+        that divides 360 (default 0, 1, ..., 359).
+    cases : str or sequence of str, optional
+        Hemisphere cases: "same" (paper case 1) and/or "opposite" (paper
+        case 4), "+"/"-" signs per untilted planet, or "all" (default
+        ``("same", "opposite")``).
+    out : str or pathlib.Path or None, optional
+        Folder for scan.csv, scan.ecsv, table5.csv, table5.md, summary.json,
+        the progress file (resumes) and, with ``figures``, the figures;
+        None: a temporary folder, removed afterwards.
+    margin : float, optional
+        Out-of-transit data [d] in the chi^2 on each side of an event
+        (default 0.05).
+    detrend : int or "none", optional
+        Order 0..5 of each event's out-of-transit polynomial (default 2);
+        "none" uses the flux as loaded.
+    baseline : float, optional
+        Baseline [d] fitted on each side of an event, > ``margin``
+        (default 0.3).
+    clip : float or "none", optional
+        Outlier threshold [robust sigmas] >= 2 for the baseline points
+        (default 5).
+    multi_transits : float or sequence of float or None, optional
+        Mid-times [d] of the multi-transits to use (each matched within
+        0.1 d); None: all of them.
+    block : int, optional
+        Alphas per progress record (default 60).
+    restart : bool, optional
+        Remove the previous outputs in ``out`` first and start afresh.
+    progress : bool, optional
+        Show a progress bar.
+    figures : bool, optional
+        With ``out``, draw the figures of ``jaxppo scan`` after the scan has
+        finished (:func:`draw_figures`; skipped when a finished scan's
+        figures are all there). The PPO-or-spot verdict of the command line
+        is :func:`jaxppo.activity.ppo_or_spot` (result, system, out=out).
+
+    Returns
+    -------
+    ScanResult
+        ``summary`` (summary.json), ``table`` (scan.csv), ``windows`` and
+        ``plot()``.
+
+    Raises
+    ------
+    ValueError
+        When ``lightcurve`` or a scan setting is given with a
+        :class:`ScanConfig`, when a setting is invalid (named with its
+        value), when the alpha grid does not cover the whole circle evenly,
+        when the data hold no usable multi-transit of the tilted planet, or
+        when float64 is not enabled.
+
+    Examples
+    --------
+    Inject a planet-planet occultation at alpha = 150 deg into synthetic
+    Kepler-20 b + c photometry and scan a coarse grid:
+
+    >>> import jax
+    >>> import numpy as np
+    >>> import jaxppo as jp
+    >>> jax.config.update("jax_enable_x64", True)
+    >>> system = jp.kepler20_system()
+    >>> lc = jp.simulate_kepler20(seed=1, alpha=150.0, noise=1e-4)
+    >>> result = jp.scan(system, lc, alpha=np.arange(0.0, 360.0, 30.0), cases="same")
+    >>> alpha, dchi2 = result.delta_chi2("same")
+    >>> print(alpha[np.argmin(dchi2)], f"{dchi2.min():.2f}")
+    150.0 -18.36
+    >>> print(result.probabilities["same"]["favoured"])
+    retrograde, different hemispheres
     """
     import tempfile
 

@@ -27,6 +27,20 @@ class DeprecatedSummaryAccess:
         return self.summary[key]
 
     def get(self, key, default=None):
+        """Deprecated: ``result.summary.get(key, default)``, with a DeprecationWarning.
+
+        Parameters
+        ----------
+        key : str
+            A key of ``summary``.
+        default : object, optional
+            Returned when ``key`` is missing.
+
+        Returns
+        -------
+        object
+            ``summary[key]``, or ``default``.
+        """
         self._warn(f".get({key!r})")
         return self.summary.get(key, default)
 
@@ -39,13 +53,16 @@ class DeprecatedSummaryAccess:
         return iter(self.summary)
 
     def keys(self):
+        """Deprecated: ``result.summary.keys()``, with a DeprecationWarning."""
         self._warn(".keys()")
         return self.summary.keys()
 
     def items(self):
+        """Deprecated: ``result.summary.items()``, with a DeprecationWarning."""
         self._warn(".items()")
         return self.summary.items()
 
     def values(self):
+        """Deprecated: ``result.summary.values()``, with a DeprecationWarning."""
         self._warn(".values()")
         return self.summary.values()

@@ -25,17 +25,50 @@ _EVENT_MATCH = 0.1
 
 @dataclasses.dataclass(frozen=True)
 class ScanWindow:
-    """One multi-transit as the chi^2 sees it.
+    """One multi-transit as the scan's chi^2 sees it (immutable).
 
-    ``number``: 1-based, as in ``summary["multi_transits"]``; ``event``: the
-    :class:`MultiTransit`; ``time`` [d], ``flux``, ``flux_err``: the points
-    inside [event.start - margin, event.end + margin] after detrending (each
-    window divided by its out-of-transit polynomial) and outlier removal;
-    ``exposure`` [d] of each point (None: instantaneous). ``baseline_points``:
-    out-of-transit points the trend was fitted to; ``clipped``: points dropped
-    as outliers (out of transit only); ``sigma``: the error estimated from the
-    out-of-transit scatter (None when the data's own errors are used);
-    ``trend``: polynomial coefficients (highest power first) in t - event.mid.
+    Made by :func:`jaxppo.scan_windows`; a finished scan keeps its windows in
+    :attr:`ScanResult.windows`.
+
+    Attributes
+    ----------
+    number : int
+        1-based, as in ``summary["multi_transits"]`` and the scan's figures.
+    event : MultiTransit
+        The multi-transit (start, end and mid-time [d], the planets).
+    time : numpy.ndarray
+        Times [d] of the points inside [event.start - margin, event.end +
+        margin] kept after outlier removal, [n_points].
+    flux : numpy.ndarray
+        Their flux divided by the window's out-of-transit polynomial,
+        [n_points].
+    flux_err : numpy.ndarray
+        Their errors, [n_points]: the data's errors divided by the trend,
+        or ``sigma`` where estimated (as loaded without detrending).
+    exposure : float or None
+        Exposure time [d] of each point; None: instantaneous.
+    baseline_points : int
+        Out-of-transit points the trend was fitted to (0 without detrending).
+    clipped : int
+        Points dropped as outliers (out of transit only).
+    sigma : float or None
+        The error estimated from the out-of-transit scatter; None when the
+        data's own errors are used.
+    trend : tuple of float
+        Polynomial coefficients (highest power first) in t - event.mid [d];
+        empty without detrending.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> cfg = jp.load_config()  # the bundled real Kepler-20 data, detrended
+    >>> w = jp.scan_windows(cfg)[0]
+    >>> print(w.number, w.event.planets, f"{w.event.mid:.2f}", w.time.size)
+    1 ('b', 'c') 334.02 17
+    >>> len(w.trend), w.baseline_points, w.clipped  # a quadratic trend
+    (3, 27, 0)
+    >>> w.as_dict()["points"]
+    17
     """
 
     number: int
@@ -50,6 +83,15 @@ class ScanWindow:
     trend: tuple = ()
 
     def as_dict(self) -> dict:
+        """The window as an entry of ``summary["multi_transits"]``.
+
+        Returns
+        -------
+        dict
+            The event's fields (:meth:`MultiTransit.as_dict`: start, end,
+            mid [d], planets, ...) with ``number``, ``points``,
+            ``baseline_points``, ``clipped`` and ``sigma``.
+        """
         return dict(self.event.as_dict(), number=self.number, points=int(self.time.size),
                     baseline_points=self.baseline_points, clipped=self.clipped, sigma=self.sigma)
 
@@ -94,19 +136,52 @@ def _detrend_window(t, f, e, oot, mid, order, clip, estimate):
 
 
 def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
-    """The multi-transits of the tilted planet that have data, each with the
+    """Cut, detrend and clean the multi-transit windows the scan's chi^2 uses.
+
+    The multi-transits of the tilted planet that have data, each with the
     detrended, outlier-cleaned points the chi^2 uses (paper Sect. 2.2).
 
     Per event: the baseline is [start - baseline, end + baseline]; its points
     outside every planet's transit (contact times, widened by half an
-    exposure) fit a polynomial of order ``detrend``, and the window is divided
-    by it. Outliers: baseline points more than ``clip`` x 1.4826 MAD from the
-    trend are dropped (iterated); in-transit points are never clipped. When
-    the data carry no errors (``lightcurve.errors_estimated``), each window's
-    error is the rms of its baseline residuals with n - order - 1 degrees of
-    freedom. Events with too few baseline points (fewer than order + 3 in all
-    or fewer than 2 on a side) are skipped and listed in ``skipped`` of the
-    summary. ``detrend = "none"``: the flux is used as loaded."""
+    exposure + 15 min) fit a polynomial of order ``detrend``, and the window
+    is divided by it. Outliers: baseline points more than ``clip`` x 1.4826
+    MAD from the trend are dropped (iterated); in-transit points are never
+    clipped. When the data carry no errors (``lightcurve.errors_estimated``),
+    each window's error is the rms of its baseline residuals with
+    n - order - 1 degrees of freedom. Events with too few baseline points
+    (fewer than order + 3 in all or fewer than 2 on a side) are skipped and
+    listed in ``skipped_multi_transits`` of the scan's summary.
+    ``detrend = "none"``: the flux is used as loaded.
+
+    Parameters
+    ----------
+    cfg : ScanConfig
+        The configuration (:func:`load_config`): system, data, ``margin``,
+        ``baseline``, ``detrend``, ``clip`` and ``events``.
+
+    Returns
+    -------
+    list of ScanWindow
+        One window per usable multi-transit, numbered from 1 in time order.
+
+    Raises
+    ------
+    ValueError
+        When a mid-time of ``cfg.events`` ([scan] multi_transits) matches no
+        multi-transit, or when the data hold no usable multi-transit of the
+        tilted planet.
+
+    Examples
+    --------
+    >>> import jaxppo as jp
+    >>> windows = jp.scan_windows(jp.load_config())  # real Kepler-20 data
+    >>> len(windows)
+    8
+    >>> [round(w.event.mid, 2) for w in windows[:3]]
+    [334.02, 496.77, 670.46]
+    >>> [w.time.size for w in windows[:3]]
+    [17, 15, 12]
+    """
     return windows_and_events(cfg)[0]
 
 
