@@ -11,8 +11,12 @@ Properties:
   equals "exact" to 1e-12;
 * 0 <= F <= 1; a disk added never raises the flux; the order of the disks
   does not matter (1e-13);
-* jit(grad) of the flux is finite (float32 and its bounds:
+* jit(grad) of the flux is finite (float32 gradients:
   tests/core/test_adversarial.py);
+* in float32 (float32 inputs and star), "exact" and "auto" stay within
+  3e-6 of the reference of the rounded scene, and return float32;
+* jit and vmap give the eager numbers (1e-13); the sharded path on the
+  degenerate grid: tests/model/test_sharding.py;
 * the raster (windowed, default settings) stays within [0, 1] and within
   the error envelope RasterSettings documents for its largest disk;
 * Planet and System.flux give the same numbers for a quantity in any time
@@ -125,6 +129,40 @@ def test_raster_within_its_bound(disks):
     r_max = min(max(d[2] for d in disks), 1.0)
     bound = float(np.exp(np.interp(r_max, [0.0, 0.1, 0.5, 0.99, 1.0], np.log([1e-6, 1e-6, 4e-5, 2e-3, 2e-3]))))
     assert -1e-12 <= raster <= 1.0 + 1e-12 and abs(raster - exact) <= bound, (disks, raster, exact, bound)
+
+
+STAR32 = jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, STAR)
+
+
+@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(scene().filter(lambda ds: all(d[2] >= 1e-3 for d in ds)))
+def test_float32_within_its_bound(disks):
+    """float32 inputs and a float32 star run in float32 (docs/methods.md,
+    "float32 policy") and stay within 3e-6 of the reference of the scene
+    float32 can carry (its inputs rounded to float32; disks below 1e-3
+    R* are under float32's resolution of the flux), "exact" and "auto"."""
+    x, y, r = (np.array([d[k] for d in disks], np.float32) for k in range(3))
+    ref = 1.0 - reference_deficit(I_R, x.astype(float), y.astype(float), r.astype(float)) / TOTAL
+    for method in ("exact", "auto"):
+        got = jp.occultation_flux(STAR32, jnp.asarray(x)[None], jnp.asarray(y)[None], jnp.asarray(r)[None],
+                                  method=method)
+        assert got.dtype == jnp.float32, (method, got.dtype)
+        assert abs(float(got[0]) - ref) <= 3e-6, (method, disks, float(got[0]), ref)
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(scene(), st.sampled_from(["exact", "auto"]))
+def test_traced_paths_equal_the_eager_call(disks, method):
+    """jit and vmap give the eager call's numbers: the scene and its mirror
+    image (x -> -x, the same flux for a radially symmetric star) batched
+    under vmap, and the scene under jit, to 1e-13."""
+    x, y, r = (jnp.asarray([d[k] for d in disks]) for k in range(3))
+    eager = float(jp.occultation_flux(STAR, x[None], y[None], r[None], method=method)[0])
+    jitted = jax.jit(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None], method=method)[0])
+    assert abs(float(jitted(x, y, r)) - eager) <= 1e-13, (disks, method)
+    batch = jax.vmap(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None], method=method)[0])
+    got = np.asarray(batch(jnp.stack([x, -x]), jnp.stack([y, y]), jnp.stack([r, r])))
+    assert np.all(np.abs(got - eager) <= 1e-13), (disks, method, got, eager)
 
 
 @settings(max_examples=20, deadline=None, derandomize=True)

@@ -45,6 +45,22 @@ def scene(n=3000, seed=0):
     return x, y, r
 
 
+def degenerate():
+    """The degenerate classes of tests/model/test_properties.py as a fixed
+    grid of pairs: a first disk at each special distance b in {0, p, 1 - p,
+    1, 1 + p} (each nudged by 0, +-1e-15, +-1e-9) for radii from 1e-4 to
+    1.5, and a second disk tangent, inside, concentric or identical to it."""
+    rows = []
+    for p in (1e-4, 0.01, 0.1, 0.5, 0.99, 1.0, 1.5):
+        for d in (0.0, p, abs(1.0 - p), 1.0, 1.0 + p):
+            for nudge in (0.0, 1e-15, -1e-15, 1e-9, -1e-9):
+                b = max(d + nudge, 0.0)
+                for q, sep in ((0.05, p + 0.05), (0.5 * p, 0.5 * p), (0.3, 0.0), (p, 0.0), (0.01, 7.0)):
+                    rows.append(((b, b + sep * 0.6), (0.0, sep * 0.8), (p, q)))
+    x, y, r = (np.array([row[k] for row in rows]) for k in range(3))
+    return x, y, r
+
+
 def draws_grid():
     from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
 
@@ -69,6 +85,9 @@ def results(sharded: bool) -> dict:
         }
     finally:
         jaxppo.model._plan.LENS_MIN_PAIRS = saved
+    xd, yd, rd = degenerate()
+    out["degenerate_auto"] = np.asarray(jp.occultation_flux(star, xd, yd, rd, chunk=1024))
+    out["degenerate_exact"] = np.asarray(jp.occultation_flux(star, xd, yd, rd, method="exact", chunk=1024))
     args = (x, y, r)
     if sharded:
         from jax.sharding import Mesh, NamedSharding, PartitionSpec
