@@ -4,8 +4,8 @@ Layers (imports point down only; checked by import-linter in CI):
 
 * ``jaxppo.core``: pure array kernels (intensity profiles, circle geometry,
   exact occultation integrals, raster coverage);
-* ``jaxppo.model``: :class:`Star`, :class:`Planet`, :class:`System`,
-  :class:`LightCurve`, :func:`occultation_flux`, :func:`sweep`,
+* ``jaxppo.model``: ``Star``, ``Planet``, ``System``,
+  ``LightCurve``, ``occultation_flux``, ``sweep``,
   multi-transits;
 * workflows: ``jaxppo.inference`` (fits, NUTS, the transit posterior),
   ``jaxppo.obliquity`` (the obliquity scan, marginalised or not),

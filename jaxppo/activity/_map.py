@@ -18,7 +18,7 @@ __all__ = ["BrightnessMap", "brightness_map", "plot_brightness_map", "plot_perio
 class BrightnessMap:
     """A light curve binned in rotation chunks and rotational phase (paper Fig. 3).
 
-    Made by :func:`brightness_map`; drawn by :func:`plot_brightness_map`.
+    Made by ``brightness_map``; drawn by ``plot_brightness_map``.
     Row k is chunk k (t_ref + k P <= t < t_ref + (k + 1) P); its bins outside
     [0, 1) repeat the neighbouring chunks' data.
 
@@ -176,14 +176,14 @@ def plot_brightness_map(bmap: BrightnessMap, path, title: str | None = None, spo
     Parameters
     ----------
     bmap : BrightnessMap
-        The map from :func:`brightness_map`.
+        The map from ``brightness_map``.
     path : str or os.PathLike
         The PNG file to write.
     title : str, optional
         Figure title; None (default): the period and a legend of the shading.
     spots : list of tuple, optional
         (time [d], phase, radius [deg]) of spots drawn as black dots (area
-        proportional to the spot's), e.g. from :func:`fit_spots` with phase
+        proportional to the spot's), e.g. from ``fit_spots`` with phase
         = longitude / 360; copies are drawn in the repeated parts.
 
     Returns
@@ -251,11 +251,11 @@ def plot_periodogram(prepared, rotation, variability: dict, path, paper_period: 
     Parameters
     ----------
     prepared : PreparedLightCurve
-        The light curve from :func:`prepare_light_curve`.
+        The light curve from ``prepare_light_curve``.
     rotation : RotationResult
-        Its periodogram from :func:`rotation_period`.
+        Its periodogram from ``rotation_period``.
     variability : dict
-        {quarter: peak-to-peak [%]} from :func:`quarter_variability`.
+        {quarter: peak-to-peak [%]} from ``quarter_variability``.
     path : str or os.PathLike
         The PNG file to write.
     paper_period : float, optional
@@ -336,7 +336,7 @@ def plot_spot_fit(time, flux, fit, path):
     flux : array_like
         Relative flux of the chunk, shape [n_times] (plotted in percent).
     fit : SpotFit
-        The fit from :func:`fit_spots`; its model is drawn on 1000 times
+        The fit from ``fit_spots``; its model is drawn on 1000 times
         spanning ``time``, and its longitudes and radii are in the title.
     path : str or os.PathLike
         The PNG file to write.

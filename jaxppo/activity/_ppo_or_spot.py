@@ -157,7 +157,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     ----------
     result : jaxppo.ScanResult
         A finished scan from this process: it carries ``windows`` (the
-        detrended :class:`jaxppo.ScanWindow` points) and ``table5`` (read
+        detrended ``jaxppo.ScanWindow`` points) and ``table5`` (read
         from ``result.summary``). Any object with ``windows`` and a
         ``summary`` (or itself) holding ``table5`` will do.
     system : jaxppo.System
@@ -279,10 +279,10 @@ def plot_ppo_or_spot(panels, path):
     panels : list of tuple
         (dip, window, tf, null, ppo, spot, chi2_null, chi2_ppo, chi2_spot)
         per panel: the Table 5 row (a dict with ``case``, ``alpha`` [deg]
-        and ``delta_chi2``), the :class:`jaxppo.ScanWindow` (``time`` [d],
+        and ``delta_chi2``), the ``jaxppo.ScanWindow`` (``time`` [d],
         ``flux``, ``flux_err``, ``number``, ``event.mid`` [d]), the model
         times [d], shape [n_fine], the three models' relative fluxes, shape
-        [n_fine], and their chi^2. :func:`ppo_or_spot` builds them.
+        [n_fine], and their chi^2. ``ppo_or_spot`` builds them.
     path : str or os.PathLike
         The PNG file to write.
 

@@ -127,10 +127,10 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     """Run the whole activity analysis of a light curve: rotation period, variability, brightness map.
 
     What ``jaxppo activity`` runs (Mueller et al. 2021, Sects. 2.4 and
-    3.2): :func:`prepare_light_curve`, :func:`rotation_period` (with a
+    3.2): ``prepare_light_curve``, ``rotation_period`` (with a
     quarter bootstrap when there is more than one quarter),
-    :func:`quarter_variability`, :func:`brightness_map` at the period found
-    and, optionally, :func:`fit_spots` on map chunks.
+    ``quarter_variability``, ``brightness_map`` at the period found
+    and, optionally, ``fit_spots`` on map chunks.
 
     Parameters
     ----------
@@ -150,7 +150,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         split at gaps > 0.5 d.
     period_min, period_max : float, optional
         Periodogram search range [d] (default 2 and 45; see
-        :func:`rotation_period`).
+        ``rotation_period``).
     bootstrap : int, optional
         Quarter-bootstrap draws for the period spread (default 50; 0: none).
     seed : int, optional
@@ -167,7 +167,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         (default True).
     spot_chunk : int or str, optional
         Index of the map chunk to invert with ``n_spots`` equatorial spots of
-        contrast ``spot_contrast`` (:func:`fit_spots`), or ``"all"`` (every
+        contrast ``spot_contrast`` (``fit_spots``), or ``"all"`` (every
         chunk with >= 60 % phase coverage); the spots are drawn on the map,
         the first fitted chunk in activity_spots.png. None (default): no
         inversion.
@@ -181,7 +181,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     dict
         Strict JSON (only finite numbers, strings, lists and dicts; NaN
         becomes None): ``n_points``, ``preparation`` (the
-        :class:`PreparedLightCurve` report), ``rotation`` (period and errors
+        ``PreparedLightCurve`` report), ``rotation`` (period and errors
         [d], the rule, peaks, false-alarm probability), ``variability_percent``
         per quarter, ``map``, and ``paper``, ``spots`` and ``figures`` when
         asked for.
@@ -191,8 +191,8 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     ValueError
         If ``compare_paper`` is not a bool; if ``spot_chunk`` is neither a
         chunk index nor ``"all"``, or a chosen chunk holds fewer than 50
-        points; and whatever :func:`prepare_light_curve`,
-        :func:`rotation_period` and :func:`brightness_map` refuse.
+        points; and whatever ``prepare_light_curve``,
+        ``rotation_period`` and ``brightness_map`` refuse.
 
     Examples
     --------

@@ -154,7 +154,7 @@ def load_kepler20_quarters() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Load the bundled real Kepler-20 long-cadence PDCSAP light curve, quarters 1-17.
 
     KIC 6850504, the data of Mueller et al. (2021), Sect. 3.2; provenance in
-    jaxppo/data/README.md. Read with :func:`read_quarters_csv` (rows with a
+    jaxppo/data/README.md. Read with ``read_quarters_csv`` (rows with a
     non-finite time or flux dropped).
 
     Returns
@@ -208,7 +208,7 @@ def transit_mask(time, system, margin: float = 0.1) -> np.ndarray:
     Raises
     ------
     ValueError
-        If ``system`` is not a :class:`jaxppo.System`, or ``margin`` is
+        If ``system`` is not a ``jaxppo.System``, or ``margin`` is
         negative, not finite or not a number.
 
     Examples
@@ -243,7 +243,7 @@ def _running_median(y: np.ndarray, size: int) -> np.ndarray:
 class PreparedLightCurve:
     """A stitched, transit-masked, outlier-clipped light curve.
 
-    Made by :func:`prepare_light_curve`; the points are sorted in time.
+    Made by ``prepare_light_curve``; the points are sorted in time.
 
     Attributes
     ----------
@@ -330,7 +330,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
        and 1 subtracted, because Kepler quarters sit on different detectors
        and levels;
     2. the transits of the known planets are masked (first to last contact
-       plus ``margin``; see :func:`transit_mask`);
+       plus ``margin``; see ``transit_mask``);
     3. outliers are dropped: points further than ``clip`` robust sigmas
        (1.4826 MAD) from a running median of ``smooth`` cadences within their
        quarter. The running median is then recomputed without them.
@@ -349,7 +349,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
         are lost).
     system : jaxppo.System, optional
         The system whose transits are masked; None (default): Kepler-20 b
-        and c (:func:`jaxppo.kepler20_system`).
+        and c (``jaxppo.kepler20_system``).
     mask_transits : bool, optional
         False keeps the transits in (default True).
     margin : float, optional
@@ -439,7 +439,7 @@ def prepare_light_curve(time, flux, quarters=None, system=None, mask_transits: b
 class RotationResult:
     """Rotation period from the generalised Lomb-Scargle periodogram.
 
-    Made by :func:`rotation_period`.
+    Made by ``rotation_period``.
 
     Attributes
     ----------
@@ -717,7 +717,7 @@ def quarter_variability(prepared: PreparedLightCurve, lower: float = 1.0, upper:
     Parameters
     ----------
     prepared : PreparedLightCurve
-        The light curve from :func:`prepare_light_curve`.
+        The light curve from ``prepare_light_curve``.
     lower : float, optional
         Lower percentile (default 1).
     upper : float, optional

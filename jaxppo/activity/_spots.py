@@ -109,7 +109,7 @@ def spot_flux(t, lon, lat, radius, contrast, period, inc=90.0, u1=0.495, u2=0.15
 
 @dataclasses.dataclass(frozen=True)
 class SpotFit:
-    """A few-spot fit of one rotation chunk, made by :func:`fit_spots`.
+    """A few-spot fit of one rotation chunk, made by ``fit_spots``.
 
     Attributes
     ----------
@@ -162,7 +162,7 @@ class SpotFit:
     success: bool
 
     def model(self, t):
-        """The fitted light curve: ``offset`` plus :func:`spot_flux` of the spots.
+        """The fitted light curve: ``offset`` plus ``spot_flux`` of the spots.
 
         Parameters
         ----------
@@ -210,7 +210,7 @@ def fit_spots(time, flux, period: float, n_spots: int = 2, contrast: float = KEP
 
     Least squares (optimistix Levenberg-Marquardt) of ``n_spots`` spots'
     longitudes and radii, plus the unspotted level, with the small-spot
-    model of :func:`spot_flux` (Mueller et al. 2021, Sect. 2.4; in the
+    model of ``spot_flux`` (Mueller et al. 2021, Sect. 2.4; in the
     spirit of Ioannidis et al. 2016). Latitude ``lat``, contrast and
     inclination are fixed: contrast and area trade exactly, at i near 90 deg
     latitude changes the amplitude almost as area does, and the unspotted

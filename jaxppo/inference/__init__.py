@@ -1,7 +1,7 @@
 """Inference workflows. Imports the model layer and the kernels only.
 
 * ``_params``: the named free parameters and their coordinates;
-* ``_model``: :class:`Model` (theta -> System -> light curve, residuals,
+* ``_model``: ``Model`` (theta -> System -> light curve, residuals,
   likelihood) and its jitted functions;
 * ``_fit``: least-squares fits (optimistix) and their minimum check;
 * ``_sample``: NUTS (numpyro) with physical priors;

@@ -1,5 +1,5 @@
 """Least-squares fits: optimistix Levenberg-Marquardt over the named free
-parameters of :mod:`._params` in the coordinates of :class:`Model`, with a
+parameters of ``._params`` in the coordinates of ``Model``, with a
 check that the solution is a minimum (Hessian and Newton step) and the
 linearised covariance there.
 """
@@ -32,7 +32,7 @@ CONDITION_WARN = 1e6
 
 @dataclasses.dataclass
 class FitResult:
-    """Result of :func:`jaxppo.fit`: the best-fit system, chi^2 and the covariance of the free parameters.
+    """Result of ``jaxppo.fit``: the best-fit system, chi^2 and the covariance of the free parameters.
 
     The covariance is the linearised one at the solution, in physical units
     (days, degrees, R*, relative flux), in ``names`` order ("lc.baseline"
@@ -42,8 +42,8 @@ class FitResult:
     chi^2 part / (N - k), and the covariance is twice the inverse Hessian of
     the objective (the Gauss-Newton form misses the jitter's curvature).
     When ``condition`` exceeds ``CONDITION_WARN`` (1e6) fit warns: the
-    linearised errors are unreliable, use :func:`jaxppo.sample`.
-    :meth:`save` and :meth:`load` write and read it as JSON.
+    linearised errors are unreliable, use ``jaxppo.sample``.
+    ``save`` and ``load`` write and read it as JSON.
 
     Attributes
     ----------
@@ -55,7 +55,7 @@ class FitResult:
         Covariance of the free parameters in physical units [k, k] (NaN
         when it could not be computed).
     success : bool
-        Whether the fit converged to a minimum (see :func:`jaxppo.fit`).
+        Whether the fit converged to a minimum (see ``jaxppo.fit``).
     message : str
         "converged: ..." or "failed: " and why.
     names : tuple of str
@@ -131,7 +131,7 @@ class FitResult:
 
         Examples
         --------
-        See :class:`FitResult`.
+        See ``FitResult``.
         """
         rows = [f"{n:14s} {v:16.8f} +- {e:.2e}" for n, v, e in zip(self.names, self.values, self.errors)]
         rows += [f"{n:14s} {v:16.8f} +- {e:.2e} (derived)" for n, (v, e) in self.derived.items()]
@@ -142,7 +142,7 @@ class FitResult:
 
         The file holds the format tag "jaxppo.FitResult", the jaxppo
         version, every field (free names, values, errors, covariance, chi^2,
-        ...) and the fitted system; :meth:`load` reads it back exactly
+        ...) and the fitted system; ``load`` reads it back exactly
         (floats are written with 17 significant digits; NaN as null).
 
         Parameters
@@ -171,7 +171,7 @@ class FitResult:
 
     @classmethod
     def load(cls, path) -> "FitResult":
-        """Read a result written by :meth:`save` (or ``jaxppo fit --out``).
+        """Read a result written by ``save`` (or ``jaxppo fit --out``).
 
         Parameters
         ----------
@@ -186,7 +186,7 @@ class FitResult:
         Raises
         ------
         ValueError
-            When the file is not JSON, or not a file written by :meth:`save`.
+            When the file is not JSON, or not a file written by ``save``.
         """
         try:
             with open(path) as fh:
@@ -210,12 +210,12 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
 
     optimistix's Levenberg-Marquardt over the free parameters, in
     coordinates that keep the physics valid (a > 1, radius > 0, a transiting
-    impact parameter; :mod:`jaxppo.inference._params`); everything else
+    impact parameter; ``jaxppo.inference._params``); everything else
     stays at ``system``'s values. Limb darkening stays fixed unless named
     (``"star.u1"``, or Kipping's ``"star.q1"``, ``"star.q2"``); the
     light-curve nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
     ``"lc.baseline"`` / ``"lc.baseline2"`` are described in
-    :mod:`jaxppo.inference._params`; :func:`jaxppo.parameter_names` lists
+    ``jaxppo.inference._params``; ``jaxppo.parameter_names`` lists
     every name. Never raises for a failed fit: ``success`` is False and
     ``message`` says why.
 
@@ -239,7 +239,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     alpha : float, optional
         Tilt of the tilted planet's orbit [deg] (default 0).
     case : str or tuple of int, optional
-        Hemisphere case (default "same"; see :meth:`System.flux`).
+        Hemisphere case (default "same"; see ``System.flux``).
     max_steps : int, optional
         Most Levenberg-Marquardt steps per pass (default 200).
     rtol, atol : float, optional
@@ -275,7 +275,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         1 sigma along a principal axis of the covariance differs from
         chi^2_min + 1 by more than a factor 4 (e.g. a and inc of a grazing or
         single transit): the posterior is then far from Gaussian and
-        :func:`jaxppo.sample` gives the errors.
+        ``jaxppo.sample`` gives the errors.
 
     Examples
     --------
@@ -351,7 +351,7 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
 def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     """Levenberg-Marquardt passes until the solution is a minimum of a model
     whose frame sets cover it. Returns (model, theta, optimistix's failure
-    message or None, steps, the :func:`_assess` verdict).
+    message or None, steps, the ``_assess`` verdict).
 
     The frames that take the union integral are fixed from the starting
     parameters (with a margin). If the solution brings disks together in
@@ -424,7 +424,7 @@ def _physical_covariance(model: Model, theta, cov_theta):
 
 
 def _warn_if_degenerate(free, verdict) -> None:
-    """The UserWarning of :func:`fit` when the linearised covariance is
+    """The UserWarning of ``fit`` when the linearised covariance is
     ill-conditioned or chi^2 at its 1 sigma is far from chi^2_min + 1."""
     condition, dchi2 = verdict["condition"], verdict["dchi2_1sigma"]
     why = []
@@ -551,7 +551,7 @@ def _hessian_points(k: int, pairs) -> list:
 def _coupled_pairs(res) -> list:
     """The pairs (i, j), i < j, of parameters that move a common residual
     (``res``: the residuals at the centre and at +-h along each axis, the
-    rows of :func:`_hessian_points` without pairs). Parameters that move
+    rows of ``_hessian_points`` without pairs). Parameters that move
     disjoint sets of points (the transit times of different transits, the
     baselines of different windows) add separately to chi^2: their cross
     derivative is zero, and skipping those pairs turns the 2 k^2 chi^2
@@ -564,7 +564,7 @@ def _coupled_pairs(res) -> list:
 
 
 def _second_differences(f, pairs, k: int) -> np.ndarray:
-    """The Hessian from chi^2 ``f`` at the points of :func:`_hessian_points`
+    """The Hessian from chi^2 ``f`` at the points of ``_hessian_points``
     (zero for the pairs not listed)."""
     h = _HESSIAN_STEP
     hess = np.zeros((k, k))

@@ -16,7 +16,7 @@ may be reported:
   of Vehtari et al. An estimate is reliable when k-hat <= min(0.7, 1 -
   1 / log10 S) (their Sect. 3.2.2).
 
-:func:`importance_reliability` applies both to the weight of every geometry
+``importance_reliability`` applies both to the weight of every geometry
 (the per-draw weight summed over the geometry's alphas) and to the case's
 total: a geometry probability or a Bayes factor is their ratio, so every
 one of them must be sound.
@@ -128,7 +128,7 @@ def importance_reliability(logw, groups: dict, min_ess: float = MIN_IMPORTANCE_E
         logw: log importance weights [draw, alpha].
         groups: name -> boolean mask over alpha (e.g. the two geometries).
         min_ess: fewest effective draws (Kish) behind each mass; the
-            Pareto k-hat must also be <= :func:`khat_threshold` from
+            Pareto k-hat must also be <= ``khat_threshold`` from
             ``KHAT_MIN_DRAWS`` draws on, unless the weights are near-equal
             (Kish ESS >= ``NEAR_EQUAL`` x draws).
 

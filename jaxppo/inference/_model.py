@@ -1,9 +1,9 @@
 """The transit model of fits and samplers: a vector theta of unconstrained
-coordinates (:mod:`._params` names them) -> a System -> the light curve at
+coordinates (``._params`` names them) -> a System -> the light curve at
 the data times, the residuals and the likelihood.
 
 The model functions are jitted module-level functions of theta and a
-:class:`ModelData` pytree (the arrays traced, the structure static), so
+``ModelData`` pytree (the arrays traced, the structure static), so
 every Model of the same structure and frame counts shares one compilation.
 """
 
@@ -44,8 +44,8 @@ class Model:
     def __init__(self, system: System, lc: LightCurve, free, alpha: float = 0.0, case: str = "same", *,
                  active_margin: float = ACTIVE_MARGIN, union_floor: int = 0):
         """``system``: the start (and the values of every parameter not in
-        ``free``); ``lc``: a :class:`LightCurve` or a lightkurve LightCurve;
-        ``free``: names from :func:`parameter_names`; ``alpha`` [deg] and
+        ``free``); ``lc``: a ``LightCurve`` or a lightkurve LightCurve;
+        ``free``: names from ``parameter_names``; ``alpha`` [deg] and
         ``case``: the tilt and hemisphere case of the geometry;
         ``active_margin`` [R*]: the frames computed are those with a disk
         within this distance of the star at the start (a sampler, whose
@@ -206,7 +206,7 @@ class Model:
         return ("star.u1", "star.u2") if any(p in ("q1", "q2") for _, p in self.slots) else ()
 
     def derived(self, theta) -> jnp.ndarray:
-        """Values of :meth:`derived_names` at theta."""
+        """Values of ``derived_names`` at theta."""
         if not self.derived_names():
             return jnp.zeros(0)
         return self.to_system(theta).star.params[:2]
@@ -237,11 +237,11 @@ class Model:
 
     def residuals(self, theta, args=None) -> jnp.ndarray:
         """The residuals whose sum of squares is the objective (see
-        :func:`residuals`); ``args`` is ignored (optimistix's signature)."""
+        ``residuals``); ``args`` is ignored (optimistix's signature)."""
         return residuals(theta, self.data())
 
     def residuals_at(self, theta, alpha) -> jnp.ndarray:
-        """:meth:`residuals` at the tilt ``alpha`` [deg] instead of the
+        """``residuals`` at the tilt ``alpha`` [deg] instead of the
         Model's (alpha is traced: one compilation serves every tilt)."""
         return residuals(theta, eqx.tree_at(lambda d: d.alpha, self.data(), jnp.asarray(alpha, float)))
 
@@ -256,7 +256,7 @@ class Model:
         return chi2_batch(thetas, self.data())
 
     def residuals_batch(self, thetas):
-        """:meth:`residuals` at each row of ``thetas`` (one compiled program)."""
+        """``residuals`` at each row of ``thetas`` (one compiled program)."""
         return residuals_batch(thetas, self.data())
 
     def jacobian(self, theta):

@@ -1,5 +1,5 @@
 """The named free parameters of fits and samplers ("b.t0", "c.radius",
-"star.u1", ...) and the coordinates theta that :class:`._model.Model` maps
+"star.u1", ...) and the coordinates theta that ``._model.Model`` maps
 them to, which keep the physics valid: a = 1 + exp(.), p = exp(.),
 P = exp(.), and the impact parameter b = (1 + p) tanh(.) (so |b| < 1 + p and
 the planet always transits), with i = arccos(b / a).
@@ -55,7 +55,7 @@ def kipping_u(q1, q2):
     Every (q1, q2) in the unit square gives a physical profile (positive
     everywhere, darkening towards the limb), which is why fits and samplers
     free ``"star.q1"``, ``"star.q2"`` rather than u1, u2. Inverse:
-    :func:`kipping_q`.
+    ``kipping_q``.
 
     Parameters
     ----------
@@ -82,7 +82,7 @@ def kipping_u(q1, q2):
 def kipping_q(u1, u2):
     """Kipping's q1, q2 from quadratic limb-darkening coefficients.
 
-    The inverse of :func:`kipping_u` (Kipping 2013, eqs. 17-18):
+    The inverse of ``kipping_u`` (Kipping 2013, eqs. 17-18):
     q1 = (u1 + u2)^2, q2 = u1 / (2 (u1 + u2)); q2 = 0.5 when u1 + u2 = 0
     (q1 = 0 then, and any q2 gives u1 = u2 = 0). Coefficients outside the
     physical region give q1 or q2 outside [0, 1].
@@ -191,7 +191,7 @@ def parameter_names(system: System) -> list[str]:
     Kipping's ``"star.q1"``, ``"star.q2"`` for a quadratic star, and the
     light curve's nuisance parameters ``"lc.offset"``, ``"lc.jitter"``,
     ``"lc.baseline"``, ``"lc.baseline2"`` (the module docstring of
-    :mod:`jaxppo.inference._params` defines them). "lc.baseline" and
+    ``jaxppo.inference._params`` defines them). "lc.baseline" and
     "lc.baseline2" expand to one name per data window and power
     (``"lc.baseline.w<window>.c<power>"``) when a fit is set up.
 

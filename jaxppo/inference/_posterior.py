@@ -2,7 +2,7 @@
 scan draws from, and alpha sampled jointly with them.
 
 NUTS over t0, P, p and b / (1 + p) of every planet and ONE stellar density
-rho* for all planets (see :class:`TransitPosterior`), started at the mode
+rho* for all planets (see ``TransitPosterior``), started at the mode
 with the Laplace covariance there as the mass matrix.
 """
 
@@ -50,7 +50,7 @@ def a_from_density(rho, period, xp=np):
 
 def density_from_a(a, period) -> float:
     """The stellar density [g/cm^3] that puts a planet of period [d] at a/R*
-    ``a`` (the inverse of :func:`a_from_density`)."""
+    ``a`` (the inverse of ``a_from_density``)."""
     return float(3.0 * np.pi * a**3 / (G_CGS * (period * DAY_S) ** 2))
 
 
@@ -84,7 +84,7 @@ class TransitPosterior:
     the density is symmetric in v, so a chain may stay on either side, and
     a posterior piled up at b = 0 (planet c) is one smooth mode through
     v = 0 (a logit map would stretch it into an exponential tail). The
-    likelihood is :class:`jaxppo.inference._model.Model`'s (the windows'
+    likelihood is ``jaxppo.inference._model.Model``'s (the windows'
     Gaussian chi^2) at the tilt ``alpha``."""
 
     def __init__(self, system, data, free, density, alpha, case):
@@ -181,9 +181,9 @@ class TransitPosterior:
     def exact_overlaps_anywhere(self, margin: float = 0.05):
         """Compute by the exact union integral every frame in which two
         disks could touch at some tilt, within ``margin`` [R*], at the start
-        (:func:`jaxppo.model._overlap.may_touch` of the untilted geometry:
+        (``jaxppo.model._overlap.may_touch`` of the untilted geometry:
         the tilt turns an orbit about the star's centre); for sampling alpha
-        (:func:`joint_alpha`)."""
+        (``joint_alpha``)."""
         x, y, r = self.system.positions(np.asarray(self.model.t_model), 0.0, "same", xp=np)
         self.model = self.model.with_frames(union=np.nonzero(may_touch(x, y, r, margin))[0])
 
@@ -248,7 +248,7 @@ def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, ca
     """Draws of the transit parameters ``free`` from their posterior at tilt
     ``alpha`` [deg] (numpyro NUTS, ``chains`` chains vectorised; the mass
     matrix is the Laplace covariance at the posterior mode, found first by
-    Levenberg-Marquardt (optimistix); :class:`TransitPosterior` for coordinates and priors). a/R* of every
+    Levenberg-Marquardt (optimistix); ``TransitPosterior`` for coordinates and priors). a/R* of every
     planet with "P.a" in ``free`` is tied to one stellar density with the
     Gaussian prior ``density`` = (mean, sd) [g/cm^3].
 
@@ -338,9 +338,9 @@ def joint_alpha(system: System, data: LightCurve, free, density, case: str, wind
                 num_warmup: int = 200, seed: int = 0, chains: int = 2, progress: bool = False):
     """alpha sampled jointly with the transit parameters (numpyro NUTS):
     one run per alpha window (a mode of the grid marginal, from
-    :func:`alpha_windows`), alpha uniform in the window and chains started
+    ``alpha_windows``), alpha uniform in the window and chains started
     at its grid peak, the transit parameters in the coordinates of
-    :func:`nuts_draws` (whitened at the no-PPO mode). The alpha posterior is
+    ``nuts_draws`` (whitened at the no-PPO mode). The alpha posterior is
     multi-modal with narrow modes separated by plateaus of zero PPO signal
     the chains cannot cross in finite time, so the modes are sampled one at
     a time and combined with the grid's marginal mass of each window as

@@ -55,11 +55,11 @@ __all__ = ["sample", "SampleResult"]
 
 @dataclasses.dataclass
 class SampleResult:
-    """Result of :func:`jaxppo.sample`: the posterior draws, intervals and convergence diagnostics.
+    """Result of ``jaxppo.sample``: the posterior draws, intervals and convergence diagnostics.
 
     Draws are in physical units (days, degrees, R*, relative flux) under
     the public names of the free parameters (e.g. "b.inc" [deg]).
-    :meth:`save` and :meth:`load` write and read it as a numpy ``.npz``
+    ``save`` and ``load`` write and read it as a numpy ``.npz``
     file; ``to_arviz`` and ``to_netcdf`` export it to arviz.
 
     Attributes
@@ -81,7 +81,7 @@ class SampleResult:
         jitter, fit's objective).
     mcmc : numpyro.infer.MCMC or None
         The numpyro MCMC object (its samples are the internal coordinates,
-        see the module docstring of :mod:`jaxppo.inference._sample`); None
+        see the module docstring of ``jaxppo.inference._sample``); None
         for a loaded result.
     union_frames : numpy.ndarray
         Indices of the model frames integrated exactly as overlaps (from the
@@ -124,8 +124,8 @@ class SampleResult:
     >>> result.samples["b.radius"].shape, result.chains["b.radius"].shape
     ((20,), (1, 20))
     >>> median, lower, upper = result.intervals["b.radius"]
-    >>> print(f"radius {median:.3f} R*")
-    radius 0.100 R*
+    >>> print(f"radius {median:.2f} R*")
+    radius 0.10 R*
     >>> sorted(result.diagnostics["b.radius"])
     ['ess_bulk', 'ess_tail', 'n_eff', 'r_hat']
     >>> sorted(result.stats)
@@ -156,7 +156,7 @@ class SampleResult:
         """Write the result to a numpy ``.npz`` file (no pickle).
 
         The file holds the draws, log-likelihood, sample stats, data,
-        intervals, diagnostics and the best system; :meth:`load` reads it
+        intervals, diagnostics and the best system; ``load`` reads it
         back exactly. The MCMC object and the pointwise log-likelihood
         function are not saved: ``to_arviz`` of a loaded result gives the
         total log-likelihood.
@@ -190,7 +190,7 @@ class SampleResult:
 
     @classmethod
     def load(cls, path) -> "SampleResult":
-        """Read a result written by :meth:`save` (or ``jaxppo sample --out``).
+        """Read a result written by ``save`` (or ``jaxppo sample --out``).
 
         Parameters
         ----------
@@ -206,7 +206,7 @@ class SampleResult:
         ------
         ValueError
             When the file cannot be read as an ``.npz`` file with the
-            result's metadata, or was not written by :meth:`save`.
+            result's metadata, or was not written by ``save``.
         """
         try:
             z = np.load(path, allow_pickle=False)
@@ -226,12 +226,32 @@ class SampleResult:
                    start=dict(meta.get("start", {})), **opt)
 
     def to_arviz(self, pointwise: bool = True):
-        """An arviz InferenceData: ``posterior`` (the free parameters in
-        physical units under their public names, e.g. "b.inc" [deg]),
-        ``log_likelihood`` ("obs", per data point when ``pointwise``, else
-        the total), ``sample_stats``, ``observed_data`` ("obs" at "time")
-        and ``constant_data`` (time, flux_err). Needs arviz (``pip install
-        jaxppo[arviz]``)."""
+        """Convert the run to arviz's data structure.
+
+        The groups: ``posterior`` (the free parameters in physical units
+        under their public names, e.g. "b.inc" [deg]), ``log_likelihood``
+        ("obs", per data point when ``pointwise``, else the total),
+        ``sample_stats``, ``observed_data`` ("obs" at "time") and
+        ``constant_data`` (flux_err at "time").
+
+        Parameters
+        ----------
+        pointwise : bool, optional
+            The log-likelihood of every data point [chain, draw, n_times]
+            (default; needs the run's model, so not after ``load``) or the
+            total per draw [chain, draw].
+
+        Returns
+        -------
+        arviz.InferenceData or xarray.DataTree
+            An ``InferenceData`` with arviz 0.x, a ``DataTree`` with arviz
+            1.x (the same groups and variables).
+
+        Raises
+        ------
+        ImportError
+            When arviz is not installed (``pip install 'jaxppo[arviz]'``).
+        """
         try:
             import arviz as az
         except ImportError as err:  # pragma: no cover - depends on the environment
@@ -259,9 +279,21 @@ class SampleResult:
         return az.from_dict(**groups, attrs=attrs, **kw)  # arviz 0.x: an InferenceData
 
     def to_netcdf(self, path) -> str:
-        """Write ``to_arviz()`` to a netCDF file that ``arviz.from_netcdf``
-        reads back (arviz 0.x or 1.x; groups written with h5netcdf);
-        returns the path."""
+        """Write ``to_arviz`` to a netCDF file.
+
+        ``arviz.from_netcdf`` reads it back (arviz 0.x or 1.x; the groups
+        are written with h5netcdf).
+
+        Parameters
+        ----------
+        path : str or path-like
+            The file to write (its folder must exist).
+
+        Returns
+        -------
+        str
+            The path written.
+        """
         import arviz as az
 
         data = self.to_arviz()
@@ -281,7 +313,7 @@ def arviz_major(az) -> int:
 def _priors(model: Model, user=None):
     """Physical priors, one per free parameter (inclinations through
     b / (1 + p)): the defaults around the starting system (see
-    :func:`sample`), replaced by ``user[name]`` where given (a numpyro
+    ``sample``), replaced by ``user[name]`` where given (a numpyro
     distribution on the parameter in its public units)."""
     import numpyro.distributions as dist
 
@@ -315,7 +347,7 @@ def _priors(model: Model, user=None):
 
 
 def _planet_prior(pl, par):
-    """The default prior of a planet parameter (see :func:`sample`)."""
+    """The default prior of a planet parameter (see ``sample``)."""
     import numpyro.distributions as dist
 
     if par == "t0" or is_tc(par):
@@ -451,8 +483,8 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
            fold_inc: bool = True) -> SampleResult:
     """Sample the posterior of the named free parameters with NUTS (numpyro).
 
-    The same model and free-parameter names as :func:`jaxppo.fit`
-    (:func:`jaxppo.parameter_names`), with physical priors. The defaults:
+    The same model and free-parameter names as ``jaxppo.fit``
+    (``jaxppo.parameter_names``), with physical priors. The defaults:
     t0 (and listed transit times) within +-0.05 d and P within +-0.1 % of
     the start, a in [1, 4 a], p log-uniform in [1e-4, 0.5], the impact
     parameter uniform in 0 <= |b| < 1 + p, limb-darkening coefficients
@@ -461,7 +493,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     jitter log-uniform in [1e-3, 10] x the median error. The chains run
     vectorised (one program), with a dense mass matrix (``dense_mass``) in
     the coordinates of the module docstring of
-    :mod:`jaxppo.inference._sample`.
+    ``jaxppo.inference._sample``.
 
     Parameters
     ----------
@@ -483,7 +515,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     alpha : float, optional
         Tilt of the tilted planet's orbit [deg] (default 0).
     case : str or tuple of int, optional
-        Hemisphere case (default "same"; see :meth:`System.flux`).
+        Hemisphere case (default "same"; see ``System.flux``).
     progress_bar : bool, optional
         Show numpyro's progress bar (default True).
     dense_mass : bool, optional
@@ -498,7 +530,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         First find the posterior mode from ``system`` (optimistix BFGS in
         NUTS's coordinates; the priors stay centred on ``system``) and start
         the chains there, in coordinates whitened by the Laplace covariance
-        at the mode (:mod:`jaxppo.inference._start`); when the mode is not
+        at the mode (``jaxppo.inference._start``); when the mode is not
         found a UserWarning says so and the chains start at the better of
         ``system`` and the optimiser's last point. False: start at
         ``system`` with the Laplace covariance there. Default True.
@@ -551,8 +583,8 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     ...                    progress_bar=False, priors={"b.radius": dist.Uniform(0.05, 0.15)})
     >>> result.start["optimised"], result.start["converged"]
     (True, True)
-    >>> print(f"radius {result.intervals['b.radius'][0]:.3f} R* ({len(result.samples['b.radius'])} draws)")
-    radius 0.100 R* (20 draws)
+    >>> print(f"radius {result.intervals['b.radius'][0]:.2f} R* ({len(result.samples['b.radius'])} draws)")
+    radius 0.10 R* (20 draws)
     """
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:

@@ -25,7 +25,7 @@ def to_jsonable(v):
 
 
 def from_jsonable(v):
-    """Inverse of :func:`to_jsonable` (None -> NaN, "inf" -> inf)."""
+    """Inverse of ``to_jsonable`` (None -> NaN, "inf" -> inf)."""
     if isinstance(v, list):
         return [from_jsonable(x) for x in v]
     return np.nan if v is None else float(v)
@@ -33,7 +33,7 @@ def from_jsonable(v):
 
 def system_to_dict(system: System) -> dict:
     """A System as plain JSON-ready values (every field of Star and Planet;
-    :func:`system_from_dict` inverts it exactly)."""
+    ``system_from_dict`` inverts it exactly)."""
     star = {}
     for f in dataclasses.fields(system.star):
         v = getattr(system.star, f.name)
@@ -56,7 +56,7 @@ def system_to_dict(system: System) -> dict:
 
 
 def system_from_dict(d: dict) -> System:
-    """The System :func:`system_to_dict` wrote."""
+    """The System ``system_to_dict`` wrote."""
     kw = {}
     for f in dataclasses.fields(Star):
         if f.name not in d["star"]:

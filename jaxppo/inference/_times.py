@@ -2,11 +2,11 @@
 model (other planets and overlapping transits included), its error, and
 the linear ephemeris and O-C diagram of the measured times.
 
-:func:`measure_transit_times` gives each planet a listed mid-time for every
+``measure_transit_times`` gives each planet a listed mid-time for every
 epoch with data (``Planet(transit_times=, transit_epochs=)``), finds each
 one's start on a grid of shifts (the chi^2 of the epoch's own points), then
 fits all of them together, with the parameters named in ``free``, by
-:func:`jaxppo.fit` (Levenberg-Marquardt). The errors are those of the fit's
+``jaxppo.fit`` (Levenberg-Marquardt). The errors are those of the fit's
 linearised covariance (every mid-time's marginal error, the other
 parameters free too).
 """
@@ -29,7 +29,7 @@ from ._params import as_lightcurve
 __all__ = ["measure_transit_times", "linear_ephemeris", "TIMES_COLUMNS"]
 
 TIMES_COLUMNS = ("planet", "epoch", "tc", "tc_err", "chi2", "n_points")
-"""The columns of :func:`measure_transit_times`'s table."""
+"""The columns of ``measure_transit_times``'s table."""
 
 
 def _planet_indices(system: System, planets) -> list[int]:
@@ -87,7 +87,7 @@ def _classes(windows) -> list[list[int]]:
 
 def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> jnp.ndarray:
     """Theta with each free mid-time moved to the shift (on a grid of
-    ``grid`` shifts in [-search, +search] [d]) that minimises the chi^2 of
+    ``grid`` shifts of up to +-search [d]) that minimises the chi^2 of
     its own points. The times of transits that share no point move at once
     (one model evaluation per shift); transits that share points (two
     planets on the star together) are searched in turn, each with the
@@ -165,9 +165,9 @@ def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
     epoch : array_like of int
         Transit epochs n [n_times] (at least two distinct ones).
     tc : array_like
-        Measured mid-times [d] [n_times].
+        Measured mid-times [d], shape [n_times].
     tc_err : array_like or None, optional
-        1-sigma errors of ``tc`` [d] [n_times], positive and finite; None
+        1-sigma errors of ``tc`` [d], shape [n_times], positive and finite; None
         (default): equal weights.
 
     Returns
@@ -177,7 +177,7 @@ def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
     period : float
         Period P [d].
     covariance : numpy.ndarray
-        Covariance of (t0, P) [d^2] [2, 2].
+        Covariance of (t0, P) [d^2], shape [2, 2].
 
     Raises
     ------
@@ -237,12 +237,12 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     (``Planet(transit_times=, transit_epochs=)``); each time starts at the
     best of a grid of shifts (the chi^2 of that transit's own points), and
     then all of them are fitted together, with the parameters named in
-    ``free``, by :func:`jaxppo.fit` (Levenberg-Marquardt) with the exact
-    model. Overlapping transits (two planets on the star at once, occulting
-    each other or not) are fitted together with the exact model. The errors
+    ``free``, by ``jaxppo.fit`` (Levenberg-Marquardt). Overlapping
+    transits (two planets on the star at once, occulting each other or not)
+    are fitted together with the exact model. The errors
     are those of the fit's linearised covariance (each mid-time's marginal
     error, the other free parameters free too). The times feed
-    :func:`linear_ephemeris` and an O-C diagram (``jaxppo ttv`` writes both).
+    ``linear_ephemeris`` and an O-C diagram (``jaxppo ttv`` writes both).
 
     Parameters
     ----------
@@ -256,7 +256,7 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
         (default None: all; the others keep their ephemerides).
     free : str or sequence of str, optional
         Other parameters fitted together with the times (names of
-        :func:`jaxppo.parameter_names`, e.g. ``("b.radius", "b.a", "b.inc",
+        ``jaxppo.parameter_names``, e.g. ``("b.radius", "b.a", "b.inc",
         "lc.baseline")``). Default none: the times alone, the rest fixed at
         ``system``.
     search : float or None, optional
@@ -270,7 +270,7 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     alpha : float, optional
         Tilt of the tilted planet's orbit [deg] (default 0).
     case : str or tuple of int, optional
-        Hemisphere case (default "same"; see :meth:`System.flux`).
+        Hemisphere case (default "same"; see ``System.flux``).
     return_fit : bool, optional
         Also return the joint fit (default False).
     progress : bool, optional
@@ -418,7 +418,7 @@ def _warn_misfits(table) -> None:
 
 
 def _result_table(model: Model, result: FitResult, plan, lc):
-    """The table of :func:`measure_transit_times` from the joint fit."""
+    """The table of ``measure_transit_times`` from the joint fit."""
     from astropy.table import Table
 
     time = np.asarray(lc.time, float)

@@ -17,7 +17,7 @@ MINUTES = 1440.0
 
 def read_times(path) -> "Table":  # noqa: F821
     """A table of transit times (columns planet, epoch, tc [d], tc_err [d];
-    CSV or, by its suffix, ECSV), as :func:`measure_transit_times` writes
+    CSV or, by its suffix, ECSV), as ``measure_transit_times`` writes
     it. Raises ValueError naming the file and what is missing."""
     from astropy.table import Table
 
@@ -103,7 +103,7 @@ def plot_oc(measured, planet: str, path, references=None) -> dict:
 
 
 def write_times_products(table, out, references=None) -> dict:
-    """Write ``transit_times.ecsv`` (columns :data:`TIMES_COLUMNS`), an O-C
+    """Write ``transit_times.ecsv`` (columns ``TIMES_COLUMNS``), an O-C
     figure ``oc_<planet>.png`` per planet with two or more epochs and
     ``ttv_summary.json`` (the fit, each planet's linear ephemeris and O-C
     scatter, and the comparison with each of ``references``, {label:
@@ -132,7 +132,7 @@ def write_times_products(table, out, references=None) -> dict:
 
 
 def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
-    """What ``jaxppo ttv`` prints of :func:`write_times_products`' summary."""
+    """What ``jaxppo ttv`` prints of ``write_times_products``' summary."""
     fit = summary["fit"]
     lines = [f"{n_times} transit times, chi^2 = {fit['chi2']:.1f} for {fit['n_points']} points "
              f"(chi^2/(N - k) = {fit['reduced_chi2']:.3f}), {seconds:.1f} s"]

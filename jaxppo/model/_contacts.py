@@ -1,5 +1,5 @@
 """First and last contact of a transit on an eccentric orbit, solved on the
-host on the exact orbit (:meth:`jaxppo.Planet.contacts`)."""
+host on the exact orbit (``jaxppo.Planet.contacts``)."""
 
 from __future__ import annotations
 

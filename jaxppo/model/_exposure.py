@@ -3,8 +3,8 @@
 A cadence of length ``exposure`` [d] centred on ``t`` integrates the flux
 over [t - exposure / 2, t + exposure / 2]. Every model of jaxppo evaluates
 the flux at ``n`` sub-exposure midpoints (the midpoint rule) and averages
-each group of ``n``: :func:`supersampled_times` gives the times,
-:func:`exposure_mean` the average. ``LightCurve.supersampled_times`` is the
+each group of ``n``: ``supersampled_times`` gives the times,
+``exposure_mean`` the average. ``LightCurve.supersampled_times`` is the
 user-facing call; fits, scans and the PPO-or-spot step all go through here.
 """
 
@@ -35,13 +35,13 @@ def sub_exposures(exposure: float) -> int:
 
 def supersampled_times(time, exposure: float | None, n: int | None = None) -> tuple[np.ndarray, int]:
     """Times [d] at which to evaluate a model so that averaging consecutive
-    groups of ``n`` (:func:`exposure_mean`) reproduces each exposure.
+    groups of ``n`` (``exposure_mean``) reproduces each exposure.
 
     Args:
         time: cadence mid-times [d], 1D.
         exposure: cadence length [d]; None: instantaneous (the times as they
             are, n = 1).
-        n: sub-exposures per cadence (default :func:`sub_exposures`).
+        n: sub-exposures per cadence (default ``sub_exposures``).
 
     Returns:
         (times [time * n], n): sub-exposure midpoints, cadence by cadence.
@@ -58,7 +58,7 @@ def supersampled_times(time, exposure: float | None, n: int | None = None) -> tu
 
 
 def exposure_mean(model, n: int):
-    """The exposure average of a model at :func:`supersampled_times`: the
+    """The exposure average of a model at ``supersampled_times``: the
     mean of each consecutive group of ``n`` along the last axis ([..., time
     * n] -> [..., time]). NumPy or JAX arrays (inside ``jit`` too)."""
     return model.reshape(*model.shape[:-1], -1, n).mean(-1)

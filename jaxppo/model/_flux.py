@@ -47,7 +47,7 @@ def device_auto(order: int):
     ``f(star, x, y, r)`` on [frame, disk] arrays -> [frame] relative flux.
 
     Unbatched (inside ``jit``/``grad``) it runs the device plan,
-    :func:`traced_auto_frames`. Batched by ``vmap`` (the choice is made by
+    ``traced_auto_frames``. Batched by ``vmap`` (the choice is made by
     JAX's public ``jax.custom_batching.custom_vmap``, whatever the nesting
     of ``jit`` and ``vmap``) it takes the union integral instead: a batched
     plan turns its per-block switches into selects that run every rule on
@@ -157,7 +157,7 @@ def occultation_flux(
         ``jit``, either nesting) it takes the union integral (a batched
         plan would run every rule on every frame; ``device_auto``);
         better, broadcast leading axes instead of vmapping.
-        ``"raster"`` is the pixel-grid method (:class:`RasterSettings`).
+        ``"raster"`` is the pixel-grid method (``RasterSettings``).
     order : int, optional
         Gauss-Legendre nodes per arc piece (default 24: worst measured error
         ~1e-11 in float64 over adversarial scenes; 20 is ~5e-11).
@@ -166,11 +166,11 @@ def occultation_flux(
     raster : RasterSettings, optional
         Settings for ``method="raster"`` (default: windowed, exact pixel
         coverage, each disk's own pixels: its visible part / 32, i.e.
-        r / 16; accuracy in :class:`RasterSettings`).
+        r / 16; accuracy in ``RasterSettings``).
     times : array_like, optional
         Time [d] of each frame (broadcast against the leading axes), needed
         only by a star with rotating spots (``Star.with_spots``);
-        :meth:`System.flux` passes its t.
+        ``System.flux`` passes its t.
 
     Returns
     -------
@@ -181,7 +181,7 @@ def occultation_flux(
     Raises
     ------
     ValueError
-        When ``method`` is unknown, ``star`` is not a :class:`Star`,
+        When ``method`` is unknown, ``star`` is not a ``Star``,
         ``order`` or ``chunk`` is not a positive integer, ``x``, ``y``, ``r``
         do not broadcast, a concrete value is not finite or a concrete
         radius is negative or above ``MAX_RADIUS`` (the message names x, y

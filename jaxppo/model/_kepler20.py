@@ -25,7 +25,7 @@ def kepler20_system(star: Star | None = None, radius_scale: float = 1.0) -> Syst
     Parameters
     ----------
     star : Star or None, optional
-        The star; default :func:`kepler20_star` (non-linear limb darkening
+        The star; default ``kepler20_star`` (non-linear limb darkening
         fitted to PHOENIX-ACES intensities, Teff 5500 K).
     radius_scale : float, optional
         Factor on both planets' radii (default 1; the paper's sensitivity
@@ -74,7 +74,7 @@ def simulate(system: System, t, noise: float = 4e-4, alpha: float = 0.0, case: s
     alpha : float, optional
         Tilt of the tilted planet's orbit [deg] (default 0).
     case : str or tuple of int, optional
-        Hemisphere case (default "same"; see :meth:`System.flux`).
+        Hemisphere case (default "same"; see ``System.flux``).
     seed : int, optional
         Seed of the noise (``numpy.random.default_rng``; default 0).
 
@@ -116,7 +116,7 @@ def simulate_kepler20(seed: int = 0, noise: float = 4e-4, alpha: float | None = 
 
     The double transits that Mueller et al. (2021, Sect. 3.3.1) list, from
     first to last contact with a margin on each side, modelled with
-    :func:`kepler20_system` and white noise (:func:`simulate`).
+    ``kepler20_system`` and white noise (``simulate``).
 
     Parameters
     ----------
@@ -138,7 +138,7 @@ def simulate_kepler20(seed: int = 0, noise: float = 4e-4, alpha: float | None = 
     margin : float, optional
         Out-of-transit time before and after each event [d] (default 0.05).
     star : Star or None, optional
-        The star; default :func:`kepler20_star`.
+        The star; default ``kepler20_star``.
 
     Returns
     -------

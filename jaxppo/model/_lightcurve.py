@@ -27,8 +27,8 @@ class LightCurve:
     A frozen dataclass; the points are stored sorted by time, as float
     numpy arrays. The constructor is strict: every value finite, errors > 0,
     no repeated time stamp (it would count twice in chi^2). The loaders
-    (:meth:`from_arrays`, :meth:`from_csv`, :meth:`from_fits`,
-    :meth:`from_lightkurve`) drop such points instead and say so in
+    (``from_arrays``, ``from_csv``, ``from_fits``,
+    ``from_lightkurve``) drop such points instead and say so in
     ``report``.
 
     Parameters
@@ -39,7 +39,7 @@ class LightCurve:
         own zero point, 2454833 and 2457000); a time Quantity to days.
     flux : array_like or Quantity
         Relative flux [n_times] (numbers or a dimensionless Quantity; raw
-        fluxes in e-/s: :meth:`from_arrays` with ``normalize=True``).
+        fluxes in e-/s: ``from_arrays`` with ``normalize=True``).
     flux_err : array_like or Quantity
         1-sigma errors of ``flux`` [n_times], > 0.
     exposure : float or Quantity or TimeDelta or None, optional
@@ -48,13 +48,13 @@ class LightCurve:
         Quantity or TimeDelta is converted to days and stored as a float.
         None (default): instantaneous points.
     report : dict, optional
-        What loading kept and dropped (:meth:`report_line` says it in words).
+        What loading kept and dropped (``report_line`` says it in words).
     errors_estimated : bool, optional
         True when the file had no errors and ``flux_err`` is an estimate from
         the scatter (the scan re-estimates it per window). Default False.
     time_zero : float or None, optional
         Zero point [JD] of an astropy ``Time`` given as ``time``, and the
-        light curve's zero point for :meth:`to_time_zero`.
+        light curve's zero point for ``to_time_zero``.
 
     Raises
     ------
@@ -62,7 +62,7 @@ class LightCurve:
         When time, flux and flux_err are not 1D of equal length, empty, or
         hold a non-finite value; an error is <= 0; a time stamp is repeated;
         ``exposure`` is not one positive number of days; ``time`` is a
-        lightkurve object (use :meth:`from_lightkurve`) or an astropy
+        lightkurve object (use ``from_lightkurve``) or an astropy
         ``Time`` without a known zero point.
 
     Examples
@@ -507,7 +507,7 @@ class LightCurve:
 
     @classmethod
     def from_kepler_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default") -> "LightCurve":
-        """:meth:`from_fits` for a Kepler file (also without a TELESCOP key).
+        """``from_fits`` for a Kepler file (also without a TELESCOP key).
 
         Parameters
         ----------
@@ -527,7 +527,7 @@ class LightCurve:
         return cls.from_fits(path, flux_column, quality_bitmask, mission="kepler")
 
     def to_csv(self, path) -> None:
-        """Write time, flux and flux_err to a CSV file that :meth:`from_csv` reads back.
+        """Write time, flux and flux_err to a CSV file that ``from_csv`` reads back.
 
         The file is written next to ``path`` and then renamed, so a reader
         never sees half of it. The exposure and report are not written.

@@ -5,7 +5,7 @@ Every workflow that needs to know where a planet-planet occultation can
 happen asks here: the sweep (which frames run the union integral), the
 marginal scan (the same, for every draw), the scan's PPO tables, the fit
 model and the transit posterior (which frames take the exact union
-integral). The geometry comes from :meth:`System.positions`, the one place
+integral). The geometry comes from ``System.positions``, the one place
 the tilt convention lives.
 """
 
@@ -63,7 +63,7 @@ def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_
     Args:
         tilted_only: only pairs with the tilted planet (a PPO of the tilted
             planet, as the scan's tables count them).
-        geometry: :func:`untilted_geometry` of the same arguments, when
+        geometry: ``untilted_geometry`` of the same arguments, when
             already computed.
     """
     alpha = np.atleast_1d(np.asarray(alpha, float))
@@ -105,7 +105,7 @@ def may_touch(x, y, r, margin: float = 0.0) -> np.ndarray:
     the star could touch at SOME tilt: turning an orbit about the star's
     centre keeps each disk's distance from the centre, so two disks can meet
     only if those distances differ by less than the sum of their radii (plus
-    ``margin`` [R*]). A superset of :func:`contact_frames` over all alphas
+    ``margin`` [R*]). A superset of ``contact_frames`` over all alphas
     and cases."""
     x, y, r = (np.asarray(v, float) for v in (x, y, r))
     d, on = np.hypot(x, y), on_star(x, y, r, margin)

@@ -80,7 +80,7 @@ def read_specint(path: str | Path) -> PhoenixIntensities:
     See Also
     --------
     band_intensity : integrate the intensities over a passband.
-    phoenix_star : a :class:`Star` straight from such a file.
+    phoenix_star : a ``Star`` straight from such a file.
 
     Examples
     --------
@@ -148,7 +148,7 @@ def kepler_response() -> tuple[np.ndarray, np.ndarray]:
 
     The bundled high-resolution table (jaxppo/data/kepler_response_hires1.txt,
     348-970 nm in 1 nm steps), the default passband of
-    :func:`band_intensity` and :func:`phoenix_star`.
+    ``band_intensity`` and ``phoenix_star``.
 
     Returns
     -------
@@ -180,10 +180,10 @@ def band_intensity(model: PhoenixIntensities, response=None, photon: bool = True
     Parameters
     ----------
     model : PhoenixIntensities
-        Specific intensities, as :func:`read_specint` returns them.
+        Specific intensities, as ``read_specint`` returns them.
     response : tuple of two array_like, optional
         ``(wavelength [Angstrom], R)``, the passband's response; default
-        (None): Kepler's (:func:`kepler_response`).
+        (None): Kepler's (``kepler_response``).
     photon : bool, optional
         Weight by lambda (photon counting; default True); False integrates
         energy.
@@ -299,12 +299,12 @@ def truncate_limb(mu: np.ndarray, inten: np.ndarray, method: str = "rescale") ->
 
 
 def phoenix_star(path: str | Path, response=None, limb: str = "rescale", interpolation: str = "sqrt-poly") -> Star:
-    """Build a tabulated :class:`Star` from a PHOENIX SPECINT file.
+    """Build a tabulated ``Star`` from a PHOENIX SPECINT file.
 
-    The file is read by :func:`read_specint`, integrated over the passband
-    (Kepler by default, photon-weighted; :func:`band_intensity`), its limb
-    treated by :func:`truncate_limb` and the profile normalised to
-    I(mu = 1) = 1, then given to :meth:`Star.tabulated`. A file whose mu grid
+    The file is read by ``read_specint``, integrated over the passband
+    (Kepler by default, photon-weighted; ``band_intensity``), its limb
+    treated by ``truncate_limb`` and the profile normalised to
+    I(mu = 1) = 1, then given to ``Star.tabulated``. A file whose mu grid
     stops short of 0 gets a node at mu = 0: I = 0 with ``limb="cut"`` (the
     cut limb is dark), the outermost intensity with ``limb="none"``
     (``"rescale"`` ends at mu = 0); one short of 1 repeats the innermost
@@ -313,13 +313,13 @@ def phoenix_star(path: str | Path, response=None, limb: str = "rescale", interpo
     Parameters
     ----------
     path : str or pathlib.Path
-        The SPECINT FITS file (layout in :func:`read_specint`).
+        The SPECINT FITS file (layout in ``read_specint``).
     response : tuple of two array_like, optional
         ``(wavelength [Angstrom], R)``; default (None): the Kepler response.
     limb : {"rescale", "cut", "none"}, optional
-        The limb treatment of :func:`truncate_limb` (default "rescale").
+        The limb treatment of ``truncate_limb`` (default "rescale").
     interpolation : {"sqrt-poly", "linear", "cubic"}, optional
-        The table's interpolation (:meth:`Star.tabulated`; default
+        The table's interpolation (``Star.tabulated``; default
         "sqrt-poly"). The kink of ``limb="cut"`` is better served by
         "linear" (a sqrt-poly fit smooths it and warns).
 
@@ -331,9 +331,9 @@ def phoenix_star(path: str | Path, response=None, limb: str = "rescale", interpo
     Raises
     ------
     ValueError
-        From :func:`read_specint` (a missing or malformed file),
-        :func:`band_intensity` (a passband off the model's wavelengths),
-        :func:`truncate_limb` (an unknown ``limb``) or :meth:`Star.tabulated`
+        From ``read_specint`` (a missing or malformed file),
+        ``band_intensity`` (a passband off the model's wavelengths),
+        ``truncate_limb`` (an unknown ``limb``) or ``Star.tabulated``
         (an unknown ``interpolation``).
 
     Examples
@@ -464,7 +464,7 @@ def claret_power2(teff: float, logg: float, band: str = "Kepler", method: str = 
         Passband (default "Kepler").
     method : {"M1", "M2"}, optional
         The authors' limb truncation method (default "M1", the steepest
-        drop, as :func:`truncate_limb`'s "rescale").
+        drop, as ``truncate_limb``'s "rescale").
 
     Returns
     -------

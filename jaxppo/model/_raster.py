@@ -24,7 +24,7 @@ _SAMPLE_BUDGET = 8_000_000
 class RasterSettings:
     """Options of the pixel-grid method (``method="raster"``).
 
-    Pass them as ``raster=`` to :func:`occultation_flux` (or through
+    Pass them as ``raster=`` to ``occultation_flux`` (or through
     ``System.flux``). The window mode (default) rasterizes only a window
     around each disk and takes the unocculted flux exactly; the full mode
     rasterizes the whole star, like a Blender frame, and divides by the same

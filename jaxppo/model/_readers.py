@@ -1,7 +1,7 @@
 """Light-curve readers: the columns of CSV, Kepler / K2 / TESS FITS files and
 lightkurve objects, the missions' quality flags and named bitmasks, the
 column roles of a CSV file and the missions' time zero points. What
-:class:`jaxppo.model._lightcurve.LightCurve` is built from; it cleans,
+``jaxppo.model._lightcurve.LightCurve`` is built from; it cleans,
 normalises and reports."""
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def mission_name(name) -> str | None:
 
 def quality_bitmask(bitmask="default", mission: str | None = None) -> tuple[int, str]:
     """(integer bitmask, description) of ``bitmask``: a name ("none",
-    "default", "hard", "hardest", see :data:`QUALITY_BITMASKS`) or an
+    "default", "hard", "hardest", see ``QUALITY_BITMASKS``) or an
     integer; a point is dropped when ``quality & bitmask != 0``. Without a
     mission (a CSV file) the flag bits have no known meaning: the names other
     than "none" then drop every flagged point (bitmask -1, all bits)."""
@@ -252,7 +252,7 @@ def read_csv_columns(path: Path, columns: dict):
     with a header row: (time, flux, flux_err, quality, quarter, the flux
     column's name) as float arrays, NaN where a cell is empty; flux_err,
     quality and quarter are None when the file has no such column.
-    ``columns`` maps roles (:data:`COLUMN_ROLES`) to the file's names."""
+    ``columns`` maps roles (``COLUMN_ROLES``) to the file's names."""
     from astropy.io.ascii import InconsistentTableError
     from astropy.table import Table
 
@@ -315,7 +315,7 @@ def read_fits_columns(path: Path, flux_column: str, mission: str | None):
     (time [d], flux, flux_err, quality, exposure [d], mission, a statement
     of the time system). The mission comes from the primary header
     (TELESCOP, else MISSION) unless given; it picks the quality column and
-    the time zero (:data:`TIME_ZERO`, or BJDREFI + BJDREFF from the header)."""
+    the time zero (``TIME_ZERO``, or BJDREFI + BJDREFF from the header)."""
     from astropy.io import fits
     from astropy.table import Table
     from astropy.units import UnitsWarning

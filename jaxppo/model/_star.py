@@ -20,7 +20,7 @@ _INTERPOLATIONS = ("sqrt-poly", "linear", "cubic")
 
 
 def _check_mu_nodes(mu_np: np.ndarray, pad_ends: bool) -> None:
-    """The nodes of a tabulated profile (see :meth:`Star.tabulated`)."""
+    """The nodes of a tabulated profile (see ``Star.tabulated``)."""
     if mu_np.size < 3:
         raise ValueError(f"a tabulated profile needs at least 3 points, got {mu_np.size}")
     _check_finite("mu", mu_np)
@@ -117,7 +117,7 @@ class Spots(eqx.Module):
 
     Every field but ``edge`` is an array, so ``jax.grad``/``jit`` see them
     (spot sizes, positions, contrasts and the rotation are fit parameters).
-    Attach them to a star with :meth:`Star.with_spots`; only the raster
+    Attach them to a star with ``Star.with_spots``; only the raster
     models a spotted star, and its flux is relative to the unspotted star's
     total flux F0 (docs/activity.md). Spots must not overlap: contrasts add
     (1 - sum_k c_k S_k).
@@ -298,9 +298,9 @@ class Star(eqx.Module):
         "sqrt-poly": the largest |fit - table| at the nodes (-1: unknown,
         traced intensities; 0 otherwise; static).
     surface : callable or None
-        A surface map ``surface(x, y)`` (:meth:`with_surface`; static).
+        A surface map ``surface(x, y)`` (``with_surface``; static).
     spots : Spots or None
-        Rotating spots (:meth:`with_spots`).
+        Rotating spots (``with_spots``).
 
     See Also
     --------
@@ -440,7 +440,7 @@ class Star(eqx.Module):
         """Build a power-2 law star, I = 1 - c (1 - mu^alpha).
 
         Hestroffer (1997); Claret & Southworth (2023) tabulate c as ``g``
-        and alpha as ``h`` (:func:`claret_power2`). The coefficients may be
+        and alpha as ``h`` (``claret_power2``). The coefficients may be
         traced (``jit``, ``grad``); then they are not checked.
 
         Parameters
@@ -504,7 +504,7 @@ class Star(eqx.Module):
         which adds a node at mu = 0 (and 1) repeating the nearest intensity;
         the profile is then flat beyond the table only with
         ``interpolation="linear"`` ("sqrt-poly" and "cubic" curve between the
-        added node and the table). PHOENIX tables (:func:`phoenix_star`)
+        added node and the table). PHOENIX tables (``phoenix_star``)
         reach both ends.
 
         ``degree`` fixes the degree of the "sqrt-poly" fit (default: the
@@ -645,7 +645,7 @@ class Star(eqx.Module):
         Raises
         ------
         ValueError
-            When the law is unknown (tables: :meth:`tabulated`) or the number
+            When the law is unknown (tables: ``tabulated``) or the number
             of coefficients is not the law's; and as the law's constructor.
 
         Examples
@@ -863,7 +863,7 @@ class Star(eqx.Module):
         spots : Spots, optional
             The spots; or None, and give their arguments as keywords.
         **kwargs
-            The arguments of :class:`Spots` (``lat``, ``lon``, ``radius``,
+            The arguments of ``Spots`` (``lat``, ``lon``, ``radius``,
             ``contrast``, ``period``, ``inc``, ``t_ref``, ``obliquity``,
             ``edge``), when ``spots`` is None.
 
@@ -876,7 +876,7 @@ class Star(eqx.Module):
         ------
         ValueError
             When both ``spots`` and keywords are given, ``spots`` is not a
-            :class:`Spots`, or (from :class:`Spots`) the keywords are invalid.
+            ``Spots``, or (from ``Spots``) the keywords are invalid.
 
         Examples
         --------

@@ -70,7 +70,7 @@ def sweep(
     in which no two disks overlap is a sum of one-disk terms computed once per
     time; only the (case, alpha, time) frames in which two disks overlap run
     the exact union integral, in bounded chunks. Other methods, and stars
-    that are not radially symmetric, evaluate :meth:`System.flux` on the
+    that are not radially symmetric, evaluate ``System.flux`` on the
     whole grid.
 
     Parameters
@@ -79,20 +79,20 @@ def sweep(
         The star and planets; ``system.tilted`` is rotated by alpha.
     t : array_like
         Times [d], [n_times] (a time Quantity or TimeDelta is converted; an
-        absolute astropy Time is refused, see :meth:`System.flux`).
+        absolute astropy Time is refused, see ``System.flux``).
     alpha : array_like
         Tilt angles [deg], a scalar or [n_alpha] (an angle Quantity is
         converted).
     cases : str or sequence, optional
         Hemisphere cases: "same", "opposite" or tuples of +-1 signs of the
-        untilted planets (see :func:`hemisphere_cases`); one string is one
+        untilted planets (see ``hemisphere_cases``); one string is one
         case (default ("same", "opposite")).
     method : {"auto", "exact", "raster"}, optional
         "auto" (default; as above), "exact" (union integral for every
         frame) or "raster".
     order : int, optional
         Gauss-Legendre nodes per arc piece (default 24; as in
-        :func:`occultation_flux`).
+        ``occultation_flux``).
     chunk : int, optional
         Frames per compiled batch (default 65536).
     return_stats : bool, optional
@@ -114,7 +114,7 @@ def sweep(
     ------
     ValueError
         When ``t`` is not 1D or ``alpha`` more than 1D, a value is not finite,
-        or a case is invalid for the system (and as :meth:`System.flux` for
+        or a case is invalid for the system (and as ``System.flux`` for
         other methods).
 
     Examples

@@ -39,7 +39,7 @@ def case_signs(n_planets: int, tilted: int, case) -> np.ndarray:
 
     ``case``: "same" (all +1), "opposite" (all -1), a tuple of +-1 (one per
     untilted planet, in planet order), or a string of "+"/"-" of that length
-    (as written by :func:`case_label`).
+    (as written by ``case_label``).
     """
     k = n_planets - 1
     if isinstance(case, str):
@@ -79,7 +79,7 @@ def case_label(case) -> str:
     Parameters
     ----------
     case : str or tuple of int
-        A case as :func:`hemisphere_cases` gives it: "same", "opposite"
+        A case as ``hemisphere_cases`` gives it: "same", "opposite"
         (returned unchanged, as is any string), or a tuple of +1/-1 signs of
         the untilted planets relative to the tilted one.
 
@@ -111,8 +111,8 @@ def case_label(case) -> str:
 
 
 def scan_cases(system: "System", cases) -> tuple[str, ...]:
-    """The hemisphere cases of a scan as text labels (:func:`case_label`):
-    ``"all"`` gives every configuration that differs (:func:`hemisphere_cases`),
+    """The hemisphere cases of a scan as text labels (``case_label``):
+    ``"all"`` gives every configuration that differs (``hemisphere_cases``),
     otherwise a non-empty list of "same", "opposite" or "+"/"-" strings (one
     sign per untilted planet). Raises ValueError naming the bad entry."""
     if isinstance(cases, str):
@@ -163,8 +163,8 @@ def hemisphere_cases(system: "System") -> tuple:
         hemisphere, paper case 1) and "opposite" last (every one in the
         other, paper case 4); the mixed ones in between as tuples of +1/-1
         (one per untilted planet, in planet order). A single-planet system
-        gives ``("same",)``. Each is a valid ``case`` of :meth:`System.flux`;
-        :func:`case_label` names them as text.
+        gives ``("same",)``. Each is a valid ``case`` of ``System.flux``;
+        ``case_label`` names them as text.
 
     Examples
     --------
@@ -453,7 +453,7 @@ class Planet(eqx.Module):
         """Impact parameter b = a cos(i) (1 - e^2) / (1 + e sin omega) [R*].
 
         The sky distance at conjunction, signed as the inclination gives it.
-        Transits measure only |b|: :meth:`System.positions` places the
+        Transits measure only |b|: ``System.positions`` places the
         planets by |b| and the hemisphere case (docs/conventions.md).
 
         Returns
@@ -471,8 +471,8 @@ class Planet(eqx.Module):
 
         Circular or Keplerian orbit in the sky frame of docs/conventions.md
         (x right, y up, z towards the observer), before any tilt; with
-        transit times, at :meth:`orbit_time`. Parameters outside
-        :meth:`in_domain` (reached under jit/grad/vmap) give NaN positions.
+        transit times, at ``orbit_time``. Parameters outside
+        ``in_domain`` (reached under jit/grad/vmap) give NaN positions.
 
         Parameters
         ----------
@@ -554,7 +554,7 @@ class Planet(eqx.Module):
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
         """First and last contact relative to conjunction t0 + n P [d].
 
-        Circular orbits: -+ :meth:`half_duration`. Eccentric ones are solved
+        Circular orbits: -+ ``half_duration``. Eccentric ones are solved
         on the host (concrete parameters only) on the exact orbit, where the
         transit is not symmetric about conjunction.
 
@@ -583,7 +583,7 @@ class Planet(eqx.Module):
 
         Half the time from first to last contact for circular orbits; for
         eccentric ones, whose transits are not symmetric about conjunction,
-        the larger of the two contact offsets (see :meth:`contacts`).
+        the larger of the two contact offsets (see ``contacts``).
 
         Returns
         -------
@@ -667,7 +667,7 @@ class System(eqx.Module):
     Planet ``tilted`` is the one whose orbit is rotated by alpha about the
     line of sight (Mueller et al. 2021, Sect. 2.5); the others keep their
     orbits, in the tilted planet's hemisphere or mirrored into the other
-    one as the hemisphere ``case`` says (:func:`hemisphere_cases`). An
+    one as the hemisphere ``case`` says (``hemisphere_cases``). An
     equinox module (a JAX pytree): the star's and planets' parameters can be
     traced; ``tilted`` is static.
 
@@ -692,8 +692,8 @@ class System(eqx.Module):
     Raises
     ------
     ValueError
-        When ``star`` is not a :class:`Star`, ``planets`` is empty or holds
-        something other than a :class:`Planet`, two planets share a name, or
+        When ``star`` is not a ``Star``, ``planets`` is empty or holds
+        something other than a ``Planet``, two planets share a name, or
         ``tilted`` is neither an index in range nor a planet's name.
 
     See Also
@@ -714,7 +714,7 @@ class System(eqx.Module):
     [1.       0.999621 0.998996]
 
     A tilt alpha [deg] rotates b's orbit about the line of sight (an array
-    of tilts in :meth:`flux` gives one light curve per tilt, [n_alpha,
+    of tilts in ``flux`` gives one light curve per tilt, [n_alpha,
     n_times]). At b's mid-transit, alpha = 90 deg puts b on the x axis at
     x = |b|; c is behind the star (r = 0). ``xp=np`` computes on the host:
 
@@ -761,7 +761,7 @@ class System(eqx.Module):
         Returns
         -------
         int
-            Its position in :attr:`planets`.
+            Its position in ``planets``.
 
         Raises
         ------
@@ -785,7 +785,7 @@ class System(eqx.Module):
         Parameters
         ----------
         t : array_like or Quantity or TimeDelta
-            Times [d]; converted as in :meth:`flux`.
+            Times [d]; converted as in ``flux``.
         alpha : array_like or Quantity, optional
             Tilt of the tilted planet's orbit [deg] (default 0); broadcasts
             against ``t``.
@@ -793,7 +793,7 @@ class System(eqx.Module):
             Hemisphere case: "same" (default, no planet mirrored),
             "opposite" (every untilted planet mirrored), a tuple of +1/-1
             signs (one per untilted planet, in planet order) or its
-            "+"/"-" string (:func:`case_label`).
+            "+"/"-" string (``case_label``).
         xp : module, optional
             Array namespace: ``jax.numpy`` (default) or ``numpy``, which
             computes on the host without tracing (fast geometry for concrete
@@ -833,8 +833,8 @@ class System(eqx.Module):
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d], planet-planet occultations included.
 
-        The disks of :meth:`positions` in front of the star, integrated by
-        :func:`occultation_flux` (1 out of transit). A star with rotating
+        The disks of ``positions`` in front of the star, integrated by
+        ``occultation_flux`` (1 out of transit). A star with rotating
         spots gets the times too (its surface changes with time).
 
         Parameters
@@ -851,12 +851,12 @@ class System(eqx.Module):
             a 1D array [n_alpha] for one light curve per tilt.
         case : str or tuple of int, optional
             Hemisphere case: "same" (default), "opposite" or a tuple of +1/-1
-            signs of the untilted planets (see :meth:`positions`,
-            :func:`hemisphere_cases`).
+            signs of the untilted planets (see ``positions``,
+            ``hemisphere_cases``).
         method : str, optional
-            "auto" (default), "exact" or "raster"; see :func:`occultation_flux`.
+            "auto" (default), "exact" or "raster"; see ``occultation_flux``.
         **kwargs
-            Passed on to :func:`occultation_flux` (``order``, ``chunk``,
+            Passed on to ``occultation_flux`` (``order``, ``chunk``,
             ``raster``, ``times``).
 
         Returns
@@ -926,7 +926,7 @@ class System(eqx.Module):
     def transit_times(self, t_start, t_end):
         """The predicted mid-transit times from t_start to t_end [d].
 
-        Same as :func:`jaxppo.transit_times` of this system.
+        Same as ``jaxppo.transit_times`` of this system.
 
         Parameters
         ----------

@@ -22,7 +22,7 @@ def transit_times(system: System, t_start, t_end):
     inferior conjunction, eccentric orbits included); a planet with
     ``transit_times`` has the listed times at its listed epochs and t0 + n P
     plus the offset of the nearest listed epoch elsewhere
-    (:meth:`Planet.mid_time`). A planet that never crosses the stellar disk
+    (``Planet.mid_time``). A planet that never crosses the stellar disk
     has none. The question every orbit model answers alike, so users and
     checks can compare them.
 
@@ -155,7 +155,7 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
 
 @dataclasses.dataclass(frozen=True)
 class MultiTransit:
-    """Two or more planets on the star at once: one event of :func:`multi_transits`.
+    """Two or more planets on the star at once: one event of ``multi_transits``.
 
     A frozen dataclass.
 
@@ -203,7 +203,7 @@ class MultiTransit:
         Returns
         -------
         dict
-            The fields of :class:`MultiTransit`.
+            The fields of ``MultiTransit``.
         """
         return dataclasses.asdict(self)
 
@@ -262,8 +262,8 @@ def multi_transits(
     all on the disk at once: a triple needs a moment with all three in
     transit; a chain b-c then c-d with no common time is two double
     transits, not a triple. Windows come from the orbits' contact times
-    (:meth:`Planet.contacts`), so events that fall in data gaps are listed
-    too (see :func:`multi_transit_counts` for observed ones).
+    (``Planet.contacts``), so events that fall in data gaps are listed
+    too (see ``multi_transit_counts`` for observed ones).
 
     Parameters
     ----------
@@ -329,7 +329,7 @@ def multi_transit_counts(
 
     As in Mueller et al. (2021), Table 2: each event counted once, under all
     the planets on the disk at once, so a triple is not also counted as
-    three doubles. An event (:func:`multi_transits`) counts as observed when
+    three doubles. An event (``multi_transits``) counts as observed when
     some cadence covers part of the time during which all its planets are on
     the disk (``overlap_start`` .. ``overlap_end``); events in data gaps do
     not count.

@@ -39,12 +39,12 @@ def synthetic_config_path() -> Path:
 class ScanConfig:
     """A checked obliquity-scan configuration: the system, the data and the scan settings.
 
-    Built by :func:`load_config` from a TOML file (docs/config.md), or by
-    :func:`jaxppo.scan` and :func:`jaxppo.marginal_scan` from their
+    Built by ``load_config`` from a TOML file (docs/config.md), or by
+    ``jaxppo.scan`` and ``jaxppo.marginal_scan`` from their
     arguments; every field has been checked by then, so a bad config fails
     before any work starts, with the field named. Pass it to
-    :func:`jaxppo.scan`, :func:`jaxppo.scan_windows` or
-    :func:`jaxppo.marginal_scan`; it carries its own settings, so those
+    ``jaxppo.scan``, ``jaxppo.scan_windows`` or
+    ``jaxppo.marginal_scan``; it carries its own settings, so those
     functions refuse the keyword arguments that would override them.
 
     Attributes
@@ -65,8 +65,8 @@ class ScanConfig:
     block : int
         Alphas per progress record (how much an interrupted scan can lose).
     raw : dict
-        The parsed TOML (for :func:`jaxppo.scan`: its arguments); what
-        :attr:`digest` hashes.
+        The parsed TOML (for ``jaxppo.scan``: its arguments); what
+        ``digest`` hashes.
     source : str
         The config file's path, or ``"<jaxppo.scan>"`` when built from
         Python arguments.
@@ -228,7 +228,7 @@ would only exhaust memory (the chi^2 table is cases x alphas x points)."""
 
 def alpha_grid(grid, name: str = "alpha") -> np.ndarray:
     """The tilt grid [deg] of ``[start, stop, step]`` (stop exclusive),
-    checked by :func:`check_alpha_grid`; errors name ``name`` (the config key
+    checked by ``check_alpha_grid``; errors name ``name`` (the config key
     or the command-line option)."""
     if isinstance(grid, (str, bytes)) or not hasattr(grid, "__len__") or len(grid) != 3:
         raise ValueError(f"{name} must be [start, stop, step] in degrees, got {grid!r}")
@@ -340,8 +340,8 @@ def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
     Returns
     -------
     ScanConfig
-        The checked configuration, for :func:`jaxppo.scan`,
-        :func:`jaxppo.scan_windows` or :func:`jaxppo.marginal_scan`.
+        The checked configuration, for ``jaxppo.scan``,
+        ``jaxppo.scan_windows`` or ``jaxppo.marginal_scan``.
 
     Raises
     ------
@@ -403,8 +403,8 @@ def _none_word(v) -> bool:
 def check_scan_settings(margin=0.05, detrend=2, baseline=0.3, clip=5.0, block=60, multi_transits=None,
                         marginalize=0) -> dict:
     """The scan settings checked and normalised: the one set of rules of
-    both the config file (``[scan]``) and the Python API (:func:`jaxppo.scan`,
-    :func:`jaxppo.marginal_scan`).
+    both the config file (``[scan]``) and the Python API (``jaxppo.scan``,
+    ``jaxppo.marginal_scan``).
 
     Args:
         margin: [d] out-of-transit data in the chi^2 on each side of an
@@ -455,8 +455,8 @@ def check_scan_settings(margin=0.05, detrend=2, baseline=0.3, clip=5.0, block=60
 
 def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, baseline, clip, multi_transits,
                           block) -> ScanConfig:
-    """A checked :class:`ScanConfig` from the arguments of :func:`jaxppo.scan`
-    (the checks of :func:`check_scan_settings`, as for a config file)."""
+    """A checked ``ScanConfig`` from the arguments of ``jaxppo.scan``
+    (the checks of ``check_scan_settings``, as for a config file)."""
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
     if is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
@@ -551,9 +551,9 @@ def _fit_from(raw: dict, system: System, source: str):
 
 
 def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
-    """A checked :class:`ScanConfig` from the parsed TOML ``raw``; relative
+    """A checked ``ScanConfig`` from the parsed TOML ``raw``; relative
     paths are relative to the folder ``base``. The [scan] settings go through
-    :func:`check_scan_settings`, as the Python API's do."""
+    ``check_scan_settings``, as the Python API's do."""
     base = Path(base)
     _check_keys(raw, SECTIONS, "top level (sections)", source)
     for sec in ("star", "data", "scan"):

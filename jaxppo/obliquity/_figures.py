@@ -9,10 +9,10 @@ and Table 6), drawn from plain data so that any scan driver can call them.
   name -> {"probability", "sum_positive_delta_chi2"}, plus "bayes_factor",
   "jeffreys");
 * ``table``: {case: {"alpha", "chi2", "delta_chi2", "posterior"}} arrays
-  (:func:`read_scan_csv`);
-* ``system``: the :class:`~jaxppo.System` that was scanned;
+  (``read_scan_csv``);
+* ``system``: the ``jaxppo.System`` that was scanned;
 * ``windows``: the multi-transit windows, objects with ``number`` (1-based),
-  ``event`` (:class:`~jaxppo.MultiTransit`), ``time`` [d], ``flux`` and
+  ``event`` (``jaxppo.MultiTransit``), ``time`` [d], ``flux`` and
   ``flux_err`` (detrended, relative), ``exposure`` [d] or None (the models
   are averaged over the exposure when given);
 * ``cases``: the hemisphere cases, in order.
@@ -69,7 +69,7 @@ def _ppo(summary: dict, case) -> dict:
 
 def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np.ndarray:
     """[alpha, time] flux, averaged over the exposure [d] when given, by the
-    rule of the scan's chi^2 (:meth:`LightCurve.supersampled_times`): the
+    rule of the scan's chi^2 (``LightCurve.supersampled_times``): the
     figures show the model whose chi^2 the scan reports."""
     time = np.asarray(time, float)
     alphas = np.atleast_1d(np.asarray(alphas, float))

@@ -1,6 +1,6 @@
-"""The scan-setting keywords of :func:`jaxppo.scan` and
-:func:`jaxppo.marginal_scan`. With a System they build the config (checked by
-:func:`check_scan_settings`); a :class:`ScanConfig` carries its own settings,
+"""The scan-setting keywords of ``jaxppo.scan`` and
+``jaxppo.marginal_scan``. With a System they build the config (checked by
+``check_scan_settings``); a ``ScanConfig`` carries its own settings,
 so one given with it is refused rather than silently ignored (issue 24: 360
 alphas were scanned for 36 asked)."""
 

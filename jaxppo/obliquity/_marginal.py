@@ -23,11 +23,11 @@ of draws: the one-disk terms of every draw's frames (which hold for every
 alpha and case) in one call, and the frames in which the tilted planet's disk
 overlaps another disk (found from the geometry) of all draws, alphas and
 cases in one call of the same overlap kernel the plain scan uses
-(:func:`jaxppo.model._sweep.overlap_flux`). chi^2 is then updated sparsely: only
+(``jaxppo.model._sweep.overlap_flux``). chi^2 is then updated sparsely: only
 the points containing an overlapping sub-exposure change.
 
 Results are written as they go (one checksummed JSON line per draw and case,
-the progress format of :mod:`jaxppo.obliquity._progress`, fsynced per chunk of
+the progress format of ``jaxppo.obliquity._progress``, fsynced per chunk of
 draws); an interrupted run resumes without recomputing finished draws.
 """
 
@@ -140,7 +140,7 @@ def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
     """chi^2 of every (draw, case, alpha) and each draw's no-PPO chi^2.
 
     Args:
-        systems: one :class:`System` per draw (same star, planets, tilted).
+        systems: one ``System`` per draw (same star, planets, tilted).
         tm: model times [d] (``LightCurve.supersampled_times``), nsub per point.
         y, sig: the data and their errors per point.
         alpha [deg], cases: the grid.
@@ -149,7 +149,7 @@ def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
         chi2 [draw, case, alpha], chi2_null [draw] (the no-PPO model: the sum
         of each disk's own transit), ppo [draw, case, alpha] (True where the
         tilted planet overlaps another planet on the star in some frame:
-        :func:`jaxppo.model._overlap.ppo_table` over all events at once).
+        ``jaxppo.model._overlap.ppo_table`` over all events at once).
 
     One batched computation: the one-disk terms of all draws in one call, the
     overlapping frames of all draws, cases and alphas in one call of the
@@ -335,8 +335,8 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     Parameters
     ----------
     system : ScanConfig or System
-        A :class:`ScanConfig` (with its own scan settings), or a
-        :class:`System` with ``lightcurve``.
+        A ``ScanConfig`` (with its own scan settings), or a
+        ``System`` with ``lightcurve``.
     lightcurve : LightCurve, optional
         The data, with a System; not with a config.
     draws : int, optional
@@ -378,7 +378,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     figures : bool, optional
         With ``out``, draw marginal.png (default True).
     alpha, cases, margin, detrend, baseline, clip, multi_transits : optional
-        As in :func:`jaxppo.scan`; only with a System. With a ScanConfig
+        As in ``jaxppo.scan``; only with a System. With a ScanConfig
         they are refused (the config's own settings are used; set them
         there).
     min_ess : float, optional
@@ -398,7 +398,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     ------
     ValueError
         When ``lightcurve`` or a scan setting is given with a
-        :class:`ScanConfig`; when ``draws``, ``min_ess``, ``chunk``,
+        ``ScanConfig``; when ``draws``, ``min_ess``, ``chunk``,
         ``thin``, ``num_warmup``, ``chains``, ``samples`` (unknown parameter,
         unequal lengths, non-finite values), ``stellar_density`` or a scan
         setting is invalid; when ``fixed`` is a scan of another
@@ -572,7 +572,7 @@ def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, ti
 
 
 def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
-    """The marginal scan in ``out`` (resumes; see :func:`marginal_scan`)."""
+    """The marginal scan in ``out`` (resumes; see ``marginal_scan``)."""
     if fixed is not None and fixed.config_digest != cfg.digest:
         raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, "
                          f"this one {cfg.digest})")

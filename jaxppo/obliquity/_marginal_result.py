@@ -28,7 +28,7 @@ def logmeanexp(v: np.ndarray, axis: int) -> np.ndarray:
 class MarginalResult(DeprecatedSummaryAccess):
     """The obliquity scan marginalised over the transit parameters (immutable).
 
-    As :func:`jaxppo.marginal_scan` returns it: the per-draw Delta chi^2
+    As ``jaxppo.marginal_scan`` returns it: the per-draw Delta chi^2
     curves, their importance-weighted average (the marginal Delta chi^2 and
     posterior p(alpha | D)), the geometry probabilities from it and their
     spread over the draws, beside the fixed-parameter scan. A case whose

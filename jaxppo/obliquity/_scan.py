@@ -1,18 +1,18 @@
 """The orbital obliquity scan of Mueller et al. (2021), Sects. 2.1 and 3.3:
-the driver (:func:`run_scan`, :func:`scan`), its outputs and restart.
+the driver (``run_scan``, ``scan``), its outputs and restart.
 
 chi^2(alpha) over all multi-transits of the tilted planet at once (the
-windows of :mod:`._windows`), the ground level chi^2_0 (median over the
+windows of ``._windows``), the ground level chi^2_0 (median over the
 alphas at which no planet-planet occultation occurs in any frame, found from
 the geometry), Delta chi^2, the posterior p(alpha | D) ~ exp(-Delta chi^2 / 2)
-normalised over [0, 360), the geometry probabilities (Table 6, :mod:`._stats`),
+normalised over [0, 360), the geometry probabilities (Table 6, ``._stats``),
 the Bayes factor with its Jeffreys rating, and the numbers of the transits in
 which each alpha produces a PPO.
 
 The scan computes and writes; it draws nothing and judges nothing: the
-figures (:func:`draw_figures`, ``jaxppo.scan(..., figures=True)``) and the
-PPO-or-spot verdict (:func:`jaxppo.activity.ppo_or_spot`) come after it, on
-the finished :class:`ScanResult` (the command line runs all of them).
+figures (``draw_figures``, ``jaxppo.scan(..., figures=True)``) and the
+PPO-or-spot verdict (``jaxppo.activity.ppo_or_spot``) come after it, on
+the finished ``ScanResult`` (the command line runs all of them).
 
 Long runs write their progress as they go (one checksummed JSON line per
 finished (case, alpha) block, flushed and fsynced) and resume without
@@ -66,7 +66,7 @@ def _detrend_summary(cfg) -> dict:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class ScanResult(DeprecatedSummaryAccess):
-    """A finished obliquity scan (immutable), as :func:`jaxppo.scan` returns it.
+    """A finished obliquity scan (immutable), as ``jaxppo.scan`` returns it.
 
     Delta chi^2(alpha) = chi^2(alpha) - chi^2_0 per hemisphere case, with the
     ground level chi^2_0 the median chi^2 over the alphas without a
@@ -88,7 +88,7 @@ class ScanResult(DeprecatedSummaryAccess):
         ``detrending``, ``alpha`` [deg], ``table5``, ``resumed``, ``seconds``
         [s] of the scan; after the figures also ``figures`` (paths), after
         the command line's verdict ``ppo_or_spot``. Treat it as read-only:
-        :func:`with_summary` gives a new result.
+        ``with_summary`` gives a new result.
     table : numpy.ndarray
         The rows of scan.csv, a structured array [n_cases * n_alpha] with
         ``case``, ``alpha`` [deg], ``chi2``, ``delta_chi2`` and
@@ -122,7 +122,7 @@ class ScanResult(DeprecatedSummaryAccess):
 
     @property
     def config_digest(self) -> str:
-        """Hash of the config and data the scan ran on (:attr:`ScanConfig.digest`)."""
+        """Hash of the config and data the scan ran on (``ScanConfig.digest``)."""
         return self.summary["config_digest"]
 
     @property
@@ -146,7 +146,7 @@ class ScanResult(DeprecatedSummaryAccess):
         return self.summary["resumed"]
 
     def by_case(self) -> dict:
-        """The columns of :attr:`table` per case.
+        """The columns of ``table`` per case.
 
         Returns
         -------
@@ -235,7 +235,7 @@ def with_summary(out, result: ScanResult, **entries) -> ScanResult:
 
 def draw_figures(result: ScanResult, cfg: ScanConfig, out) -> ScanResult:
     """Draw the scan's figures (paper Figs. 4-7 and the Table 6 bars;
-    :func:`jaxppo.obliquity._figures.scan_figures`) of a finished scan into
+    ``jaxppo.obliquity._figures.scan_figures``) of a finished scan into
     ``out`` and record their paths in summary.json (``figures``)."""
     from ._figures import scan_figures
 
@@ -438,7 +438,7 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True) -> ScanResult:
     """Run (or resume) the scan and write scan.csv, scan.ecsv, table5.csv,
     table5.md and summary.json into ``out``; no figures, no verdict (see
-    :func:`draw_figures`, :func:`jaxppo.activity.ppo_or_spot`). A scan that
+    ``draw_figures``, ``jaxppo.activity.ppo_or_spot``). A scan that
     already finished in ``out`` with the same config is returned as stored
     (``result.resumed["finished_before"]``): nothing is recomputed."""
     _require_x64("the obliquity scan")
@@ -494,7 +494,7 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
 
     chi^2(alpha) of every tilt of the tilted planet's orbit about the line of
     sight, over all its multi-transits with data at once (the detrended
-    windows of :func:`jaxppo.scan_windows`), for each hemisphere case; then
+    windows of ``jaxppo.scan_windows``), for each hemisphere case; then
     the ground level chi^2_0, Delta chi^2, the posterior p(alpha | D), the
     geometry probabilities with the Bayes factor and its Jeffreys rating, and
     the peaks and dips of Delta chi^2 (paper Table 5).
@@ -506,7 +506,7 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
     alpha grid also by ``jp.load_config(path, alpha=[start, stop, step])``).
     With a System, ``margin``, ``detrend``, ``baseline``, ``clip``,
     ``multi_transits`` and ``block`` are the config keys of the same names
-    (docs/config.md), checked by the same rules (:func:`check_scan_settings`).
+    (docs/config.md), checked by the same rules (``check_scan_settings``).
 
     The scan writes its progress as it goes and resumes in the same ``out``
     without recomputing; a scan that already finished there with the same
@@ -517,10 +517,10 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
     ----------
     system : System or ScanConfig
         The system (``system.tilted`` is rotated by alpha), or a
-        :class:`ScanConfig` from :func:`load_config`.
+        ``ScanConfig`` from ``load_config``.
     lightcurve : LightCurve or lightkurve.LightCurve, optional
         The data; a lightkurve ``LightCurve`` is converted by
-        :meth:`LightCurve.from_lightkurve`. Not with a config.
+        ``LightCurve.from_lightkurve``. Not with a config.
     alpha : array_like, optional
         Tilt grid [deg], [n_alpha]; evenly spaced over 360 deg with a step
         that divides 360 (default 0, 1, ..., 359).
@@ -555,9 +555,9 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
         Show a progress bar.
     figures : bool, optional
         With ``out``, draw the figures of ``jaxppo scan`` after the scan has
-        finished (:func:`draw_figures`; skipped when a finished scan's
+        finished (``draw_figures``; skipped when a finished scan's
         figures are all there). The PPO-or-spot verdict of the command line
-        is :func:`jaxppo.activity.ppo_or_spot` (result, system, out=out).
+        is ``jaxppo.activity.ppo_or_spot`` (result, system, out=out).
 
     Returns
     -------
@@ -569,7 +569,7 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
     ------
     ValueError
         When ``lightcurve`` or a scan setting is given with a
-        :class:`ScanConfig`, when a setting is invalid (named with its
+        ``ScanConfig``, when a setting is invalid (named with its
         value), when the alpha grid does not cover the whole circle evenly,
         when the data hold no usable multi-transit of the tilted planet, or
         when float64 is not enabled.

@@ -1,6 +1,6 @@
 """Read-only dict access to a result's ``summary``, kept for one release.
 
-:class:`~jaxppo.ScanResult` and :class:`~jaxppo.MarginalResult` used to be
+``jaxppo.ScanResult`` and ``jaxppo.MarginalResult`` used to be
 dict subclasses (the summary itself). They are frozen dataclasses now, with
 the summary in their ``summary`` field; ``result["key"]``, ``result.get``,
 ``key in result``, ``keys()``, ``items()`` and ``values()`` still read it but

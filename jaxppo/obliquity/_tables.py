@@ -124,7 +124,7 @@ def table5_rows(table: dict, summary: dict | None = None, cases=None, threshold:
             ``read_scan_csv(out / "scan.csv")``).
         summary: the scan summary (for ``cases[case]["ppo_transits"]``), or None.
         cases: which cases, in order (default: the table's).
-        threshold: see :func:`peaks_and_dips`.
+        threshold: see ``peaks_and_dips``.
     """
     cases = tuple(table) if cases is None else tuple(cases)
     out = []

@@ -77,7 +77,7 @@ def ttv_digest(system) -> dict:
 
 def ttv_settings(section, system, base) -> dict:
     """The checked [ttv] section (``jaxppo ttv``), as keywords of
-    :func:`jaxppo.measure_transit_times` plus ``reference``: ``planets`` (names; default all), ``free`` (parameters
+    ``jaxppo.measure_transit_times`` plus ``reference``: ``planets`` (names; default all), ``free`` (parameters
     fitted with the times), ``search`` [d], ``grid``, ``min_points``,
     ``reference`` (tables of times to compare with: columns planet, epoch,
     tc, tc_err; a file or a list, relative to the config's folder; a list

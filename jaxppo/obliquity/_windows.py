@@ -27,8 +27,8 @@ _EVENT_MATCH = 0.1
 class ScanWindow:
     """One multi-transit as the scan's chi^2 sees it (immutable).
 
-    Made by :func:`jaxppo.scan_windows`; a finished scan keeps its windows in
-    :attr:`ScanResult.windows`.
+    Made by ``jaxppo.scan_windows``; a finished scan keeps its windows in
+    ``ScanResult.windows``.
 
     Attributes
     ----------
@@ -88,7 +88,7 @@ class ScanWindow:
         Returns
         -------
         dict
-            The event's fields (:meth:`MultiTransit.as_dict`: start, end,
+            The event's fields (``MultiTransit.as_dict``: start, end,
             mid [d], planets, ...) with ``number``, ``points``,
             ``baseline_points``, ``clipped`` and ``sigma``.
         """
@@ -156,7 +156,7 @@ def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
     Parameters
     ----------
     cfg : ScanConfig
-        The configuration (:func:`load_config`): system, data, ``margin``,
+        The configuration (``load_config``): system, data, ``margin``,
         ``baseline``, ``detrend``, ``clip`` and ``events``.
 
     Returns
@@ -237,7 +237,7 @@ def windows_and_events(cfg: ScanConfig):
 
 def scan_events(cfg: ScanConfig):
     """(event, mask of ``cfg.lightcurve``) of the multi-transits the scan
-    uses, numbered as :func:`scan_windows` (the mask covers the chi^2 window
+    uses, numbered as ``scan_windows`` (the mask covers the chi^2 window
     of the raw light curve; the detrended points are in scan_windows)."""
     lc = cfg.lightcurve
     return [(w.event, (lc.time >= w.event.start - cfg.margin) & (lc.time <= w.event.end + cfg.margin))
@@ -245,8 +245,8 @@ def scan_events(cfg: ScanConfig):
 
 
 def windows_lightcurve(cfg: ScanConfig) -> LightCurve:
-    """The points of every window of :func:`scan_windows` as one
-    :class:`LightCurve` (detrended, outlier-cleaned; a point shared by the
+    """The points of every window of ``scan_windows`` as one
+    ``LightCurve`` (detrended, outlier-cleaned; a point shared by the
     windows of neighbouring events kept once): the data as the scan sees
     them, e.g. for fitting real data with stellar variability."""
     wins = scan_windows(cfg)

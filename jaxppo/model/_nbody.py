@@ -1,0 +1,311 @@
+"""Sky positions of planets moved by their mutual gravity (photodynamics).
+
+The orbits are integrated by the differentiable N-body code ``jnkepler``
+(Masuda et al.; the symplectic Wisdom-Holman map with TTVFast's third-order
+corrector, in Jacobi coordinates, with a fixed step), not by an integrator
+of jaxppo's own; jaxppo only reads its states at the requested times and
+puts them in its sky frame (docs/conventions.md).
+
+Initial conditions: osculating Jacobi elements at the time ``epoch`` (the
+convention of jnkepler, TTVFast and REBOUND's default ``primary``): planet j
+orbits the centre of mass of the star and planets 0..j-1 with
+GM = G (M_star + m_0 + ... + m_j); its period, eccentricity e, argument of
+periastron omega, inclination i, longitude of the ascending node Omega and
+the time of inferior conjunction (mid-transit) ``tic`` of that osculating
+orbit fix its state at ``epoch``.
+
+Positions at arbitrary times: the map is run once on the grid
+t_k = epoch + k dt (forward, and backward when a time precedes ``epoch``);
+the state at the grid point nearest to t is advanced by tau = t - t_k
+(|tau| <= dt / 2) with one drift-kick-drift step of size tau (jnkepler's
+``kepler_kick_kepler_map``, the step its fast transit finder uses to reach a
+transit time). The error of this step is that of one leapfrog step of size
+tau, smaller than the map's own error at dt; it is continuous in t except at
+the half-way points between grid points, where it jumps by that error.
+tests/model/test_nbody.py measures both against REBOUND (IAS15).
+
+Frame: jnkepler (like REBOUND) puts the observer on +z and a transiting
+planet moves towards -x at conjunction; jaxppo's planets move towards +x.
+Gravity is symmetric under the mirror x -> -x, so jaxppo's sky position of
+a planet is (-x, y, z) of its astrocentric position divided by the stellar
+radius. Then Omega is exactly jaxppo's tilt alpha (x' = x cos a + y sin a,
+y' = -x sin a + y cos a) and the orbit of a planet with Omega = 0 is
+:meth:`jaxppo.Planet.position` of the same elements: i < 90 deg crosses
+y > 0. Unlike :meth:`jaxppo.System.positions`, the sign of cos i is kept
+(mutual inclinations act on the dynamics), so i and 180 - i differ here.
+
+jnkepler switches JAX to float64 when it is imported; jaxppo never flips
+that switch for its user, so jnkepler is imported on first use and the
+user's setting is put back afterwards (float32 N-body positions warn).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike
+
+__all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "R_SUN_AU", "G_AU_DAY"]
+
+#: Nominal solar radius (IAU 2015 B3, 695 700 km) in au (IAU 2012, 149 597 870.7 km).
+R_SUN_AU = 695700.0 / 149597870.7
+#: G in au^3 / (M_sun d^2): the Gaussian constant squared, as in jnkepler and TTVFast.
+G_AU_DAY = 2.959122082855911e-4
+
+_JNKEPLER: dict = {}
+
+
+def _jnkepler() -> dict:
+    """jnkepler's functions, imported once with the user's float64 setting kept."""
+    if not _JNKEPLER:
+        x64 = bool(jax.config.read("jax_enable_x64"))
+        try:
+            with warnings.catch_warnings():
+                # its advice on XLA_FLAGS for CPU speed (see benchmarks/nbody_vs_rebound.py)
+                warnings.filterwarnings("ignore", message="For CPU performance", category=UserWarning)
+                from jnkepler.jaxttv.conversion import G, jacobi_to_astrocentric
+                from jnkepler.jaxttv.symplectic import integrate_xv, kepler_kick_kepler_map, kepler_step_map
+                from jnkepler.jaxttv.utils import initialize_jacobi_xv
+        except ImportError as err:  # pragma: no cover - depends on the environment
+            raise ImportError("N-body orbits need the package jnkepler: pip install jnkepler") from err
+        finally:
+            jax.config.update("jax_enable_x64", x64)
+        if not math.isclose(G, G_AU_DAY, rel_tol=1e-12):  # pragma: no cover - a future jnkepler
+            raise ImportError(f"jnkepler's G = {G} differs from jaxppo's G_AU_DAY = {G_AU_DAY}")
+        _JNKEPLER.update(integrate_xv=integrate_xv, kkk=kepler_kick_kepler_map, drift=kepler_step_map,
+                         init=initialize_jacobi_xv, to_astro=jacobi_to_astrocentric)
+    return _JNKEPLER
+
+
+def semi_major_axis(period: ArrayLike, mass: ArrayLike, star_radius: ArrayLike) -> Array:
+    """Semi-major axis [R*] of a Keplerian orbit of period P about mass M.
+
+    Kepler's third law a^3 = G M P^2 / (4 pi^2) with :data:`G_AU_DAY`,
+    divided by the stellar radius (:data:`R_SUN_AU`). For the Jacobi orbit
+    of planet j, M is the star's mass plus the masses of planets 0..j.
+
+    Parameters
+    ----------
+    period : array_like
+        Orbital period P [d].
+    mass : array_like
+        Total mass M the orbit feels [M_sun].
+    star_radius : array_like
+        Stellar radius [R_sun].
+
+    Returns
+    -------
+    jax.Array
+        a [R*], the broadcast shape of the inputs.
+
+    Examples
+    --------
+    >>> from jaxppo.model._nbody import semi_major_axis
+    >>> print(f"{float(semi_major_axis(365.256363, 1.0, 1.0)):.2f}")  # the Earth, in R_sun
+    215.03
+    """
+    period, mass = jnp.asarray(period, float), jnp.asarray(mass, float)
+    a_au = (G_AU_DAY * mass * period**2 / (4.0 * np.pi**2)) ** (1.0 / 3.0)
+    return a_au / (jnp.asarray(star_radius, float) * R_SUN_AU)
+
+
+def _concrete(value, name: str, why: str) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
+        raise ValueError(f"{name} must be concrete ({why})") from None
+
+
+def _grid(t, epoch: float, dt: float, t_range) -> tuple[int, int]:
+    """Numbers of forward and backward map steps that cover the times."""
+    if t_range is None:
+        tc = _concrete(t, "t", "it fixes the integration grid; under jit pass t_range=(t_min, t_max)")
+        if tc.size == 0 or not np.all(np.isfinite(tc)):
+            raise ValueError("t must be a non-empty array of finite times [d]")
+        lo, hi = float(tc.min()), float(tc.max())
+    else:
+        lo, hi = (float(v) for v in t_range)
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise ValueError(f"t_range must be finite (t_min, t_max) with t_min <= t_max, got {t_range!r}")
+    n_fwd = max(1, int(np.floor((hi - epoch) / dt + 0.5)) + 1)
+    n_bwd = max(0, int(np.floor((epoch - lo) / dt + 0.5)) + 1)
+    return n_fwd, n_bwd
+
+
+def _boundary_states(jk, x0, v0, masses, epoch, dt: float, n_fwd: int, n_bwd: int) -> Array:
+    """Map states at t_k = epoch + k dt, k = -n_bwd..n_fwd: [n_bwd + n_fwd + 1, 2, n_planets, 3].
+
+    jnkepler's ``integrate_xv`` returns each state dt/2 ahead (after the
+    closing half drift); a drift of -dt/2 brings it to t_k. The state at
+    k = 0 is one step back from k = 1 (the map is exactly reversible)."""
+    _, xv = jk["integrate_xv"](x0, v0, masses, epoch + dt * jnp.arange(n_fwd + 1))
+    fwd = jnp.stack(jk["drift"](xv[:, 0], xv[:, 1], masses, -0.5 * dt), axis=1)
+    first = jnp.stack(jk["kkk"](fwd[:1, 0], fwd[:1, 1], masses, jnp.full(1, -dt)), axis=1)
+    parts = [first, fwd]
+    if n_bwd:
+        _, xv = jk["integrate_xv"](x0, v0, masses, epoch - dt * jnp.arange(n_bwd + 1))
+        bwd = jnp.stack(jk["drift"](xv[:, 0], xv[:, 1], masses, 0.5 * dt), axis=1)
+        parts = [bwd[::-1]] + parts
+    return jnp.concatenate(parts, axis=0)
+
+
+def _xyz_core(t, elements, epoch, dt: float, n_fwd: int, n_bwd: int) -> Array:
+    """Astrocentric positions [au] in jnkepler's frame at times t (1D): [n_times, n_planets, 3]."""
+    jk = _jnkepler()
+    x0, v0, masses = jk["init"](elements, epoch)
+    states = _boundary_states(jk, x0, v0, masses, epoch, dt, n_fwd, n_bwd)
+    k = jnp.clip(jnp.round((t - epoch) / dt), -n_bwd, n_fwd)
+    tau = t - (epoch + k * dt)
+    idx = (k + n_bwd).astype(jnp.int32)
+    xj, vj = jk["kkk"](states[idx, 0], states[idx, 1], masses, tau)
+    xa, _ = jk["to_astro"](xj, vj, masses)
+    return xa
+
+
+_xyz_jit = jax.jit(_xyz_core, static_argnames=("dt", "n_fwd", "n_bwd"))
+
+
+def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses, star_mass, star_radius,
+              epoch: float, dt: float | None = None, t_range=None) -> tuple[Array, Array, Array]:
+    """Sky positions (x, y, z) [R*] of N-body planets at times t [d].
+
+    The orbits from osculating Jacobi elements at ``epoch``, integrated by
+    jnkepler and read at every time (module docstring: the method and its
+    error); jaxppo's sky frame (docs/conventions.md): x right, y up, z
+    towards the observer, the star at the origin. Jit-able and
+    differentiable in t, the elements and the masses (the grid is static:
+    ``dt``, ``epoch`` and the span of the times must be concrete).
+
+    Parameters
+    ----------
+    t : array_like
+        Times [d], any shape.
+    periods : array_like
+        Osculating Jacobi periods [d], [n_planets].
+    eccs, omegas : array_like
+        Eccentricities and arguments of periastron [deg] (docs/conventions.md:
+        omega = 90 deg puts periastron at transit), [n_planets].
+    incs : array_like
+        Inclinations [deg] in [0, 180] (the sign of cos i is kept), [n_planets].
+    lnodes : array_like
+        Longitudes of the ascending node Omega [deg], jaxppo's tilt alpha of
+        each orbit, [n_planets].
+    tics : array_like
+        Times of inferior conjunction (mid-transit) of the osculating orbits [d], [n_planets].
+    masses : array_like
+        Planet masses [M_sun], [n_planets].
+    star_mass : float
+        Stellar mass [M_sun].
+    star_radius : float
+        Stellar radius [R_sun] (the unit of x, y, z).
+    epoch : float
+        Time [d] at which the elements osculate (concrete).
+    dt : float, optional
+        Step of the map [d] (concrete). Default: the shortest period / 40
+        (needs concrete periods).
+    t_range : tuple of float, optional
+        (t_min, t_max) [d] the grid must cover; needed when ``t`` is traced,
+        default the span of ``t``. Times outside it are still evaluated, with
+        a step tau larger than dt / 2 and so a larger error.
+
+    Returns
+    -------
+    x, y, z : jax.Array
+        Coordinates [R*], each [*t.shape, n_planets]; z > 0 in front of the star.
+
+    Raises
+    ------
+    ValueError
+        When ``t`` (without ``t_range``), ``epoch`` or ``dt`` (or the periods,
+        without ``dt``) is traced, ``t`` is empty or not finite, the element
+        arrays differ in length, or ``dt`` is not positive.
+
+    Examples
+    --------
+    >>> import jax
+    >>> jax.config.update("jax_enable_x64", True)
+    >>> from jaxppo.model._nbody import nbody_xyz
+    >>> x, y, z = nbody_xyz([100.0], periods=[10.0], eccs=[0.0], omegas=[90.0], incs=[89.0], lnodes=[0.0],
+    ...                     tics=[100.0], masses=[1e-10], star_mass=1.0, star_radius=1.0, epoch=95.0)
+    >>> print(f"{float(x[0, 0]):.6f} {float(y[0, 0]):.4f}")  # at mid-transit: x = 0, y = b = a cos i
+    0.000000 0.3299
+    """
+    cols = [jnp.atleast_1d(jnp.asarray(v, float)) for v in (periods, eccs, omegas, incs, lnodes, tics, masses)]
+    if len({c.shape for c in cols}) != 1 or cols[0].ndim != 1:
+        raise ValueError(f"the element arrays must all be 1D of one length, got shapes {[c.shape for c in cols]}")
+    period, ecc, omega, inc, lnode, tic, mass = cols
+    epoch = float(_concrete(epoch, "epoch", "it fixes the integration grid"))
+    if dt is None:
+        dt = float(np.min(_concrete(period, "periods", "the default dt is the shortest period / 40; pass dt"))) / 40
+    dt = float(_concrete(dt, "dt", "it fixes the integration grid"))
+    if not dt > 0:
+        raise ValueError(f"dt must be > 0 [d], got {dt}")
+    if not jax.config.read("jax_enable_x64"):
+        warnings.warn("N-body orbits in float32 lose ~1e-7 of the orbit per step; enable float64: "
+                      'jax.config.update("jax_enable_x64", True)', UserWarning, stacklevel=2)
+    n_fwd, n_bwd = _grid(t, epoch, dt, t_range)
+    elements = {"period": period, "ecc": ecc, "omega": jnp.deg2rad(omega), "cosi": jnp.cos(jnp.deg2rad(inc)),
+                "lnode": jnp.deg2rad(lnode), "tic": tic, "pmass": mass, "smass": jnp.asarray(star_mass, float)}
+    t = jnp.asarray(t, float)
+    xa = _xyz_jit(t.reshape(-1), elements, epoch, dt=dt, n_fwd=n_fwd, n_bwd=n_bwd)
+    xa = xa.reshape(t.shape + xa.shape[1:]) / (jnp.asarray(star_radius, float) * R_SUN_AU)
+    return -xa[..., 0], xa[..., 1], xa[..., 2]
+
+
+def nbody_positions(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses, radii, star_mass,
+                    star_radius, epoch: float, dt: float | None = None, t_range=None) -> tuple[Array, Array, Array]:
+    """Disk centres and radii (x, y, r) [R*] of N-body planets at times t [d].
+
+    The layout of :meth:`jaxppo.System.positions` (r = 0 for a planet
+    behind the star, z < 0), ready for :func:`jaxppo.occultation_flux`; the
+    positions are those of :func:`nbody_xyz` (the same parameters, and the
+    radii).
+
+    Parameters
+    ----------
+    t : array_like
+        Times [d], any shape.
+    periods, eccs, omegas, incs, lnodes, tics, masses : array_like
+        Osculating Jacobi elements at ``epoch`` and planet masses, each
+        [n_planets]; units and meaning as in :func:`nbody_xyz`.
+    radii : array_like
+        Radius ratios R_p / R* [n_planets].
+    star_mass, star_radius : float
+        Stellar mass [M_sun] and radius [R_sun].
+    epoch : float
+        Time [d] at which the elements osculate (concrete).
+    dt : float, optional
+        Step of the map [d]; default the shortest period / 40.
+    t_range : tuple of float, optional
+        (t_min, t_max) the grid covers, needed when ``t`` is traced.
+
+    Returns
+    -------
+    x, y, r : jax.Array
+        Disk centres and radii [R*], each [*t.shape, n_planets].
+
+    Raises
+    ------
+    ValueError
+        As :func:`nbody_xyz`.
+
+    Examples
+    --------
+    >>> import jax
+    >>> jax.config.update("jax_enable_x64", True)
+    >>> from jaxppo.model._nbody import nbody_positions
+    >>> x, y, r = nbody_positions([100.0, 105.0], periods=[10.0], eccs=[0.0], omegas=[90.0], incs=[89.0],
+    ...                           lnodes=[0.0], tics=[100.0], masses=[1e-10], radii=[0.05], star_mass=1.0,
+    ...                           star_radius=1.0, epoch=95.0)
+    >>> print(r[:, 0])  # in front at mid-transit, behind half a period later
+    [0.05 0.  ]
+    """
+    x, y, z = nbody_xyz(t, periods=periods, eccs=eccs, omegas=omegas, incs=incs, lnodes=lnodes, tics=tics,
+                        masses=masses, star_mass=star_mass, star_radius=star_radius, epoch=epoch, dt=dt,
+                        t_range=t_range)
+    r = jnp.where(z > 0, jnp.atleast_1d(jnp.asarray(radii, float)), 0.0)
+    return x, y, r
