@@ -116,7 +116,8 @@ class MarginalResult(DeprecatedSummaryAccess):
             imp = c["importance"]
             if not c["reliable"]:
                 lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
-                             f"(--marginalize N, now {self.summary['draws']}) or sample alpha jointly")
+                             f"(--marginalize N, now {self.summary['draws']}); jaxppo has no joint (alpha, theta) "
+                             "sampler yet (docs/marginal.md)")
                 continue
             for name, g in geo.items():
                 if isinstance(g, dict):
