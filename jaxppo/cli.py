@@ -563,6 +563,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """The ``jaxppo`` command: parse ``argv`` (default: ``sys.argv[1:]``),
+    run the subcommand and return its exit status (0 success, 2 for a
+    usage or input error, which is printed as one line)."""
     from jaxppo._version import __version__
 
     parser = build_parser()

@@ -124,6 +124,8 @@ class Model:
 
     # ---- coordinates ----------------------------------------------------------
     def to_theta(self, system: System) -> jnp.ndarray:
+        """theta (the unconstrained fit coordinates, ``self.slots`` order) of
+        ``system``'s values; light-curve terms at their starts."""
         out = []
         for (owner, par) in self.slots:
             if owner == "lc":
@@ -151,6 +153,7 @@ class Model:
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
     def to_system(self, theta) -> System:
+        """The System that theta describes (traceable)."""
         return system_at(theta, self.system, tuple(self.slots))
 
     def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
@@ -301,6 +304,8 @@ class ModelData(eqx.Module):
 
     @staticmethod
     def build(model: "Model") -> "ModelData":
+        """The arrays the compiled model needs, from ``model``: the computed
+        and union frames padded to power-of-two buckets (fewer recompiles)."""
         act = np.union1d(model.active_idx, model.union_idx).astype(np.int64)
         union = np.searchsorted(act, model.union_idx).astype(np.int64)
         act = _pad(act, _bucket(act.size))
@@ -416,6 +421,7 @@ def residuals(theta, d: ModelData) -> jnp.ndarray:
 
 @eqx.filter_jit
 def pointwise_loglike(theta, d: ModelData) -> jnp.ndarray:
+    """Gaussian log-likelihood of each data point (jitter included)."""
     var, _ = _variance(theta, d)
     r = d.y - _flux(theta, d) * _trend(theta, d)
     return -0.5 * r**2 / var - 0.5 * jnp.log(2.0 * jnp.pi * var)
@@ -432,16 +438,19 @@ def scaled_residuals(z, args) -> jnp.ndarray:
 
 @eqx.filter_jit
 def chi2_batch(thetas, d: ModelData):
+    """Sum of squared residuals at each row of ``thetas`` (lax.map)."""
     return jax.lax.map(lambda t: jnp.sum(residuals(t, d) ** 2), thetas)
 
 
 @eqx.filter_jit
 def residuals_batch(thetas, d: ModelData):
+    """Residuals at each row of ``thetas`` (lax.map)."""
     return jax.lax.map(lambda t: residuals(t, d), thetas)
 
 
 @eqx.filter_jit
 def jacobian(theta, d: ModelData):
+    """(d residuals / d theta, residuals) by forward differentiation."""
     return jax.jacfwd(lambda th: (residuals(th, d),) * 2, has_aux=True)(theta)
 
 

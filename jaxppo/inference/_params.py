@@ -333,6 +333,7 @@ def expand_free(free, system: System, time: np.ndarray):
 
 
 def is_trend(slot) -> bool:
+    """True for a light-curve offset or baseline-polynomial slot."""
     owner, par = slot
     return owner == "lc" and (par == "offset" or isinstance(par, tuple))
 

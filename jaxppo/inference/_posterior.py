@@ -55,6 +55,8 @@ def density_from_a(a, period) -> float:
 
 
 def check_density(density, where="stellar_density"):
+    """(mean, sd) [g/cm^3] of a stellar-density prior as floats; a
+    ValueError naming ``where`` unless both are finite and positive."""
     try:
         m, s = (float(v) for v in density)
     except (TypeError, ValueError):

@@ -21,6 +21,8 @@ from ..core.occult import INNER_MARGIN, LENS_RULES, MAX_RADIUS, disk_deficit, in
 
 
 def is_concrete(*arrays) -> bool:
+    """True when none of ``arrays`` is a JAX tracer (the call is eager, so
+    the host can plan on their values)."""
     return not any(isinstance(a, jax.core.Tracer) for a in arrays)
 
 

@@ -77,6 +77,8 @@ TIME_ZERO = {"kepler": (2454833.0, "BKJD"), "tess": (2457000.0, "BTJD")}
 
 
 def mission_name(name) -> str | None:
+    """The reader's mission key of a mission name: "kepler" for Kepler and
+    K2, "tess" for TESS (any case), None for None; a ValueError otherwise."""
     if name is None:
         return None
     m = str(name).strip().lower()
@@ -183,6 +185,8 @@ def _isplain_values(x) -> bool:
 
 
 def is_lightkurve(x) -> bool:
+    """True for a lightkurve ``LightCurve`` (duck-typed: it has ``flux``,
+    ``time`` and ``meta``; jaxppo does not import lightkurve)."""
     return hasattr(x, "flux") and hasattr(x, "time") and hasattr(x, "meta")
 
 

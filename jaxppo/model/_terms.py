@@ -16,6 +16,8 @@ from ..core.occult import disk_deficit, inner_disk_deficit, lens_deficit, lens_r
 
 @functools.partial(jax.jit, static_argnames=("order",))
 def exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
+    """Flux of each frame by the exact union integral ([frame, disk] centres
+    and radii [R*]; ``order`` Gauss-Legendre nodes per arc piece)."""
     g, phi1 = star.radial_kernel()
     inten = star.radial_intensity()
     deficit = jax.vmap(lambda a, b, c: union_deficit(a, b, c, g, phi1, order, inten))(x, y, r)

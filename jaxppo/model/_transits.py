@@ -209,6 +209,7 @@ class MultiTransit:
 
 
 def planet_label(system: System, i: int) -> str:
+    """The planet's name, or its index as a string when it has none."""
     return system.planets[i].name or str(i)
 
 

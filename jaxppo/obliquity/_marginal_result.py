@@ -156,6 +156,10 @@ def withheld(geo: dict, names, reason: str) -> dict:
 
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
              min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
+    """The marginal scan's result from the per-draw chi^2 curves: per case
+    the importance-weighted marginal Delta chi^2 and posterior, the geometry
+    probabilities and their spread over draws, the guard (withheld where the
+    weights are unreliable), the peak; the table of marginal.csv."""
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
@@ -239,6 +243,8 @@ MARGINAL_DTYPE = [("case", "U16"), ("alpha", float), ("posterior", float), ("mar
 
 
 def marginal_csv(table) -> str:
+    """marginal.csv's text: a header of the ``MARGINAL_DTYPE`` columns and
+    one row per (case, alpha), full precision."""
     head = ",".join(n for n, _ in MARGINAL_DTYPE)
     lines = [f"{r[0]},{r[1]:.10g}," + ",".join(f"{v:.17g}" for v in list(r)[2:]) for r in table]
     return head + "\n" + "\n".join(lines) + "\n"

@@ -186,6 +186,9 @@ def scan_windows(cfg: ScanConfig) -> list[ScanWindow]:
 
 
 def windows_and_events(cfg: ScanConfig):
+    """(windows, skipped) of a scan config: the detrended data window of
+    every multi-transit of the tilted planet that has data, and the events
+    left out with the reason."""
     sysm, lc = cfg.system, cfg.lightcurve
     tilted_name = sysm.planets[sysm.tilted].name
     tilted_label = tilted_name or str(sysm.tilted)
