@@ -5,10 +5,13 @@
   repository root (matplotlib's Agg backend). Below each block the page
   shows what it printed and the figures it left open, and at the top how
   long the whole page took. Results are cached in ``.docs_exec/`` under a
-  key made of the page's text and every source file of the package, so a
-  build right after the test suite (``tests/test_examples.py`` runs the
-  same pages through :func:`execute_page` and fills the cache) does not run
-  them twice, and a changed page or package runs them again.
+  key made of the page's text, this file, every file of the package (code
+  and data) and the library versions, so a build right after the test
+  suite (``tests/test_examples.py`` runs the same pages through
+  ``execute_page`` and fills the cache) does not run them twice, and a
+  changed page, package or library runs them again. The build runs a page
+  in a fresh Python process (a long-running ``mkdocs serve`` holds the old
+  package imported).
 * The CLI reference: ``<!-- cli-help -->`` becomes the ``--help`` of
   ``jaxppo`` and of every subcommand, from the argparse parser itself.
 """
@@ -23,6 +26,7 @@ import json
 import os
 import re
 import time
+import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,34 +38,61 @@ BLOCK = re.compile(r"```python\n(.*?)```", re.S)
 _results: dict = {}
 
 
-def _key(text: str) -> str:
+def _key(text: str, root: Path = ROOT) -> str:
+    """The cache key of a page: its text, this file, every file of the
+    package (code and bundled data) and the versions of the libraries that
+    compute and draw."""
+    import importlib.metadata as md
+
     h = hashlib.sha256(text.encode())
-    for path in sorted((ROOT / "jaxppo").rglob("*.py")):
-        h.update(str(path.relative_to(ROOT)).encode())
-        h.update(path.read_bytes())
+    h.update(Path(__file__).read_bytes())
+    for path in sorted((root / "jaxppo").rglob("*")):
+        if path.is_file() and "__pycache__" not in path.parts:
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+    for lib in ("jax", "jaxlib", "numpy", "numpyro", "optimistix", "equinox", "matplotlib", "astropy"):
+        try:
+            h.update(f"{lib}={md.version(lib)}".encode())
+        except md.PackageNotFoundError:
+            h.update(f"{lib}=none".encode())
     return h.hexdigest()[:20]
 
 
-def execute_page(page: str, root: Path = ROOT, cache: Path = CACHE, force: bool = False):
+def execute_page(page: str, root: Path = ROOT, cache: Path = CACHE, force: bool = False,
+                 fresh_process: bool = False):
     """Run the Python blocks of ``docs/<page>`` in order as one script from
-    ``root`` and store what each printed and the figures it left open in
-    ``cache/<page stem>-<key>/``; output folders named ``out="NAME"`` in the
-    code are put in that folder too. Returns (result, namespace): result =
-    {"key", "seconds", "blocks": [{"stdout", "figures": [file names]}]};
-    namespace is the script's globals, None when the cache answered
-    (``force``: run even then, as the tests do)."""
+    ``root`` and store what each printed (stdout and stderr, warnings
+    included) and the figures it left open in ``cache/<page stem>-<key>/``;
+    output folders named ``out="NAME"`` in the code are put in that folder
+    too. Returns (result, namespace): result = {"key", "seconds", "blocks":
+    [{"stdout", "figures": [file names]}]}; namespace is the script's
+    globals, None when the cache answered or the page ran in another
+    process (``force``: run even when cached, as the tests do;
+    ``fresh_process``: run in a new Python process, as the site build does,
+    so that a long-running ``mkdocs serve`` never shows what an edited
+    package's already imported old code printed)."""
+    text = (root / "docs" / page).read_text()
+    key = _key(text, root)
+    folder = cache / f"{Path(page).stem}-{key}"
+    done = folder / "result.json"
+    if done.is_file() and not force:
+        return json.loads(done.read_text()), None
+    if fresh_process:
+        import subprocess
+        import sys
+
+        code = ("import importlib.util, sys; spec = importlib.util.spec_from_file_location('h', sys.argv[1]); "
+                "h = importlib.util.module_from_spec(spec); spec.loader.exec_module(h); "
+                "h.execute_page(sys.argv[2], h.Path(sys.argv[3]), h.Path(sys.argv[4]), force=True)")
+        subprocess.run([sys.executable, "-c", code, __file__, page, str(root), str(cache)], check=True)
+        return json.loads(done.read_text()), None
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    text = (root / "docs" / page).read_text()
-    key = _key(text)
-    folder = cache / f"{Path(page).stem}-{key}"
-    done = folder / "result.json"
-    if done.is_file() and not force:
-        return json.loads(done.read_text()), None
     folder.mkdir(parents=True, exist_ok=True)
+    done.unlink(missing_ok=True)
     namespace: dict = {"__name__": "__docs__"}
     blocks = []
     cwd = os.getcwd()
@@ -70,9 +101,12 @@ def execute_page(page: str, root: Path = ROOT, cache: Path = CACHE, force: bool 
     try:
         os.chdir(root)
         for i, code in enumerate(BLOCK.findall(text)):
-            code = re.sub(r'out="([^"/]+)"', lambda m: f'out="{folder / m.group(1)}"', code)
+            code = re.sub(r"out=([\"'])([^\"'/]+)\1", lambda m: f"out={str(folder / m.group(2))!r}", code)
             out = io.StringIO()
-            with contextlib.redirect_stdout(out):
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out), warnings.catch_warnings():
+                warnings.simplefilter("always")
+                warnings.showwarning = lambda msg, cat, fn, ln, file=None, line=None: out.write(
+                    f"{cat.__name__}: {msg}\n")
                 exec(compile(code, f"docs/{page} (block {i + 1})", "exec"), namespace)
             figs = []
             for k, num in enumerate(plt.get_fignums()):
@@ -101,9 +135,10 @@ def _rendered(markdown: str, page: str, result: dict) -> str:
         for name in b["figures"]:
             pieces.append(f"\n![{stem}: block {i + 1}](exec-{stem}/{name})\n")
     pieces.append(markdown[last:])
-    note = (f"\n!!! note \"Executed\"\n    The code on this page ran when this site was built, in "
-            f"{result['seconds']:.0f} s on the build machine; the outputs and figures below each block are "
-            "that run's.\n")
+    note = (f"\n!!! note \"Executed\"\n    The code on this page was run, as one script, for this page's text "
+            f"and the package as they are in this build (in {result['seconds']:.0f} s on the machine that "
+            "built the site); below each block is what it printed, warnings included, and the figures it "
+            "drew.\n")
     return "".join(pieces).replace(EXECUTE, note, 1)
 
 
@@ -114,7 +149,7 @@ def on_files(files, config):
         text = Path(f.abs_src_path).read_text()
         if EXECUTE not in text:
             continue
-        result, _ = execute_page(f.src_uri)
+        result, _ = execute_page(f.src_uri, fresh_process=True)
         _results[f.src_uri] = result
         folder = CACHE / f"{Path(f.src_uri).stem}-{result['key']}"
         base = str(Path(f.src_uri).parent / f"exec-{Path(f.src_uri).stem}").lstrip("./")

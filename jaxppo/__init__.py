@@ -66,7 +66,6 @@ from .inference._times import linear_ephemeris as linear_ephemeris
 # the public API: what the reference documents and tests/test_docstrings.py checks
 __all__ = [
     "__version__",
-    "__version__",
     "occultation_flux",
     "Spots",
     "Star",

@@ -102,7 +102,9 @@ def test_public_members_documented(name, obj):
 @pytest.mark.parametrize("name,obj", PUBLIC, ids=IDS)
 def test_examples_run(name, obj, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # examples that write files write them here
-    finder = doctest.DocTestFinder(recurse=False)
+    # a class's own methods and properties too (their examples are the
+    # reference's); recurse stays inside the object's module
+    finder = doctest.DocTestFinder(recurse=inspect.isclass(obj))
     tests = [t for t in finder.find(obj, name, globs={"jp": jp, "np": np, "jax": jax}) if t.examples]
     assert tests, f"{name}: no runnable example"
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)

@@ -148,9 +148,11 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     quarters : array_like, optional
         Quarter label per point, shape [n_times]; None (default): segments
         split at gaps > 0.5 d.
-    period_min, period_max : float, optional
-        Periodogram search range [d] (default 2 and 45; see
+    period_min : float, optional
+        Shortest period of the periodogram search [d] (default 2; see
         ``rotation_period``).
+    period_max : float, optional
+        Longest period of the periodogram search [d] (default 45).
     bootstrap : int, optional
         Quarter-bootstrap draws for the period spread (default 50; 0: none).
     seed : int, optional

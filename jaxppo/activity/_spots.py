@@ -72,9 +72,11 @@ def spot_flux(t, lon, lat, radius, contrast, period, inc=90.0, u1=0.495, u2=0.15
     inc : float, optional
         Stellar inclination i [deg], the angle between rotation axis and line
         of sight (default 90: equator-on).
-    u1, u2 : float, optional
-        Quadratic limb-darkening coefficients (default 0.495, 0.154: the
+    u1 : float, optional
+        First quadratic limb-darkening coefficient (default 0.495: the
         paper's PHOENIX fit for Kepler-20).
+    u2 : float, optional
+        Second quadratic limb-darkening coefficient (default 0.154).
     t_ref : float, optional
         Time of rotational phase 0 [d] (default 0).
 
@@ -243,8 +245,10 @@ def fit_spots(time, flux, period: float, n_spots: int = 2, contrast: float = KEP
         1.4826 MAD(diff(flux)) / sqrt(2).
     n_starts : int, optional
         Number of starting longitude sets (default 8).
-    u1, u2 : float, optional
-        Quadratic limb-darkening coefficients (default 0.495, 0.154).
+    u1 : float, optional
+        First quadratic limb-darkening coefficient (default 0.495).
+    u2 : float, optional
+        Second quadratic limb-darkening coefficient (default 0.154).
     max_steps : int, optional
         Levenberg-Marquardt step limit per start (default 400).
 

@@ -242,8 +242,10 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         Hemisphere case (default "same"; see ``System.flux``).
     max_steps : int, optional
         Most Levenberg-Marquardt steps per pass (default 200).
-    rtol, atol : float, optional
-        optimistix's relative and absolute tolerances (default 1e-6).
+    rtol : float, optional
+        optimistix's relative tolerance (default 1e-6).
+    atol : float, optional
+        optimistix's absolute tolerance (default 1e-6).
     progress : bool, optional
         Print one line per stage on stderr (default False).
     fold_inc : bool, optional

@@ -185,7 +185,8 @@ def parameter_names(system: System) -> list[str]:
     ``"<p>.t0"`` [d], ``"<p>.period"`` [d], ``"<p>.a"`` [R*], ``"<p>.inc"``
     [deg], ``"<p>.radius"`` [R*], and for a planet with ``transit_times``
     one ``"<p>.tc[<epoch>]"`` [d] per listed epoch (``"<p>.tc"`` names them
-    all at once). Then the star's limb-darkening coefficients in
+    all at once) instead of ``"<p>.t0"`` (the listed times fix the orbit's
+    phase, so its t0 cancels). Then the star's limb-darkening coefficients in
     ``Star.params`` order (u1, u2 of the quadratic law, c1-c4 of the
     non-linear law, c, alpha of the power-2 law; none for a uniform star),
     Kipping's ``"star.q1"``, ``"star.q2"`` for a quadratic star, and the
@@ -213,17 +214,19 @@ def parameter_names(system: System) -> list[str]:
     ['b.t0', 'b.period', 'b.a', 'b.inc', 'b.radius', 'star.u1', 'star.u2', 'star.q1', 'star.q2',
      'lc.offset', 'lc.jitter', 'lc.baseline', 'lc.baseline2']
 
-    A planet with listed transit times has one name per epoch:
+    A planet with listed transit times has one name per epoch and no t0:
 
     >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b",
     ...               transit_times=[0.001, 2.999], transit_epochs=[0, 1])
-    >>> jp.parameter_names(jp.System(jp.Star.uniform(), [b]))[4:7]
-    ['b.radius', 'b.tc[0]', 'b.tc[1]']
+    >>> jp.parameter_names(jp.System(jp.Star.uniform(), [b]))[:6]
+    ['b.period', 'b.a', 'b.inc', 'b.radius', 'b.tc[0]', 'b.tc[1]']
     """
     names = []
     for i, pl in enumerate(system.planets):
         label = pl.name or str(i)
-        names += [f"{label}.{p}" for p in PLANET_PARAMS]
+        # a planet with transit times has no free t0: its listed mid-times
+        # fix the orbit's phase and t0 cancels (check_ttv_free refuses it)
+        names += [f"{label}.{p}" for p in PLANET_PARAMS if not (p == "t0" and pl.transit_times is not None)]
         if pl.transit_times is not None:
             names += [tc_name(pl, i, k) for k in range(len(pl.transit_epochs))]
     names += [f"star.{p}" for p in STAR_PARAMS.get(system.star.law, ())]

@@ -239,7 +239,7 @@ class SampleResult:
         pointwise : bool, optional
             The log-likelihood of every data point [chain, draw, n_times]
             (default; needs the run's model, so not after ``load``) or the
-            total per draw [chain, draw].
+            total per draw [chain, draw] (what PSIS-LOO cannot use).
 
         Returns
         -------
@@ -251,6 +251,8 @@ class SampleResult:
         ------
         ImportError
             When arviz is not installed (``pip install 'jaxppo[arviz]'``).
+        ValueError
+            When ``pointwise`` is asked of a loaded result (no model).
         """
         try:
             import arviz as az
@@ -258,7 +260,13 @@ class SampleResult:
             raise ImportError("to_arviz needs arviz: pip install 'jaxppo[arviz]'") from err
         names = list(self.names or self.chains)
         nc, nd = self.chains[names[0]].shape
-        if pointwise and self.pointwise is not None:
+        if pointwise and self.pointwise is None:
+            # a loaded result has no model: the total per draw under the
+            # pointwise name made az.loo report "1 observation" silently
+            raise ValueError("to_arviz(pointwise=True) needs the model of the run, which a loaded SampleResult does "
+                             "not have: use to_arviz(pointwise=False) (the total log-likelihood per draw), or "
+                             "re-run jp.sample")
+        if pointwise:
             vals = np.stack([self.chains[n].reshape(-1) for n in names], axis=1)
             ll = {"obs": np.asarray(self.pointwise(vals)).reshape(nc, nd, -1)}
             ll_dims = {"obs": ["time"]}
@@ -300,7 +308,7 @@ class SampleResult:
         if arviz_major(az) >= 1:
             data.to_netcdf(str(path), engine="h5netcdf")  # an xarray DataTree
         else:
-            data.to_netcdf(str(path))
+            data.to_netcdf(str(path), engine="h5netcdf")
         return str(path)
 
 

@@ -251,13 +251,15 @@ def _dispatch(star: Star, x: Array, y: Array, r: Array, method: str, order: int,
                 "method='exact' needs a radially symmetric star; this star has a surface map: use method='raster'"
             )
         method = "raster"
+    if is_concrete(x, y, r):
+        # every method checks concrete input the same way (the raster too:
+        # a NaN position or a negative radius gave it a plausible flux)
+        _validate_concrete(x, y, r)
     if method == "raster":
         from ._raster import raster_flux
 
         return raster_flux(star, x, y, r, raster, times=times)
     concrete = is_concrete(x, y, r, *jax.tree_util.tree_leaves(star))
-    if is_concrete(x, y, r):
-        _validate_concrete(x, y, r)
     xf, yf, rf = (v.reshape(-1, k) for v in (x, y, r))
     if method == "exact":
         if concrete:

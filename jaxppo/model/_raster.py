@@ -61,11 +61,14 @@ class RasterSettings:
         a disk inside the star, so every disk's coverage is resolved to the
         same relative accuracy whatever the other disks' sizes, and a frame
         costs (n_window + 2)^2 pixels per disk. Measured against the exact
-        engine with the defaults (tests/model/test_raster.py): below 1e-7 for
-        planet-size disks (Kepler-20), 2e-5 for r = 0.5 (the error goes as
-        pixel^2, mostly the intensity gradient across edge pixels), 1.5e-3
-        for a disk of nearly the star's size (r = 0.99; ss=4: 2e-4); a disk
-        covering the star gives 0, and the flux is never negative. A star
+        engine with the defaults, worst over 301 positions from the star's
+        centre to past its limb (quadratic star; tests/model/test_raster.py):
+        1.2e-7 for r = 0.03 (Kepler-20's planets; 1e-10 at the centre),
+        1.3e-6 for r = 0.1, 6.5e-5 for r = 0.5 (the error goes as pixel^2,
+        mostly the intensity gradient across edge pixels, worst where the
+        disk crosses the limb), 9.4e-4 for a disk of nearly the star's size
+        (r = 0.99; ss=4: 6.0e-4); a disk covering the star gives 0, and the
+        flux is never negative. A star
         with rotating spots gets more pixels when needed, so that none is
         larger than a quarter of the spot edge width.
 

@@ -802,7 +802,7 @@ class System(eqx.Module):
         Returns
         -------
         x, y, r : array
-            Disk centres and radii [R*], shape [*broadcast(t, alpha), n_planets]
+            Disk centres and radii [R*], shape (broadcast of t and alpha) + [n_planets]
             (the disks on the last axis); planets behind the star get r = 0.
 
         Raises

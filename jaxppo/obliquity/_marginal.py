@@ -377,10 +377,29 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         Show progress bars.
     figures : bool, optional
         With ``out``, draw marginal.png (default True).
-    alpha, cases, margin, detrend, baseline, clip, multi_transits : optional
-        As in ``jaxppo.scan``; only with a System. With a ScanConfig
-        they are refused (the config's own settings are used; set them
+    alpha : array_like, optional
+        Tilt grid [deg], [n_alpha], as in ``jaxppo.scan`` (default 0, 1,
+        ..., 359). Only with a System: with a ScanConfig this and the six
+        below are refused (the config's own settings are used; set them
         there).
+    cases : str or sequence of str, optional
+        Hemisphere cases as in ``jaxppo.scan`` (default ``("same",
+        "opposite")``).
+    margin : float, optional
+        Out-of-transit data [d] in the chi^2 on each side of an event
+        (default 0.05).
+    detrend : int or "none", optional
+        Order 0..5 of each event's out-of-transit polynomial (default 2);
+        "none" uses the flux as loaded.
+    baseline : float, optional
+        Baseline [d] fitted on each side of an event, > ``margin``
+        (default 0.3).
+    clip : float or "none", optional
+        Outlier threshold [robust sigmas] >= 2 for the baseline points
+        (default 5).
+    multi_transits : float or sequence of float or None, optional
+        Mid-times [d] of the multi-transits to use (each matched within
+        0.1 d); None (default): all of them.
     min_ess : float, optional
         The guard (default 25): a case's geometry probabilities, posterior
         peak and rating are given only when the importance weights of each

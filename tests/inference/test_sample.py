@@ -267,8 +267,16 @@ def test_sample_result_save_load_round_trip(small_run, tmp_path):
     assert all(np.isclose(back.diagnostics[n][k], res.diagnostics[n][k], rtol=0, atol=0, equal_nan=True)
                for n in res.diagnostics for k in res.diagnostics[n])
     assert float(back.best.planets[0].a) == float(res.best.planets[0].a)
-    ar = back.to_arviz()  # without the pointwise function: the total log-likelihood
+    # without the model the pointwise log-likelihood cannot be made: asked
+    # for it (the default), a loaded result refuses instead of handing the
+    # total per draw to az.loo as if it were one observation
+    with pytest.raises(ValueError, match="pointwise=False"):
+        back.to_arviz()
+    ar = back.to_arviz(pointwise=False)
     assert list(ar.posterior.data_vars) == list(res.names)
+    assert ar.log_likelihood["obs"].shape == res.log_likelihood.shape
+    live = res.to_arviz(pointwise=False)  # a live run's total, the same numbers
+    assert np.array_equal(live.log_likelihood["obs"].values, ar.log_likelihood["obs"].values)
     with pytest.raises(ValueError, match="not a file written by SampleResult.save"):
         (tmp_path / "x.npz").write_text("nonsense")
         jp.SampleResult.load(tmp_path / "x.npz")

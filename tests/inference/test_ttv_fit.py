@@ -199,3 +199,22 @@ def test_baseline_free_and_repeated_times_named():
     for free in (("b.tc", "b.tc[1]"), ("b.tc[1]", "b.tc[01]")):
         with pytest.raises(ValueError, match=r"free parameters repeat: \['b.tc\["):
             jp.fit(truth, lc, free=free)
+
+
+def test_parameter_names_lists_only_names_fit_accepts():
+    """jp.parameter_names listed "b.t0" for a planet with transit_times,
+    which fit and sample refuse (its listed times fix the phase; t0
+    cancels). Every listed name is now accepted by the model fit and
+    sample set up, and the times are listed instead."""
+    from jaxppo.inference._model import Model
+
+    b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b",
+                  transit_times=[0.001, 2.999], transit_epochs=[0, 1])
+    c = jp.Planet(period=5.0, t0=1.0, a=14.0, inc=89.5, radius=0.05, name="c")
+    system = jp.System(jp.Star.quadratic(0.4, 0.26), [b, c])
+    t = np.linspace(-0.2, 3.2, 400)
+    lc = jp.LightCurve(t, np.asarray(system.flux(t)), np.full(t.size, 1e-4))
+    names = jp.parameter_names(system)
+    assert "b.t0" not in names and "c.t0" in names and {"b.tc[0]", "b.tc[1]"} <= set(names)
+    for name in names:
+        Model(system, lc, (name,))  # raises for a name fit / sample refuse
