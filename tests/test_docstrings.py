@@ -21,6 +21,8 @@ import jaxppo as jp
 jax.config.update("jax_enable_x64", True)
 
 CONSTANTS = {"__version__", "activity", "KEPLER20_SPOT_CONTRAST", "PAPER_ROTATION_PERIOD"}
+# the constants' docstrings are attribute docstrings (the string after the
+# assignment), which the reference renders: test_constants_documented
 
 
 def _public():
@@ -112,3 +114,21 @@ def test_examples_run(name, obj, tmp_path, monkeypatch):
         runner.run(t)
     res = runner.summarize(verbose=False)
     assert res.failed == 0, f"{name}: {res.failed} of {res.attempted} example lines failed (run pytest -s to see them)"
+
+
+@pytest.mark.parametrize("module,name", [("jaxppo.activity._spots", "KEPLER20_SPOT_CONTRAST"),
+                                         ("jaxppo.activity._rotation", "PAPER_ROTATION_PERIOD")])
+def test_constants_documented(module, name):
+    """A public constant has an attribute docstring (the string statement
+    right after its assignment) that says what it is."""
+    import ast
+    import importlib
+
+    src = inspect.getsource(importlib.import_module(module))
+    body = ast.parse(src).body
+    for i, node in enumerate(body):
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == name for t in node.targets):
+            nxt = body[i + 1] if i + 1 < len(body) else None
+            assert isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant) and len(nxt.value.value) > 20
+            return
+    raise AssertionError(f"{name} not assigned in {module}")

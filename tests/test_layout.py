@@ -98,6 +98,11 @@ def _docstring_lines(tree) -> set:
     return lines
 
 
+def _code_lines(node, doc: set) -> int:
+    """Lines of a function, less its (and its nested) docstrings."""
+    return node.end_lineno - node.lineno + 1 - len([i for i in doc if node.lineno <= i <= node.end_lineno])
+
+
 def test_sizes():
     """Sizes count code, not docstrings: the docstrings are the API
     reference's source (tests/test_docstrings.py asks for parameters,
@@ -112,7 +117,7 @@ def test_sizes():
             bad.append(f"{rel}: {n} lines of code")
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                length = node.end_lineno - node.lineno + 1 - len([i for i in doc if node.lineno <= i <= node.end_lineno])
+                length = _code_lines(node, doc)
                 if length > MAX_FUNCTION_LINES and f"{rel}:{node.name}" not in LONG_FUNCTIONS:
                     bad.append(f"{rel}:{node.name}: {length} lines")
     assert not bad, "\n".join(bad)
@@ -141,5 +146,5 @@ def test_sizes_count_code_not_docstrings():
     tree = ast.parse(src)
     lines = _docstring_lines(tree)
     f, g = tree.body
-    assert f.end_lineno - f.lineno + 1 - len([i for i in lines if f.lineno <= i <= f.end_lineno]) == 4
-    assert g.end_lineno - g.lineno + 1 - len([i for i in lines if g.lineno <= i <= g.end_lineno]) == 91
+    assert _code_lines(f, lines) == 4
+    assert _code_lines(g, lines) == 91

@@ -43,6 +43,8 @@ __all__ = [
 
 # Mueller et al. (2021), Sect. 3.2.
 PAPER_ROTATION_PERIOD = 26.948
+"""Kepler-20's rotation period [d] of Mueller et al. (2021), Sect. 3.2
+(+- 0.001 d, ``PAPER_ROTATION_PERIOD_ERR``)."""
 PAPER_ROTATION_PERIOD_ERR = 0.001
 KEPLER20_DATA = "kepler20_kic6850504_llc_q1-q17_pdcsap.csv.gz"
 

@@ -42,6 +42,9 @@ __all__ = ["SpotFit", "spot_flux", "fit_spots", "KEPLER20_SPOT_CONTRAST"]
 # intensity ratio at 650 nm (mid Kepler band) exp(-hc/(lambda k) (1/4495 -
 # 1/5495)) = 0.41, so contrast 1 - 0.41 = 0.59.
 KEPLER20_SPOT_CONTRAST = 0.59
+"""Spot contrast 1 - I_spot / I_photosphere of a spot 1000 K cooler than
+Kepler-20's 5495 K photosphere (blackbody ratio 0.41 at 650 nm, mid Kepler
+band); the default of ``fit_spots``."""
 
 
 def spot_flux(t, lon, lat, radius, contrast, period, inc=90.0, u1=0.495, u2=0.154, t_ref=0.0):
