@@ -183,8 +183,10 @@ def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
     ------
     ValueError
         When ``epoch`` and ``tc`` differ in length or hold fewer than two
-        distinct epochs, or when ``tc_err`` is not one positive, finite
-        error per time.
+        distinct epochs, an epoch is not an integer, a time is not finite,
+        ``tc_err`` is not one positive, finite error per time, or
+        ``tc_err`` is None with fewer than three distinct epochs (the
+        scatter about a line through two points measures nothing).
 
     Examples
     --------
@@ -202,6 +204,15 @@ def linear_ephemeris(epoch, tc, tc_err=None) -> tuple[float, float, np.ndarray]:
     t = np.asarray(tc, float)
     if n.size != t.size or n.size < 2 or np.unique(n).size < 2:
         raise ValueError(f"linear_ephemeris needs mid-times of at least two distinct epochs, got epochs {n.tolist()}")
+    if not (np.all(np.isfinite(n)) and np.all(n == np.round(n))):
+        raise ValueError(f"linear_ephemeris: epoch must be finite integers, got {n.tolist()}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"linear_ephemeris: tc must be finite [d], got {t.tolist()}")
+    if tc_err is None and np.unique(n).size < 3:
+        # two epochs and no errors: the line passes through both points and
+        # its scatter says nothing about their errors (the covariance was 0)
+        raise ValueError("linear_ephemeris: without tc_err the errors come from the scatter about the line, which "
+                         f"needs at least three distinct epochs (got {np.unique(n).size}); give tc_err")
     if tc_err is None:
         w = np.ones_like(t)
     else:

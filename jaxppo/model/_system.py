@@ -633,7 +633,14 @@ class Planet(eqx.Module):
         -------
         float
             Mid-transit time [d].
+        Raises
+        ------
+        ValueError
+            When ``epoch`` is not an integer (1.5 was truncated to 1).
         """
+        if isinstance(epoch, (bool, np.bool_)) or not isinstance(epoch, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(epoch) or int(epoch) != epoch:
+            raise ValueError(f"epoch must be an integer transit number, got {epoch!r}")
         if self.transit_times is None:
             return float(self.t0) + int(epoch) * float(self.period)
         return mid_time(int(epoch), self.transit_times, self.transit_epochs, self.period, self.t0)

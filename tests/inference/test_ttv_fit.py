@@ -218,3 +218,32 @@ def test_parameter_names_lists_only_names_fit_accepts():
     assert "b.t0" not in names and "c.t0" in names and {"b.tc[0]", "b.tc[1]"} <= set(names)
     for name in names:
         Model(system, lc, (name,))  # raises for a name fit / sample refuse
+
+
+def test_linear_ephemeris_against_numpy_and_its_refusals():
+    """The weighted least-squares line against numpy.polyfit (weights
+    1/err, covariance unscaled as for known errors); without errors the
+    covariance is scaled by the scatter, which needs three epochs: two
+    gave a zero covariance. A NaN time, a fractional epoch and bad errors
+    are refused by name."""
+    rng = np.random.default_rng(4)
+    n = np.array([0, 1, 2, 5, 9, 10])
+    err = rng.uniform(1e-4, 5e-4, n.size)
+    tc = 2.5 + 3.1234 * n + rng.normal(0, err)
+    t0, period, cov = jp.linear_ephemeris(n, tc, err)
+    coef, ref_cov = np.polyfit(n, tc, 1, w=1.0 / err, cov="unscaled")
+    np.testing.assert_allclose([period, t0], coef, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cov[::-1, ::-1], ref_cov, rtol=1e-10)
+    t0u, pu, covu = jp.linear_ephemeris(n, tc)
+    coefu, ref_covu = np.polyfit(n, tc, 1, cov=True)
+    np.testing.assert_allclose([pu, t0u], coefu, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(covu[::-1, ::-1], ref_covu, rtol=1e-10)
+    with pytest.raises(ValueError, match="three distinct epochs"):
+        jp.linear_ephemeris([0, 1], [0.0, 3.0])
+    jp.linear_ephemeris([0, 1], [0.0, 3.0], [1e-3, 1e-3])  # with errors two epochs are enough
+    with pytest.raises(ValueError, match="tc must be finite"):
+        jp.linear_ephemeris([0, 1, 2], [0.0, np.nan, 6.0])
+    with pytest.raises(ValueError, match="epoch must be finite integers"):
+        jp.linear_ephemeris([0, 1.5, 2], [0.0, 3.0, 6.0])
+    with pytest.raises(ValueError, match="tc_err"):
+        jp.linear_ephemeris([0, 1, 2], [0.0, 3.0, 6.0], [1e-3, 0.0, 1e-3])

@@ -270,3 +270,12 @@ def test_kepler51_b_measured_transit_times():
     # the linear ephemeris would have put them minutes away
     lin = jp.System(STAR, [pl.replace(transit_times=None, transit_epochs=None)])
     assert np.min(np.asarray(lin.flux(tc))) > np.min(np.asarray(system.flux(tc)))
+
+
+@pytest.mark.parametrize("epoch", [1.5, np.nan, True, "2", [1]])
+def test_mid_time_refuses_a_non_integer_epoch(epoch):
+    """Planet.mid_time(1.5) truncated to epoch 1 and returned its time."""
+    pl = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.5, radius=0.05)
+    with pytest.raises(ValueError, match="epoch must be an integer"):
+        pl.mid_time(epoch)
+    assert pl.mid_time(np.int64(2)) == 20.0 and pl.mid_time(2.0) == 20.0
