@@ -50,10 +50,10 @@ NAMES = ("b", "c", "d")
 
 
 def data_dir() -> Path:
-    """The shared data folder holding ``kepler51_masuda_lc_ttv`` (``/work/shared/data`` or ``$JAXPPO_DATA``)."""
+    """The data folder ``kepler51_masuda_lc_ttv``: under ``$JAXPPO_DATA`` or ``shared/data`` beside the repository."""
     import os
 
-    for base in (os.environ.get("JAXPPO_DATA", ""), "/work/shared/data", str(ROOT.parent / "shared" / "data")):
+    for base in (os.environ.get("JAXPPO_DATA", ""), str(ROOT.parent / "shared" / "data")):
         path = Path(base) / "kepler51_masuda_lc_ttv"
         if base and (path / PDICT).exists():
             return path
@@ -133,22 +133,30 @@ def rebound_transits(el: dict, t_end: float, step: float = 0.5) -> pd.DataFrame:
 
 
 def rebound_positions(el: dict, times, integrator="ias15", dt=None) -> np.ndarray:
-    """Astrocentric positions [au] in REBOUND's frame at sorted ``times``: [n_times, n_planets, 3]."""
-    sim = rebound_sim(el, integrator, dt)
+    """Astrocentric positions [au] in REBOUND's frame at ``times``: [n_times, n_planets, 3]
+    (integrated forward from ``epoch`` for the later times and backward for the earlier ones)."""
+    times = np.asarray(times, float)
     out = np.empty((len(times), len(el["periods"]), 3))
-    for i, t in enumerate(times):
-        sim.integrate(t, exact_finish_time=1)
-        s = sim.particles[0]
-        for j in range(len(el["periods"])):
-            p = sim.particles[j + 1]
-            out[i, j] = (p.x - s.x, p.y - s.y, p.z - s.z)
+    after = np.flatnonzero(times >= el["epoch"])
+    before = np.flatnonzero(times < el["epoch"])
+    for idx in (after[np.argsort(times[after])], before[np.argsort(times[before])[::-1]]):
+        sim = rebound_sim(el, integrator, dt)
+        if integrator == "whfast" and len(idx) and times[idx[0]] < el["epoch"]:
+            sim.dt = -abs(sim.dt)
+        for i in idx:
+            sim.integrate(times[i], exact_finish_time=1)
+            s = sim.particles[0]
+            for j in range(len(el["periods"])):
+                p = sim.particles[j + 1]
+                out[i, j] = (p.x - s.x, p.y - s.y, p.z - s.z)
     return out
 
 
 def sample_times(transits: pd.DataFrame, t_end: float, seed: int = 51) -> np.ndarray:
-    """100 random times over the span and 4 off mid-transit (0.02-0.4 d either side) in 15 transits."""
+    """100 random times over the span, 10 in the 60 d before ``EPOCH`` (backward integration) and 4 off
+    mid-transit (0.02-0.4 d either side) in 15 transits."""
     rng = np.random.default_rng(seed)
-    t = list(rng.uniform(EPOCH, t_end, 100))
+    t = list(rng.uniform(EPOCH, t_end, 100)) + list(rng.uniform(EPOCH - 60.0, EPOCH, 10))
     for tc in rng.choice(transits.tc.to_numpy(), 15, replace=False):
         t += list(tc + rng.choice([-1, 1], 4) * rng.uniform(0.02, 0.4, 4))
     return np.sort(np.asarray(t))
@@ -215,6 +223,11 @@ def main(argv=None) -> None:
     ref = to_sky(ref_au)
     print(f"REBOUND {rebound.__version__} IAS15: {len(transits)} transits {EPOCH}-{args.t_end} in {t_rb_tc:.2f} s "
           f"(bisection), positions at {len(times)} times in {t_rb_pos:.3f} s")
+    shipped = pd.read_csv(data_dir() / PDICT.replace("pdict", "tc")).tc.to_numpy()
+    shipped = shipped[shipped < args.t_end]
+    off = np.array([np.min(np.abs(transits.tc.to_numpy() - tc)) for tc in shipped])
+    print(f"  the {len(shipped)} transit times shipped with the elements (jnkepler, dt = 1 d): "
+          f"max |dtc| = {1440 * off.max():.4f} min from REBOUND's")
     for integrator, step in (("ias15", None), ("whfast", 1.0)):
         sim = rebound_sim(el, integrator, step)
         t0 = time.perf_counter()
@@ -225,7 +238,7 @@ def main(argv=None) -> None:
     span = (EPOCH, args.t_end + 1.0)
     print(f"\n{'dt [d]':>7} {'planet':>6} {'max|dtc| sky [min]':>19} {'max|dtc| jnkepler [min]':>24} "
           f"{'max|dr| [R*]':>13} {'grid pts':>10} {'half-way':>10}")
-    for dt in (0.25, 0.5, 1.0, 45.155 / 40, 1.5, 2.25):
+    for dt in (0.25, 0.5, 1.0, float(np.min(el["periods"])) / 40, 1.5, 2.25):
         tc = sky_transit_times(el, guess, pidx, dt=dt, t_range=span)
         tc_jnk, _, _ = jnkepler_own_transits(el, transits, args.t_end, dt)
         x, y, z = nbody_xyz(times, dt=dt, **el)
@@ -236,9 +249,15 @@ def main(argv=None) -> None:
         gd = _grid_error(el, np.concatenate([grid[::7], half[::7]]), dt)
         for j, n in enumerate(NAMES):
             sel = transits.planet.to_numpy() == n
-            print(f"{dt:7.3f} {n:>6} {1440 * np.max(np.abs(tc - transits.tc)[sel]):19.4f} "
-                  f"{1440 * np.max(np.abs(tc_jnk - transits.tc)[sel]):24.4f} {dr[:, j].max():13.2e} "
+            print(f"{dt:7.3f} {n:>6} {1440 * np.max(np.abs(tc - transits.tc)[sel]):19.5f} "
+                  f"{1440 * np.max(np.abs(tc_jnk - transits.tc)[sel]):24.5f} {dr[:, j].max():13.2e} "
                   f"{gd[0][j]:10.2e} {gd[1][j]:10.2e}")
+    near = EPOCH + np.array([-1.1, -0.9, -0.6, -0.3, -0.05, 0.05, 0.3, 0.6, 0.9, 1.1])
+    x, y, z = nbody_xyz(near, **el)
+    ref_near = to_sky(rebound_positions(el, near))
+    dr = np.sqrt((np.asarray(x) - ref_near[..., 0])**2 + (np.asarray(y) - ref_near[..., 1])**2
+                 + (np.asarray(z) - ref_near[..., 2])**2)
+    print(f"\nwithin 1.1 d of the epoch (read-out steps up to dt), default dt: max |dr| = {dr.max():.2e} R*")
     _timings(el, times, args.t_end)
     if args.write_csv:
         _write(transits, times, ref_au)
@@ -255,15 +274,35 @@ def _grid_error(el, t, dt):
 
 
 def _timings(el, times, t_end):
-    """Compile and run times of ``nbody_xyz`` (jnkepler underneath) for a few sizes."""
-    print("\njnkepler via nbody_xyz (default dt = P_b / 40), first call (compile + run) and best later call:")
+    """Compile and run times of ``nbody_xyz`` (jnkepler underneath) for a few sizes; reverse against
+    forward mode."""
+    import os
+
+    print("\njnkepler via nbody_xyz (default dt = P_b / 40), first call (compile + run) and best later call "
+          f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")
     for n in (len(times), 10_000, 100_000):
         t = np.linspace(EPOCH, t_end, n)
         _, first, best = timed(lambda tt: nbody_xyz(tt, **el), t)
         print(f"  {n:7d} times over {EPOCH}-{t_end} d: first {first:6.2f} s, then {1e3 * best:8.2f} ms")
-    g = jax.jit(jax.grad(lambda m: sum(jax.numpy.sum(v) for v in nbody_xyz(times, **{**el, "masses": m}))))
-    _, first, best = timed(g, el["masses"])
-    print(f"  grad wrt masses, {len(times)} times: first {first:6.2f} s, then {1e3 * best:8.2f} ms")
+    names = ("masses", "periods", "eccs", "omegas", "incs", "lnodes", "tics")
+    t = times[times >= EPOCH]
+    dt = float(np.min(el["periods"])) / 40
+
+    def loss(*values):
+        x, y, _ = nbody_xyz(t, dt=dt, **{**el, **dict(zip(names, values))})
+        return jax.numpy.sum(x * np.sin(t)[:, None]) + jax.numpy.sum(y)
+
+    values = tuple(np.asarray(el[n], float) for n in names)
+    values = values[:4] + (np.array([89.9, 89.8, 90.1]), np.array([0.0, 1.0, -2.0])) + values[6:]
+    argnums = tuple(range(len(names)))
+    rev, first, best = timed(jax.jit(jax.grad(loss, argnums=argnums)), *values)
+    print(f"  jax.grad wrt masses and elements, {len(t)} times: first {first:6.2f} s, then {1e3 * best:8.2f} ms")
+    fwd, first, best = timed(jax.jit(jax.jacfwd(loss, argnums=argnums)), *values)
+    print(f"  jax.jacfwd (the same derivatives):             first {first:6.2f} s, then {1e3 * best:8.2f} ms")
+    for name, r, f in zip(names, rev, fwd):
+        r, f = np.asarray(r), np.asarray(f)
+        print(f"    d/d{name:7s} finite: {bool(np.all(np.isfinite(r)))}, "
+              f"max |grad - jacfwd| / max |jacfwd| = {np.max(np.abs(r - f)) / np.max(np.abs(f)):.1e}")
 
 
 def _write(transits, times, ref_au):
