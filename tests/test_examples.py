@@ -46,7 +46,7 @@ def _execute(page):
     hooks = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(hooks)
     result, namespace = hooks.execute_page(page, force=True)
-    assert len(result["blocks"]) >= 2
+    assert len(result["blocks"]) >= 1
     return result, namespace
 
 
@@ -56,6 +56,17 @@ def test_tutorial_runs_top_to_bottom():
     result, namespace = _execute("tutorial.md")
     assert namespace["res"] is not None and namespace["post"].samples
     assert any(b["figures"] for b in result["blocks"]) and any(b["stdout"] for b in result["blocks"])
+
+
+def test_getting_started_shows_a_ppo_and_its_gradient():
+    """docs/getting-started.md's quickstart: the PPO bump near BKJD 334 at
+    alpha = 150 deg (case same), its figure, and d flux / d alpha on the
+    bump's flank equal to the central difference."""
+    result, namespace = _execute("getting-started.md")
+    assert result["blocks"][0]["figures"] and "PPO bump" in result["blocks"][0]["stdout"]
+    assert 1e-4 < namespace["bump"].max() < 1e-3
+    assert abs(namespace["slope"] - namespace["central"]) <= 1e-6 * abs(namespace["central"]) + 1e-10
+    assert abs(namespace["slope"]) > 1e-5
 
 
 def test_ttv_doc_examples_run():
