@@ -302,13 +302,8 @@ class SampleResult:
         str
             The path written.
         """
-        import arviz as az
-
-        data = self.to_arviz()
-        if arviz_major(az) >= 1:
-            data.to_netcdf(str(path), engine="h5netcdf")  # an xarray DataTree
-        else:
-            data.to_netcdf(str(path), engine="h5netcdf")
+        # arviz 0.x's InferenceData and 1.x's DataTree take the same call
+        self.to_arviz().to_netcdf(str(path), engine="h5netcdf")
         return str(path)
 
 
