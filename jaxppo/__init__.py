@@ -25,6 +25,7 @@ from .model._sweep import sweep as sweep
 from .model._transits import MultiTransit as MultiTransit
 from .model._system import Planet as Planet
 from .model._system import System as System
+from .model._moon import Moon as Moon
 from .model._transits import alpha_limits as alpha_limits
 from .model._transits import transit_times as transit_times
 from .model._transits import multi_transits as multi_transits
@@ -73,6 +74,7 @@ __all__ = [
     "MultiTransit",
     "Planet",
     "System",
+    "Moon",
     "alpha_limits",
     "transit_times",
     "multi_transits",

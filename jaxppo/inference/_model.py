@@ -62,6 +62,11 @@ class Model:
         if int(union_floor) != union_floor or union_floor < 0:
             raise ValueError(f"union_floor must be an integer >= 0, got {union_floor!r}")
         lc = as_lightcurve(lc)
+        if system.orbits == "nbody" and system.span is None:
+            # the N-body grid is fixed once: the compiled model takes traced times
+            tl = np.asarray(lc.time, float)
+            pad = 0.5 * float(np.max(np.asarray(lc.exposure))) + 1.0 if lc.exposure is not None else 1.0
+            system = system.replace(span=(float(tl.min()) - pad, float(tl.max()) + pad))
         self.system, self.lc, self.requested = system, lc, free
         self.alpha, self.case = alpha, case
         self.union_floor = int(union_floor)  # see ModelData.build
@@ -132,17 +137,19 @@ class Model:
                 out.append(jnp.log(self.jitter0) if par == "jitter" else 0.0)
                 continue
             if owner == "star":
-                if par in ("q1", "q2"):
+                if par in ("mass", "radius"):
+                    out.append(jnp.log(system.star_mass if par == "mass" else system.star_radius))
+                elif par in ("q1", "q2"):
                     q = kipping_q(system.star.params[0], system.star.params[1])[0 if par == "q1" else 1]
                     out.append(logit(q))
                 else:
                     out.append(system.star.params[par])
                 continue
             pl = system.planets[owner]
-            if par == "t0" or is_tc(par):
+            if par in ("t0", "lnode") or is_tc(par):
                 out.append(planet_value(pl, par))
-            elif par == "period":
-                out.append(jnp.log(pl.period))
+            elif par in ("period", "mass"):
+                out.append(jnp.log(getattr(pl, par)))
             elif par == "a":
                 out.append(jnp.log(pl.a - 1.0))
             elif par == "radius":
@@ -168,16 +175,12 @@ class Model:
             v = values[k]
             if par in ("q1", "q2"):
                 out.append(logit(v))
-            elif par == "jitter":
+            elif par in ("jitter", "period", "mass", "radius"):  # star mass/radius too
                 out.append(jnp.log(v))
-            elif owner in ("star", "lc") or par == "t0" or is_tc(par):
+            elif owner in ("star", "lc") or par in ("t0", "lnode") or is_tc(par):
                 out.append(v)
-            elif par == "period":
-                out.append(jnp.log(v))
             elif par == "a":
                 out.append(jnp.log(v - 1.0))
-            elif par == "radius":
-                out.append(jnp.log(v))
             elif ref is None:
                 out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
             else:
@@ -199,6 +202,8 @@ class Model:
                 out.append(jnp.exp(theta[k]))
             elif owner == "lc":
                 out.append(theta[k])
+            elif owner == "star" and par in ("mass", "radius"):
+                out.append(sysm.star_mass if par == "mass" else sysm.star_radius)
             else:
                 out.append(sysm.star.params[par] if owner == "star" else planet_value(sysm.planets[owner], par))
         return jnp.stack(out)
@@ -334,12 +339,16 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
     tracers, so a circular planet given its traced e = 0 would take the
     slower Keplerian path."""
     # listed transit times: as given, except the free ones ("b.tc[12]")
+    nbody = base.orbits == "nbody"
     planets = [dict(period=p.period, t0=p.t0, a=p.a, inc=p.inc, radius=p.radius, name=p.name,
-                    transit_times=p.transit_times, transit_epochs=p.transit_epochs) for p in base.planets]
+                    transit_times=p.transit_times, transit_epochs=p.transit_epochs, lnode=p.lnode, mass=p.mass,
+                    moons=p.moons)
+               for p in base.planets]
     for k, p in enumerate(base.planets):
         if eccentric is None or eccentric[k]:
             planets[k].update(e=p.e, omega=p.omega)
     star_params = base.star.params
+    options = base.nbody_options()
     b_theta, q = {}, {}
     for k, (owner, par) in enumerate(slots):
         v = theta[k]
@@ -347,6 +356,12 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             continue
         if par in ("q1", "q2"):
             q[par] = jax.nn.sigmoid(v)
+        elif owner == "star" and par in ("mass", "radius"):
+            options["star_" + par] = jnp.exp(v)
+        elif par == "mass":
+            planets[owner]["mass"] = jnp.exp(v)
+        elif par == "lnode":
+            planets[owner]["lnode"] = v
         elif owner == "star":
             star_params = star_params.at[par].set(v)
         elif is_tc(par):
@@ -361,16 +376,26 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             planets[owner]["radius"] = jnp.exp(v)
         else:
             b_theta[owner] = v
+    if nbody:  # a is derived (Kepler's third law, Jacobi masses): from the masses at theta
+        from ..model._nbody import semi_major_axis
+
+        inner = 0.0
+        for pl in planets:
+            inner = inner + pl["mass"]
+            pl["a"] = semi_major_axis(pl["period"], options["star_mass"] + inner, options["star_radius"])
     for owner, v in b_theta.items():
         pl = planets[owner]
         b = (1.0 + pl["radius"]) * jnp.tanh(v)
         pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
+    if nbody:
+        for pl in planets:
+            pl["a"] = None
     if q:
         q1_0, q2_0 = kipping_q(star_params[0], star_params[1])
         u1, u2 = kipping_u(q.get("q1", q1_0), q.get("q2", q2_0))
         star_params = jnp.stack([u1, u2])
     star = dataclasses.replace(base.star, params=star_params)
-    return System(star, [Planet(**p) for p in planets], base.tilted)
+    return System(star, [Planet(**p) for p in planets], base.tilted, **options)
 
 
 def _flux(theta, d: ModelData) -> jnp.ndarray:

@@ -34,11 +34,16 @@ from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
 
-__all__ = ["PLANET_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+__all__ = ["PLANET_PARAMS", "NBODY_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The parameters of each planet a fit or a sampler may free."""
+NBODY_PARAMS = {"planet": ("mass", "lnode"), "star": ("mass", "radius")}
+"""Parameters of N-body systems only: each planet's mass [M_sun] and
+longitude of the ascending node [deg], the star's mass [M_sun] and radius
+[R_sun] (coordinates: logarithms, except lnode); there a planet's ``a`` is
+derived, not free."""
 STAR_PARAMS = {"quadratic": ("u1", "u2"), "nonlinear": ("c1", "c2", "c3", "c4"), "power2": ("c", "alpha")}
 """The limb-darkening coefficients of each law, in ``Star.params`` order."""
 LC_PARAMS = ("offset", "jitter", "baseline", "baseline2")
@@ -183,7 +188,9 @@ def parameter_names(system: System) -> list[str]:
 
     Per planet (labelled by its name, or its index when it has none):
     ``"<p>.t0"`` [d], ``"<p>.period"`` [d], ``"<p>.a"`` [R*], ``"<p>.inc"``
-    [deg], ``"<p>.radius"`` [R*], and for a planet with ``transit_times``
+    [deg], ``"<p>.radius"`` [R*] (N-body systems: also ``"<p>.mass"``
+    [M_sun] and ``"<p>.lnode"`` [deg], no ``a``, which is derived, and
+    ``"star.mass"`` [M_sun], ``"star.radius"`` [R_sun]), and for a planet with ``transit_times``
     one ``"<p>.tc[<epoch>]"`` [d] per listed epoch (``"<p>.tc"`` names them
     all at once) instead of ``"<p>.t0"`` (the listed times fix the orbit's
     phase, so its t0 cancels). Then the star's limb-darkening coefficients in
@@ -222,13 +229,17 @@ def parameter_names(system: System) -> list[str]:
     ['b.period', 'b.a', 'b.inc', 'b.radius', 'b.tc[0]', 'b.tc[1]']
     """
     names = []
+    nbody = system.orbits == "nbody"
     for i, pl in enumerate(system.planets):
         label = pl.name or str(i)
         # a planet with transit times has no free t0: its listed mid-times
         # fix the orbit's phase and t0 cancels (check_ttv_free refuses it)
-        names += [f"{label}.{p}" for p in PLANET_PARAMS if not (p == "t0" and pl.transit_times is not None)]
+        names += [f"{label}.{p}" for p in PLANET_PARAMS if not (p == "t0" and pl.transit_times is not None)
+                  and not (p == "a" and nbody)]
+        names += [f"{label}.{p}" for p in NBODY_PARAMS["planet"] if nbody]
         if pl.transit_times is not None:
             names += [tc_name(pl, i, k) for k in range(len(pl.transit_epochs))]
+    names += [f"star.{p}" for p in NBODY_PARAMS["star"] if nbody]
     names += [f"star.{p}" for p in STAR_PARAMS.get(system.star.law, ())]
     if system.star.law == "quadratic":
         names += ["star.q1", "star.q2"]
@@ -240,8 +251,14 @@ def _split(name: str, system: System):
     if not isinstance(name, str) or "." not in name:
         raise ValueError(f"free parameter {name!r} must look like 'b.t0' or 'star.u1'")
     owner, par = name.split(".", 1)
+    nbody = system.orbits == "nbody"
     if owner == "star":
         pars = STAR_PARAMS.get(system.star.law, ())
+        if par in NBODY_PARAMS["star"]:
+            if not nbody:
+                raise ValueError(f"free parameter {name!r}: the star's mass and radius are parameters of N-body "
+                                 "orbits only (System(..., orbits='nbody')); Keplerian planets have a [R*]")
+            return "star", par
         if par in ("q1", "q2"):
             if system.star.law != "quadratic":
                 raise ValueError(f"free parameter {name!r}: Kipping's q1, q2 need a quadratic star, "
@@ -264,9 +281,19 @@ def _split(name: str, system: System):
     tc = check_ttv_free(system, idx, par, name)
     if tc is not None:
         return idx, tc
-    if par not in PLANET_PARAMS:
-        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS} and, for a planet with "
-                         "transit_times, its listed mid-times 'tc[<epoch>]' (or 'tc' for all)")
+    if nbody and par == "a":
+        raise ValueError(f"free parameter {name!r}: in an N-body system a planet's a is derived from its period and "
+                         "the masses (free 'star.mass', 'star.radius' or the planets' masses instead)")
+    if par in NBODY_PARAMS["planet"] and not nbody:
+        raise ValueError(f"free parameter {name!r}: planet masses are parameters of N-body orbits only "
+                         "(System(..., orbits='nbody'))")
+    if par not in PLANET_PARAMS + NBODY_PARAMS["planet"]:
+        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS} (N-body systems: also "
+                         f"{NBODY_PARAMS['planet']}, and no 'a') and, for a planet with transit_times, its listed "
+                         "mid-times 'tc[<epoch>]' (or 'tc' for all)")
+    if par == "mass" and not float(np.asarray(system.planets[idx].mass)) > 0:
+        raise ValueError(f"free parameter {name!r}: a free mass starts from a mass > 0 (its coordinate is log mass); "
+                         f"planet {owner!r} has mass = {float(np.asarray(system.planets[idx].mass))!r} M_sun")
     return idx, par
 
 

@@ -55,6 +55,7 @@ from __future__ import annotations
 import math
 import warnings
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -331,3 +332,186 @@ def nbody_positions(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, 
                         t_range=t_range)
     r = jnp.where(z > 0, jnp.atleast_1d(jnp.asarray(radii, float)), 0.0)
     return x, y, r
+
+
+# ---- an N-body System (jaxppo.System(..., orbits="nbody")) -------------------------------------------------
+
+
+def _concrete_or_none(value):
+    """The value as a numpy array, or None when it is traced."""
+    return None if isinstance(value, jax.core.Tracer) else np.asarray(value, float)
+
+
+def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
+    """Check an N-body System's keywords and derive its planets' a.
+
+    Returns (planets with ``a`` set to the osculating Jacobi semi-major
+    axis, star_mass, star_radius, epoch, dt, span); raises ValueError naming
+    the keyword and value that is missing or out of range."""
+    from ._system import from_quantity
+
+    for name, value in (("epoch", epoch), ("star_mass", star_mass), ("star_radius", star_radius)):
+        if value is None:
+            raise ValueError(f"orbits='nbody' needs {name} (epoch: the time [d] at which the elements osculate; "
+                             "star_mass [M_sun]; star_radius [R_sun])")
+    epoch = float(_concrete(from_quantity("epoch", epoch, "d"), "epoch", "it fixes the integration grid"))
+    if not math.isfinite(epoch):
+        raise ValueError(f"epoch must be a finite time [d], got {epoch!r}")
+    star_mass = jnp.asarray(from_quantity("star_mass", star_mass, "M_sun"), float)
+    star_radius = jnp.asarray(from_quantity("star_radius", star_radius, "R_sun"), float)
+    for name, value in (("star_mass", star_mass), ("star_radius", star_radius)):
+        v = _concrete_or_none(value)
+        if v is not None and not (v.ndim == 0 and np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    periods = [_concrete_or_none(pl.period) for pl in planets]
+    if all(p is not None for p in periods):
+        if np.any(np.diff(np.asarray(periods, float)) <= 0):
+            raise ValueError(f"N-body planets are listed from the inside out (Jacobi coordinates: each orbits the "
+                             f"star and the planets inside it), so their periods must increase; got {periods}")
+    if dt is None:
+        if any(p is None for p in periods):
+            raise ValueError("dt (the N-body step [d]) is needed when the periods are traced")
+        dt = float(min(periods)) / 40.0
+    dt = float(_concrete(from_quantity("dt", dt, "d"), "dt", "it fixes the integration grid"))
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite step > 0 [d], got {dt!r}")
+    if span is not None:
+        try:
+            lo, hi = (float(v) for v in span)
+        except (TypeError, ValueError):
+            raise ValueError(f"span must be (t_min, t_max) [d], got {span!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ValueError(f"span must be finite (t_min, t_max) with t_min <= t_max [d], got {span!r}")
+        span = (lo, hi)
+    out, inner = [], 0.0
+    for pl in planets:
+        if pl.transit_times is not None:
+            raise ValueError(f"planet {pl.name!r}: N-body orbits make their own transit times; drop transit_times")
+        inner = inner + pl.mass
+        a = semi_major_axis(pl.period, star_mass + inner, star_radius)
+        given, derived = _concrete_or_none(pl.a), _concrete_or_none(a)
+        if given is not None and derived is not None and not np.isnan(given) and abs(given / derived - 1) > 0.01:
+            raise ValueError(
+                f"planet {pl.name!r}: a = {float(given):.6g} R* disagrees with Kepler's third law for its period, "
+                f"the masses and star_radius ({float(derived):.6g} R*); an N-body System derives a: give a=None")
+        out.append(eqx.tree_at(lambda p: p.a, pl, jnp.asarray(a, float)))  # no re-check: a may be traced
+    return tuple(out), star_mass, star_radius, epoch, dt, span
+
+
+def _elements(system, signs, extra_node):
+    """jnkepler's element arrays of an N-body System: the tilted planet's
+    node turned by ``extra_node`` [deg], and planets of a mirrored hemisphere
+    (sign -1) at 180 - inc (their orbit mirrored about its line of nodes)."""
+    pls = system.planets
+    inc = jnp.stack([jnp.where(signs[i] < 0 and i != system.tilted, 180.0 - p.inc, p.inc)
+                     for i, p in enumerate(pls)])
+    lnode = jnp.stack([p.lnode + (extra_node if i == system.tilted else 0.0) for i, p in enumerate(pls)])
+    return dict(periods=jnp.stack([p.period for p in pls]), eccs=jnp.stack([p.e for p in pls]),
+                omegas=jnp.stack([p.omega for p in pls]), incs=inc, lnodes=lnode,
+                tics=jnp.stack([p.t0 for p in pls]), masses=jnp.stack([p.mass for p in pls]),
+                star_mass=system.star_mass, star_radius=system.star_radius)
+
+
+def system_xyz(system, t, alpha, signs, t_range=None):
+    """Sky positions (x, y, z) [R*] of an N-body System's planets at times t,
+    the tilted planet's node turned by alpha [deg] (each tilt is its own
+    integration: the tilt changes the mutual inclinations and so the
+    dynamics). ``alpha`` is a scalar, or [n_alpha, 1, ...] against t of
+    shape [1, ...] (one light curve per tilt). ``t_range``: the span the
+    grid covers (default the System's ``span``, else that of t)."""
+    t_range = system.span if t_range is None else t_range
+    if isinstance(t, jax.core.Tracer) and t_range is None:
+        raise ValueError("an N-body System evaluated at traced times (jit) needs span=(t_min, t_max) [d]: "
+                         "System(..., orbits='nbody', span=...) fixes the integration grid")
+    if t_range is None:
+        tc = np.asarray(t, float)
+        t_range = (float(tc.min()), float(tc.max())) if tc.size else None
+    opts = dict(epoch=system.epoch, dt=system.dt, t_range=t_range)
+    if jnp.ndim(alpha) == 0 or jnp.size(alpha) == 1:
+        return nbody_xyz(t, **_elements(system, signs, jnp.reshape(alpha, ())), **opts)
+    alpha = jnp.asarray(alpha)
+    if any(n != 1 for n in alpha.shape[1:]) or (jnp.ndim(t) >= alpha.ndim and jnp.shape(t)[jnp.ndim(t) - alpha.ndim] != 1):
+        raise ValueError(f"an N-body System takes one tilt, or tilts [n_alpha, 1, ...] against times [1, ...]; got "
+                         f"alpha of shape {alpha.shape} and t of shape {jnp.shape(t)}")
+    t_in = jnp.asarray(t)
+    lead = t_in.ndim - alpha.ndim
+    if lead >= 0:
+        t_in = t_in.reshape(t_in.shape[:lead] + t_in.shape[lead + 1:])
+    xyz = jax.vmap(lambda a: nbody_xyz(t_in, **_elements(system, signs, a), **opts))(alpha.reshape(-1))
+    shape = np.broadcast_shapes(jnp.shape(t), alpha.shape)
+    return tuple(v.reshape(shape + (len(system.planets),)) for v in xyz)
+
+
+def system_positions(system, t, alpha, signs, xp):
+    """The disks (x, y, r) [R*] of ``System.positions`` for N-body orbits
+    (r = 0 behind the star); ``xp=numpy`` returns host arrays."""
+    x, y, z = system_xyz(system, t, alpha, signs)
+    if any(p.moons for p in system.planets):
+        from ._moon import add_moons
+
+        x, y, r = add_moons(system, jnp.asarray(t), alpha, signs, (x, y, z), jnp, kepler=False)
+    else:
+        r = jnp.where(z > 0, jnp.stack([p.radius for p in system.planets]), 0.0)
+    if xp is np:
+        return np.asarray(x), np.asarray(y), np.asarray(r)
+    return x, y, r
+
+
+def nbody_transit_times(system, t_start: float, t_end: float) -> list[tuple[int, int, float]]:
+    """(planet index, epoch, tc) of every transit of an N-body System's
+    planets in [t_start, t_end].
+
+    Mid-transit is the time of least sky-projected distance from the star's
+    centre, d/dt (x^2 + y^2) = 0 (jnkepler's and TTVFast's definition),
+    found by Newton's method from the osculating ephemeris t0 + n P (the
+    derivatives by forward differentiation of the positions); a transit
+    is kept when the planet is in front (z > 0) and its least distance is
+    below 1 + radius. Epoch n counts from the transit nearest to t0."""
+    n_pl = len(system.planets)
+    signs = np.ones(n_pl)
+    periods = np.array([float(p.period) for p in system.planets])
+    tics = np.array([float(p.t0) for p in system.planets])
+    lo, hi = t_start - 0.5 * periods.max(), t_end + 0.5 * periods.max()
+    guesses, owners, epochs = [], [], []
+    for j in range(n_pl):
+        for n in range(int(np.floor((lo - tics[j]) / periods[j])), int(np.ceil((hi - tics[j]) / periods[j])) + 1):
+            guesses.append(tics[j] + n * periods[j])
+            owners.append(j)
+            epochs.append(n)
+    if not guesses:
+        return []
+    owners = np.asarray(owners)
+    pick = jnp.asarray(owners)
+    span = (min(lo, min(guesses)) - 1.0, max(hi, max(guesses)) + 1.0)
+
+    def sky(t):
+        x, y, _ = system_xyz(system, t, 0.0, signs, span)
+        return jnp.take_along_axis(x, pick[:, None], 1)[:, 0], jnp.take_along_axis(y, pick[:, None], 1)[:, 0]
+
+    @jax.jit
+    def newton(t):
+        ones = jnp.ones_like(t)
+
+        def g(t):  # d/dt (x^2 + y^2) / 2
+            (x, y), (vx, vy) = jax.jvp(sky, (t,), (ones,))
+            return x * vx + y * vy
+
+        val, der = jax.jvp(g, (t,), (ones,))
+        return t - val / der
+
+    t = jnp.asarray(guesses, float)
+    for _ in range(8):
+        t_new = newton(t)
+        done = bool(jnp.max(jnp.abs(t_new - t)) < 1e-10)
+        t = t_new
+        if done:
+            break
+    x, y, z = (np.asarray(v) for v in system_xyz(system, t, 0.0, signs, span))
+    rows = []
+    radius = np.array([float(p.radius) for p in system.planets])
+    for k, j in enumerate(owners):
+        tc = float(t[k])
+        d = math.hypot(x[k, j], y[k, j])
+        if t_start <= tc <= t_end and z[k, j] > 0 and d < 1.0 + radius[j]:
+            rows.append((int(j), int(epochs[k]), tc))
+    return rows

@@ -202,7 +202,8 @@ def _is_quantity(value) -> bool:
     return hasattr(value, "unit") and hasattr(value, "to")
 
 
-_WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)"}
+_WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)", "M_sun": "a mass [M_sun]",
+         "R_sun": "a length [R_sun]"}
 
 
 def _is_time_class(value, name: str) -> bool:
@@ -235,7 +236,7 @@ def from_quantity(name: str, value, unit: str):
         return value
     import astropy.units as u
 
-    target = {"deg": u.deg, "d": u.day, "": u.dimensionless_unscaled}[unit]
+    target = {"deg": u.deg, "d": u.day, "": u.dimensionless_unscaled, "M_sun": u.M_sun, "R_sun": u.R_sun}[unit]
     try:
         return np.asarray(value.to_value(target), float)
     except u.UnitConversionError:
@@ -283,8 +284,10 @@ class Planet(eqx.Module):
     t0 : float or Quantity
         A time of conjunction = mid-transit [d] (any consistent zero point,
         e.g. BKJD = BJD - 2454833), also for eccentric orbits.
-    a : float or Quantity
-        Semi-major axis [R*], > 1.
+    a : float or Quantity or None
+        Semi-major axis [R*], > 1. None only for a planet of an N-body
+        ``System`` (``orbits="nbody"``), which derives it from the period and
+        the masses (Kepler's third law).
     inc : float or Quantity
         Inclination i [deg] in [0, 180]; the impact parameter is
         b = a cos(i) (1 - e^2) / (1 + e sin omega).
@@ -309,11 +312,29 @@ class Planet(eqx.Module):
     transit_epochs : sequence of int or None, optional
         Integer epochs of ``transit_times`` (static; default 0..n-1; epoch 0
         is the transit at t0).
+    lnode : float or Quantity, optional
+        Longitude of the ascending node Omega [deg] (default 0): the orbit
+        rotated about the line of sight, x' = x cos Omega + y sin Omega,
+        y' = -x sin Omega + y cos Omega, the rotation of the tilt alpha
+        (docs/conventions.md). The tilted planet of a System is rotated by
+        Omega + alpha.
+    mass : float or Quantity, optional
+        Planet mass [M_sun], >= 0 (default 0); used by N-body orbits only
+        (``System(..., orbits="nbody")``).
+    moons : sequence of Moon, optional
+        The planet's moons (default none): the orbit above is then that of
+        the planet-moon barycentre, each moon on its Keplerian orbit about
+        the planet and the planet recoiling from them (``jaxppo.Moon``;
+        docs/conventions.md, "Moons"). ``System`` adds their disks after
+        the planets'.
 
     Attributes
     ----------
-    period, t0, a, inc, radius, e, omega : jax.Array
-        The orbit, as float arrays in the units above.
+    period, t0, a, inc, radius, e, omega, lnode, mass : jax.Array
+        The orbit, as float arrays in the units above (a is NaN when not
+        given).
+    moons : tuple of Moon
+        The moons.
     name : str
         The label.
     transit_times : jax.Array or None
@@ -371,24 +392,33 @@ class Planet(eqx.Module):
     radius: Array
     e: Array
     omega: Array
+    lnode: Array
+    mass: Array
     name: str = eqx.field(static=True, default="")
     transit_times: Array | None = None
     transit_epochs: tuple[int, ...] | None = eqx.field(static=True, default=None)
+    moons: tuple = ()
 
     def __init__(self, period, t0, a, inc, radius, name: str = "", e=0.0, omega=90.0, transit_times=None,
-                 transit_epochs=None):
+                 transit_epochs=None, lnode=0.0, mass=0.0, moons=()):
         period = from_quantity("period", period, "d")
         t0 = from_quantity("t0", t0, "d")
-        a = from_quantity("a", a, "")
+        no_a = a is None
+        a = np.nan if no_a else from_quantity("a", a, "")
         inc = from_quantity("inc", inc, "deg")
         radius = from_quantity("radius", radius, "")
         e = from_quantity("e", e, "")
         omega = from_quantity("omega", omega, "deg")
         _positive("period", period)
         _positive("t0", t0, strict=False, lower=-np.inf)
-        _positive("a", a, lower=1.0)
+        if not no_a:
+            _positive("a", a, lower=1.0)
         _positive("radius", radius)
         _positive("omega", omega, strict=False, lower=-np.inf)
+        lnode = from_quantity("lnode", lnode, "deg")
+        mass = from_quantity("mass", mass, "M_sun")
+        _positive("lnode", lnode, strict=False, lower=-np.inf)
+        _positive("mass", mass, strict=False)
         if not isinstance(inc, jax.core.Tracer):
             inc_arr = np.asarray(inc, dtype=float)
             if not np.all(np.isfinite(inc_arr)) or np.any((inc_arr < 0) | (inc_arr > 180)):
@@ -397,7 +427,7 @@ class Planet(eqx.Module):
             e_arr = np.asarray(e, dtype=float)
             if not np.all(np.isfinite(e_arr)) or np.any((e_arr < 0) | (e_arr >= 1)):
                 raise ValueError(f"e (eccentricity) must be in [0, 1), got {e!r}")
-            if not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
+            if not no_a and not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
                 peri = np.asarray(a, float) * (1.0 - e_arr)
                 if np.any(peri <= 1.0 + np.asarray(radius, float)):
                     raise ValueError(
@@ -411,14 +441,21 @@ class Planet(eqx.Module):
         self.radius = jnp.asarray(radius, float)
         self.e = jnp.asarray(e, float)
         self.omega = jnp.asarray(omega, float)
+        self.lnode = jnp.asarray(lnode, float)
+        self.mass = jnp.asarray(mass, float)
         self.name = str(name)
+        if moons:
+            from ._moon import check_moons  # _moon builds on Planet
+
+            moons = check_moons(radius, moons)
+        self.moons = tuple(moons)
         # ---- transit times (TTVs): checked and stored apart from the orbit
         if transit_times is not None:
             transit_times = from_quantity("transit_times", transit_times, "d")
         self.transit_times, self.transit_epochs = check_transit_times(
             transit_times, transit_epochs, period, t0, self.name)
         # ---- end transit times
-        if not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
+        if not no_a and not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
             e_, w_ = np.asarray(e, float), np.deg2rad(np.asarray(omega, float))
             b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
             # an eccentric orbit's sky distance is smallest off conjunction,
@@ -605,6 +642,8 @@ class Planet(eqx.Module):
         fields = (("period", " d"), ("t0", " d"), ("a", " R*"), ("inc", " deg"), ("radius", ""))
         if not self.circular:
             fields += (("e", ""), ("omega", " deg"))
+        fields += tuple((f, unit) for f, unit in (("lnode", " deg"), ("mass", " M_sun"))
+                        if isinstance(getattr(self, f), jax.core.Tracer) or np.any(np.asarray(getattr(self, f))))
         parts = [f"name={self.name!r}"] if self.name else []
         for f, unit in fields:
             v = getattr(self, f)
@@ -612,9 +651,14 @@ class Planet(eqx.Module):
                 parts.append(f"{f}={v}")
                 continue
             arr = np.asarray(v)
+            if f == "a" and np.all(np.isnan(arr)):
+                parts.append("a=None")
+                continue
             parts.append(f"{f}={float(arr):.10g}{unit}" if arr.ndim == 0 else f"{f}={np.array2string(arr, precision=10)}{unit}")
         if self.transit_times is not None:
             parts.append(f"transit_times={len(self.transit_epochs)} listed (epochs {epochs_text(self.transit_epochs)})")
+        if self.moons:
+            parts.append(f"moons=[{', '.join(repr(m) for m in self.moons)}]")
         return "Planet(" + ", ".join(parts) + ")"
 
     def mid_time(self, epoch: int) -> float:
@@ -655,7 +699,8 @@ class Planet(eqx.Module):
         ----------
         **changes
             New values by constructor argument name (period, t0, a, inc,
-            radius, name, e, omega, transit_times, transit_epochs).
+            radius, name, e, omega, transit_times, transit_epochs, lnode,
+            mass, moons).
 
         Returns
         -------
@@ -663,7 +708,9 @@ class Planet(eqx.Module):
             The new planet.
         """
         fields = {f: getattr(self, f) for f in ("period", "t0", "a", "inc", "radius", "name", "e", "omega",
-                                                  "transit_times", "transit_epochs")}
+                                                  "transit_times", "transit_epochs", "lnode", "mass", "moons")}
+        if not isinstance(self.a, jax.core.Tracer) and np.all(np.isnan(np.asarray(self.a))):
+            fields["a"] = None
         fields.update(changes)
         return Planet(**fields)
 
@@ -686,6 +733,27 @@ class System(eqx.Module):
         At least one planet; names, where given, must be unique.
     tilted : int or str, optional
         Index or name of the tilted planet (default 0, the first).
+    orbits : str, optional
+        "kepler" (default): each planet on its own Keplerian orbit (with its
+        transit times, if listed). "nbody": the planets move by their mutual
+        gravity, integrated by jnkepler (``pip install jaxppo[nbody]``) from
+        each planet's osculating Jacobi elements at ``epoch`` (period, t0 =
+        the time of inferior conjunction, e, omega, inc, lnode, mass; the
+        planets' ``a`` are derived, Kepler's third law); positions at every
+        time, gradients in masses and elements (docs/photodynamics.md).
+    epoch : float, optional
+        N-body only (required): the time [d] at which the elements osculate.
+    star_mass : float or Quantity, optional
+        N-body only (required): stellar mass [M_sun].
+    star_radius : float or Quantity, optional
+        N-body only (required): stellar radius [R_sun], the unit of the sky
+        positions.
+    dt : float, optional
+        N-body only: the integrator's step [d]; default the shortest period / 40
+        (3e-6 R* from REBOUND's IAS15 for Kepler-51).
+    span : tuple of float, optional
+        N-body only: (t_min, t_max) [d] the integration covers; needed when
+        the times are traced (jit), default the span of the times asked for.
 
     Attributes
     ----------
@@ -695,13 +763,22 @@ class System(eqx.Module):
         The planets, in the order given.
     tilted : int
         Index of the tilted planet.
+    orbits : str
+        "kepler" or "nbody".
+    star_mass, star_radius : jax.Array or None
+        N-body: stellar mass [M_sun] and radius [R_sun].
+    epoch, dt, span
+        N-body: as given (dt filled with its default).
 
     Raises
     ------
     ValueError
         When ``star`` is not a ``Star``, ``planets`` is empty or holds
-        something other than a ``Planet``, two planets share a name, or
-        ``tilted`` is neither an index in range nor a planet's name.
+        something other than a ``Planet``, two planets share a name,
+        ``tilted`` is neither an index in range nor a planet's name, a
+        Keplerian planet has no ``a``, or the N-body keywords are missing,
+        out of range or given for Keplerian orbits (also a planet's ``a``
+        that disagrees with Kepler's third law by more than 1 %).
 
     See Also
     --------
@@ -733,8 +810,15 @@ class System(eqx.Module):
     star: Star
     planets: tuple[Planet, ...]
     tilted: int = eqx.field(static=True, default=0)
+    star_mass: Array | None = None
+    star_radius: Array | None = None
+    orbits: str = eqx.field(static=True, default="kepler")
+    epoch: float | None = eqx.field(static=True, default=None)
+    dt: float | None = eqx.field(static=True, default=None)
+    span: tuple | None = eqx.field(static=True, default=None)
 
-    def __init__(self, star: Star, planets, tilted: int = 0):
+    def __init__(self, star: Star, planets, tilted: int = 0, *, orbits: str = "kepler", epoch=None,
+                 star_mass=None, star_radius=None, dt=None, span=None):
         if not isinstance(star, Star):
             raise ValueError(f"star must be a jaxppo.Star, got {type(star).__name__}")
         planets = tuple(planets)
@@ -754,8 +838,28 @@ class System(eqx.Module):
             raise ValueError(f"tilted must be a planet's index (0..{len(planets) - 1}) or name "
                              f"({[n for n in labels if n]}), got {tilted!r}")
         self.star = star
-        self.planets = planets
         self.tilted = int(tilted)
+        if orbits == "kepler":
+            given = {k: v for k, v in dict(epoch=epoch, star_mass=star_mass, star_radius=star_radius, dt=dt,
+                                            span=span).items() if v is not None}
+            if given:
+                raise ValueError(f"{sorted(given)} apply to N-body orbits only; pass orbits='nbody' "
+                                 "(Keplerian planets use each planet's a [R*])")
+            for pl in planets:
+                if not isinstance(pl.a, jax.core.Tracer) and np.any(np.isnan(np.asarray(pl.a))):
+                    raise ValueError(f"planet {pl.name!r} has no a (semi-major axis [R*]): a Keplerian orbit needs "
+                                     "it (only orbits='nbody' derives a from the masses)")
+            self.planets = planets
+            self.orbits, self.epoch, self.dt, self.span = "kepler", None, None, None
+            self.star_mass = self.star_radius = None
+        elif orbits == "nbody":
+            from ._nbody import nbody_setup  # jnkepler is imported on first use only
+
+            (self.planets, self.star_mass, self.star_radius, self.epoch, self.dt,
+             self.span) = nbody_setup(planets, epoch, star_mass, star_radius, dt, span)
+            self.orbits = "nbody"
+        else:
+            raise ValueError(f"orbits must be 'kepler' or 'nbody', got {orbits!r}")
 
     def index(self, name: str) -> int:
         """Index of the planet named ``name``.
@@ -820,22 +924,36 @@ class System(eqx.Module):
         """
         signs = case_signs(len(self.planets), self.tilted, case)
         t = xp.asarray(from_quantity("t", t, "d"), dtype=float)
-        alpha_rad = xp.deg2rad(xp.asarray(from_quantity("alpha", alpha, "deg"), dtype=float))
+        alpha = xp.asarray(from_quantity("alpha", alpha, "deg"), dtype=float)
+        if self.orbits == "nbody":
+            from ._nbody import system_positions
+
+            return system_positions(self, t, alpha, signs, xp)
+        alpha_rad = xp.deg2rad(alpha)
         shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
-        xs, ys, rs = [], [], []
+        xs, ys, rs, zs = [], [], [], []
         for i, pl in enumerate(self.planets):
             x, y, z = pl.position(t, xp)
             # |cos i| instead of cos i: the sign of b is not observable
             y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
-            if i == self.tilted:
-                ca, sa = xp.cos(alpha_rad), xp.sin(alpha_rad)
-                x, y = x * ca + y * sa, -x * sa + y * ca
-            elif signs[i] < 0:
+            if i != self.tilted and signs[i] < 0:
                 y = -y
+            node = xp.deg2rad(xp.asarray(pl.lnode))
+            if i == self.tilted:
+                node = node + alpha_rad
+            if i == self.tilted or isinstance(pl.lnode, jax.core.Tracer) or np.any(np.asarray(pl.lnode)):
+                ca, sa = xp.cos(node), xp.sin(node)
+                x, y = x * ca + y * sa, -x * sa + y * ca
             xs.append(xp.broadcast_to(x, shape))
             ys.append(xp.broadcast_to(y, shape))
             rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
-        return xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
+            zs.append(xp.broadcast_to(z, shape))
+        x, y, r = xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
+        if any(pl.moons for pl in self.planets):
+            from ._moon import add_moons
+
+            x, y, r = add_moons(self, t, alpha, signs, (x, y, xp.stack(zs, -1)), xp, kepler=True)
+        return x, y, r
 
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
         """Relative flux at times t [d], planet-planet occultations included.
@@ -905,9 +1023,27 @@ class System(eqx.Module):
     def __repr__(self) -> str:
         tilted = self.planets[self.tilted].name or self.tilted
         inner = ",\n".join("    " + repr(p) for p in self.planets)
-        return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r})"
+        extra = ""
+        if self.orbits == "nbody":
+            extra = (f",\n  orbits='nbody', epoch={self.epoch!r}, star_mass={self.star_mass}, "
+                     f"star_radius={self.star_radius}, dt={self.dt!r}")
+        return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r}{extra})"
 
-    def replace(self, star: Star | None = None, planets=None, tilted: int | None = None) -> "System":
+    def nbody_options(self) -> dict:
+        """The N-body keywords of this system (empty for Keplerian orbits).
+
+        Returns
+        -------
+        dict
+            ``orbits``, ``epoch``, ``star_mass``, ``star_radius``, ``dt``,
+            ``span`` for an N-body system, ready for ``System(...)``.
+        """
+        if self.orbits != "nbody":
+            return {}
+        return dict(orbits="nbody", epoch=self.epoch, star_mass=self.star_mass, star_radius=self.star_radius,
+                    dt=self.dt, span=self.span)
+
+    def replace(self, star: Star | None = None, planets=None, tilted: int | None = None, **nbody) -> "System":
         """A copy of the system with the star, the planets or the tilted planet changed.
 
         Parameters
@@ -918,16 +1054,24 @@ class System(eqx.Module):
             The new planets (default: the same).
         tilted : int or str, optional
             Index or name of the new tilted planet (default: the same index).
+        **nbody
+            New N-body keywords (``epoch``, ``star_mass``, ``star_radius``,
+            ``dt``, ``span``; see ``System``).
 
         Returns
         -------
         System
             The new system (checked as by the constructor).
         """
+        if planets is None:
+            planets = self.planets
+            if self.orbits == "nbody":  # derived again (the masses may change)
+                planets = [eqx.tree_at(lambda p: p.a, pl, jnp.asarray(np.nan)) for pl in planets]
         return System(
             star if star is not None else self.star,
-            planets if planets is not None else self.planets,
+            planets,
             self.tilted if tilted is None else tilted,
+            **{**self.nbody_options(), **nbody},
         )
 
     def transit_times(self, t_start, t_end):

@@ -19,7 +19,10 @@ def transit_times(system: System, t_start, t_end):
     """List the mid-transit times [d] the model predicts in [t_start, t_end].
 
     Every planet's transits are its conjunctions t0 + n P (t0 is the time of
-    inferior conjunction, eccentric orbits included); a planet with
+    inferior conjunction, eccentric orbits included); in an N-body system
+    (``orbits="nbody"``) the times of least sky distance from the star's
+    centre on the integrated orbits (epoch 0: the transit nearest to the
+    planet's t0); a planet with
     ``transit_times`` has the listed times at its listed epochs and t0 + n P
     plus the offset of the nearest listed epoch elsewhere
     (``Planet.mid_time``). A planet that never crosses the stellar disk
@@ -65,7 +68,11 @@ def transit_times(system: System, t_start, t_end):
     if not (math.isfinite(t_start) and math.isfinite(t_end) and t_end >= t_start):
         raise ValueError(f"need finite t_start <= t_end [d], got t_start = {t_start!r}, t_end = {t_end!r}")
     rows = []
-    for i, pl in enumerate(system.planets):
+    if system.orbits == "nbody":
+        from ._nbody import nbody_transit_times
+
+        rows = [(planet_label(system, j), n, tc) for j, n, tc in nbody_transit_times(system, t_start, t_end)]
+    for i, pl in enumerate(system.planets if system.orbits == "kepler" else ()):
         t1, t4 = (float(v) for v in pl.contacts())
         if t4 <= t1:
             continue  # never on the stellar disk
