@@ -19,7 +19,10 @@ map's step dt; the timings (jnkepler compile and run, REBOUND IAS15 and
 WHFast). ``--write-csv`` writes ``tests/data/kepler51_rebound_transits.csv``
 (planet, epoch, tc [BKJD]) and ``tests/data/kepler51_rebound_positions.csv``
 (t [BKJD], planet, x, y, z [au]; astrocentric, in REBOUND's frame, whose
-observer is on +z: jaxppo's sky frame is (-x, y, z) / R*).
+observer is on +z: jaxppo's sky frame is (-x, y, z) / R*), and
+``tests/data/kepler51_rebound_double_transit.csv`` (the same columns across
+the overlapping b + d double transit near BKJD 1513.7, inclinations
+``DOUBLE_INCS``).
 
 CPU speed: jnkepler advises XLA_FLAGS=
 "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=65536"
@@ -305,6 +308,23 @@ def _timings(el, times, t_end):
               f"max |grad - jacfwd| / max |jacfwd| = {np.max(np.abs(r - f)) / np.max(np.abs(f)):.1e}")
 
 
+# the b + d double transit near BKJD 1513.7 with b and d overlapping on the star: inclinations near those
+# of a photodynamical fit of the Kepler data (the pdict's TTV-only solution has all three at 90 deg)
+DOUBLE_INCS = (89.8, 89.5, 89.95)
+DOUBLE_TIMES = np.linspace(1513.45, 1514.05, 121)
+
+
+def write_double_transit() -> Path:
+    """REBOUND IAS15 positions [au] across the b + d double transit (``DOUBLE_INCS``, ``DOUBLE_TIMES``):
+    tests/data/kepler51_rebound_double_transit.csv, the reference of the N-body light curve there."""
+    el = {**kepler51_elements(), "incs": np.asarray(DOUBLE_INCS)}
+    ref_au = rebound_positions(el, DOUBLE_TIMES)
+    out = ROOT / "tests" / "data" / "kepler51_rebound_double_transit.csv"
+    rows = [(t, NAMES[j], *ref_au[i, j]) for i, t in enumerate(DOUBLE_TIMES) for j in range(ref_au.shape[1])]
+    pd.DataFrame(rows, columns=["t", "planet", "x", "y", "z"]).to_csv(out, index=False, float_format="%.14e")
+    return out
+
+
 def _write(transits, times, ref_au):
     """The tests' REBOUND reference (tests/data)."""
     out = ROOT / "tests" / "data"
@@ -313,7 +333,8 @@ def _write(transits, times, ref_au):
     rows = [(t, NAMES[j], *ref_au[i, j]) for i, t in enumerate(times) for j in range(ref_au.shape[1])]
     pd.DataFrame(rows, columns=["t", "planet", "x", "y", "z"]).to_csv(
         out / "kepler51_rebound_positions.csv", index=False, float_format="%.14e")
-    print(f"\nwrote {out / 'kepler51_rebound_transits.csv'} and {out / 'kepler51_rebound_positions.csv'}")
+    print(f"\nwrote {out / 'kepler51_rebound_transits.csv'}, {out / 'kepler51_rebound_positions.csv'} and "
+          f"{write_double_transit()}")
 
 
 if __name__ == "__main__":

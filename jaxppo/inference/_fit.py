@@ -19,7 +19,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._model import Model, scaled_residuals
-from ._params import as_lightcurve, planet_value
+from ._params import as_lightcurve, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["fit", "FitResult", "CONDITION_WARN"]
@@ -343,7 +343,7 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
     # the start as given (the coordinates would clip an impossible inclination)
     ph = np.asarray(model.physical(theta), float)
     start = np.array([ph[i] if owner == "lc" or par in ("q1", "q2") else float(
-        system.star.params[par] if owner == "star" else planet_value(system.planets[owner], par))
+        star_value(system, par) if owner == "star" else planet_value(system.planets[owner], par))
         for i, (owner, par) in enumerate(model.slots)])
     return FitResult(system, chi2_start, nan, False, "failed: " + "; ".join(problems), tuple(model.free),
                      start, np.full(k, np.nan), chi2_start / max(n - k, 1) if n > k else np.nan,

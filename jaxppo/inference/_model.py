@@ -20,8 +20,11 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._overlap import on_star, pairs_in_contact
 from ..model._system import Planet, System
-from ._params import (as_lightcurve, expand_free, is_tc, is_trend, jitter_start, kipping_q, kipping_u, logit,
-                      planet_value)
+from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
+                      logit, planet_value, star_value)
+
+# moon elements whose coordinate is the logarithm (the others: identity)
+_MOON_LOG = ("period", "a", "radius", "mass_ratio")
 
 __all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals", "scaled_residuals",
            "pointwise_loglike", "chi2_batch", "residuals_batch", "jacobian"]
@@ -146,7 +149,10 @@ class Model:
                     out.append(system.star.params[par])
                 continue
             pl = system.planets[owner]
-            if par in ("t0", "lnode") or is_tc(par):
+            if is_moon(par):
+                v = planet_value(pl, par)
+                out.append(jnp.log(v) if par[2] in _MOON_LOG else v)
+            elif par in ("t0", "lnode") or is_tc(par):
                 out.append(planet_value(pl, par))
             elif par in ("period", "mass"):
                 out.append(jnp.log(getattr(pl, par)))
@@ -173,7 +179,9 @@ class Model:
         out = []
         for k, (owner, par) in enumerate(self.slots):
             v = values[k]
-            if par in ("q1", "q2"):
+            if is_moon(par):
+                out.append(jnp.log(v) if par[2] in _MOON_LOG else v)
+            elif par in ("q1", "q2"):
                 out.append(logit(v))
             elif par in ("jitter", "period", "mass", "radius"):  # star mass/radius too
                 out.append(jnp.log(v))
@@ -202,10 +210,8 @@ class Model:
                 out.append(jnp.exp(theta[k]))
             elif owner == "lc":
                 out.append(theta[k])
-            elif owner == "star" and par in ("mass", "radius"):
-                out.append(sysm.star_mass if par == "mass" else sysm.star_radius)
             else:
-                out.append(sysm.star.params[par] if owner == "star" else planet_value(sysm.planets[owner], par))
+                out.append(star_value(sysm, par) if owner == "star" else planet_value(sysm.planets[owner], par))
         return jnp.stack(out)
 
     def derived_names(self) -> tuple:
@@ -358,6 +364,12 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             q[par] = jax.nn.sigmoid(v)
         elif owner == "star" and par in ("mass", "radius"):
             options["star_" + par] = jnp.exp(v)
+        elif is_moon(par):
+            _, m, element = par
+            moons = list(planets[owner]["moons"])
+            moons[m] = eqx.tree_at(lambda mo: getattr(mo, element), moons[m],
+                                   jnp.exp(v) if element in _MOON_LOG else v)
+            planets[owner]["moons"] = tuple(moons)
         elif par == "mass":
             planets[owner]["mass"] = jnp.exp(v)
         elif par == "lnode":

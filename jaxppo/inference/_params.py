@@ -34,11 +34,16 @@ from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
 
-__all__ = ["PLANET_PARAMS", "NBODY_PARAMS", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The parameters of each planet a fit or a sampler may free."""
+MOON_PARAMS = ("period", "t0", "a", "inc", "radius", "mass_ratio", "lnode")
+"""The parameters of a moon a fit or a sampler may free, named
+"<planet>.<moon>.<parameter>" (the moon's name, or "moon<k>" for the k-th
+unnamed moon): coordinates log P, t0, log a, inc [deg], log radius,
+log mass_ratio, lnode [deg]."""
 NBODY_PARAMS = {"planet": ("mass", "lnode"), "star": ("mass", "radius")}
 """Parameters of N-body systems only: each planet's mass [M_sun] and
 longitude of the ascending node [deg], the star's mass [M_sun] and radius
@@ -155,9 +160,48 @@ def is_tc(par) -> bool:
 
 
 def planet_value(pl, par):
-    """The value of a planet slot: an attribute, or the listed transit time
-    of a ("tc", k) slot."""
+    """The value of a planet slot: an attribute, the listed transit time
+    of a ("tc", k) slot, or a moon's element of a ("moon", k, name) slot."""
+    if is_moon(par):
+        return getattr(pl.moons[par[1]], par[2])
     return pl.transit_times[par[1]] if is_tc(par) else getattr(pl, par)
+
+
+def star_value(system: System, par):
+    """The value of a star slot: a limb-darkening coefficient (its index),
+    or the star's N-body mass / radius."""
+    if par in NBODY_PARAMS["star"]:
+        return system.star_mass if par == "mass" else system.star_radius
+    return system.star.params[par]
+
+
+def is_moon(par) -> bool:
+    """Whether a planet slot's par is a moon's element ("moon", k, name)."""
+    return isinstance(par, tuple) and par[0] == "moon"
+
+
+def moon_label(moon, k: int) -> str:
+    """A moon's label in parameter names: its name, or "moon<k>"."""
+    return moon.name or f"moon{k}"
+
+
+def _moon_slot(system: System, idx: int, par: str, name: str):
+    """("moon", k, element) for "b.<moon>.<element>", or None when par names no moon."""
+    pl = system.planets[idx]
+    sub, _, element = par.partition(".")
+    labels = [moon_label(m, k) for k, m in enumerate(pl.moons)]
+    if not element or sub not in labels:
+        if element:
+            raise ValueError(f"free parameter {name!r}: planet {pl.name or idx!r} has no moon {sub!r} (its moons: "
+                             f"{labels or 'none'})")
+        return None
+    if element not in MOON_PARAMS:
+        raise ValueError(f"free parameter {name!r}: moon parameters are {MOON_PARAMS}")
+    k = labels.index(sub)
+    if element == "mass_ratio" and not float(np.asarray(pl.moons[k].mass_ratio)) > 0:
+        raise ValueError(f"free parameter {name!r}: a free mass_ratio starts from a value > 0 (its coordinate is "
+                         "its logarithm)")
+    return ("moon", k, element)
 
 
 def tc_name(pl, idx: int, k: int) -> str:
@@ -190,7 +234,9 @@ def parameter_names(system: System) -> list[str]:
     ``"<p>.t0"`` [d], ``"<p>.period"`` [d], ``"<p>.a"`` [R*], ``"<p>.inc"``
     [deg], ``"<p>.radius"`` [R*] (N-body systems: also ``"<p>.mass"``
     [M_sun] and ``"<p>.lnode"`` [deg], no ``a``, which is derived, and
-    ``"star.mass"`` [M_sun], ``"star.radius"`` [R_sun]), and for a planet with ``transit_times``
+    ``"star.mass"`` [M_sun], ``"star.radius"`` [R_sun]), each moon's
+    ``"<p>.<moon>.<element>"`` (``MOON_PARAMS``; <moon> its name, or
+    "moon<k>"), and for a planet with ``transit_times``
     one ``"<p>.tc[<epoch>]"`` [d] per listed epoch (``"<p>.tc"`` names them
     all at once) instead of ``"<p>.t0"`` (the listed times fix the orbit's
     phase, so its t0 cancels). Then the star's limb-darkening coefficients in
@@ -237,6 +283,7 @@ def parameter_names(system: System) -> list[str]:
         names += [f"{label}.{p}" for p in PLANET_PARAMS if not (p == "t0" and pl.transit_times is not None)
                   and not (p == "a" and nbody)]
         names += [f"{label}.{p}" for p in NBODY_PARAMS["planet"] if nbody]
+        names += [f"{label}.{moon_label(m, k)}.{p}" for k, m in enumerate(pl.moons) for p in MOON_PARAMS]
         if pl.transit_times is not None:
             names += [tc_name(pl, i, k) for k in range(len(pl.transit_epochs))]
     names += [f"star.{p}" for p in NBODY_PARAMS["star"] if nbody]
@@ -278,6 +325,9 @@ def _split(name: str, system: System):
             idx = i
     if idx is None:
         raise ValueError(f"free parameter {name!r}: no planet named {owner!r}; names are {[p.name for p in system.planets]}")
+    moon = _moon_slot(system, idx, par, name)
+    if moon is not None:
+        return idx, moon
     tc = check_ttv_free(system, idx, par, name)
     if tc is not None:
         return idx, tc

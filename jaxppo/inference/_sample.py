@@ -46,7 +46,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
-from ._params import is_tc, planet_value
+from ._params import is_moon, is_tc, planet_value, star_value
 from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -327,7 +327,7 @@ def _priors(model: Model, user=None):
     for name, pr in user.items():
         if not isinstance(pr, dist.Distribution) or pr.batch_shape or pr.event_shape:
             raise ValueError(f"priors[{name!r}] must be a scalar numpyro distribution, got {pr!r}")
-        if name.endswith(".inc"):
+        if name.endswith(".inc") and not is_moon(model.slots[model.free.index(name)][1]):
             raise ValueError(f"priors[{name!r}]: a prior on the inclination is not supported (the default is uniform "
                              "in the impact parameter b / (1 + p), |b| < 1 + p); put priors on the other parameters")
     sigma = float(np.median(np.asarray(model.sigma)))
@@ -341,6 +341,9 @@ def _priors(model: Model, user=None):
             out.append(dist.LogUniform(1e-3 * sigma, 10.0 * sigma))
         elif owner == "lc":  # offset and baseline coefficients: relative flux
             out.append(dist.Uniform(-0.05, 0.05))
+        elif owner == "star" and par in ("mass", "radius"):  # N-body star: within a factor 2 of the start
+            v = float(star_value(model.system, par))
+            out.append(dist.LogUniform(0.5 * v, 2.0 * v))
         elif owner == "star":
             v = float(model.system.star.params[par])
             out.append(dist.Uniform(v - 1.0, v + 1.0))
@@ -353,6 +356,13 @@ def _planet_prior(pl, par):
     """The default prior of a planet parameter (see ``sample``)."""
     import numpyro.distributions as dist
 
+    if is_moon(par):
+        return _moon_prior(pl, pl.moons[par[1]], par[2])
+    if par == "mass":  # N-body: from a thousandth of an Earth mass to ten Jupiter masses
+        return dist.LogUniform(3e-9, 1e-2)
+    if par == "lnode":
+        v = float(pl.lnode)
+        return dist.Uniform(v - 90.0, v + 90.0)
     if par == "t0" or is_tc(par):
         t = float(planet_value(pl, par))
         return dist.Uniform(t - 0.05, t + 0.05)
@@ -364,6 +374,26 @@ def _planet_prior(pl, par):
     if par == "radius":
         return dist.LogUniform(1e-4, 0.5)
     return dist.Uniform(-1.0, 1.0)  # inc through the impact parameter in units of (1 + p)
+
+
+def _moon_prior(pl, moon, element):
+    """The default prior of a moon's element (see ``sample``)."""
+    import numpyro.distributions as dist
+
+    v = float(getattr(moon, element))
+    if element == "period":
+        return dist.LogUniform(0.5 * v, 2.0 * v)
+    if element == "t0":
+        return dist.Uniform(v - 0.5 * float(moon.period), v + 0.5 * float(moon.period))
+    if element == "a":  # from touching the planet to 4 times the start
+        return dist.LogUniform(float(pl.radius) + float(moon.radius), 4.0 * v)
+    if element == "radius":
+        return dist.LogUniform(1e-4, 0.5)
+    if element == "mass_ratio":
+        return dist.LogUniform(1e-6, 1.0)
+    if element == "inc":
+        return dist.Uniform(0.0, 180.0)
+    return dist.Uniform(v - 180.0, v + 180.0)  # lnode
 
 
 class _Coords:
@@ -467,7 +497,7 @@ def _start_q(model: Model, system: System) -> np.ndarray:
         if owner == "lc" or par in ("q1", "q2"):
             q.append(phys[k])
         elif owner == "star":
-            q.append(float(system.star.params[par]))
+            q.append(float(star_value(system, par)))
         elif par == "inc":
             pl = system.planets[owner]
             b = float(pl.a * np.cos(np.deg2rad(pl.inc)))

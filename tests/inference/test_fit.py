@@ -73,7 +73,13 @@ def test_unknown_free_parameter():
     with pytest.raises(ValueError, match="no planet named 'z'"):
         jp.fit(truth, lc, free=("z.t0",))
     with pytest.raises(ValueError, match="planet parameters are"):
-        jp.fit(truth, lc, free=("b.mass",))
+        jp.fit(truth, lc, free=("b.albedo",))
+    with pytest.raises(ValueError, match="N-body orbits only"):
+        jp.fit(truth, lc, free=("b.mass",))  # a parameter of N-body systems
+    with pytest.raises(ValueError, match="N-body orbits only"):
+        jp.fit(truth, lc, free=("star.mass",))
+    with pytest.raises(ValueError, match="has no moon 'I'"):
+        jp.fit(truth, lc, free=("b.I.a",))
     with pytest.raises(ValueError, match="star has"):
         jp.fit(truth, lc, free=("star.u1",))  # the default star is non-linear: c1..c4
 

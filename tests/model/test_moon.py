@@ -224,3 +224,39 @@ def test_gradients_match_central_differences(ecc):
         assert abs(g - float(fd)) <= 1e-5 * abs(g) + 1e-9, (k, g, float(fd))
     # the elements matter: the light curve moves with the moon
     assert abs(float(grad.t0)) > 1e-3 and abs(float(grad.a)) > 1e-3
+
+
+def test_system_with_moons_disks_tilt_cases_and_refusals():
+    """A System whose planets have moons: the planets' disks first (each at its recoiled position), then the
+    moons' in planet order, equal to hierarchical_positions; a tilt turns the tilted planet's whole group
+    about the line of sight and a mirrored hemisphere case mirrors an untilted group (y -> -y); a moon
+    behind the star has r = 0; Planet(moons=...) refuses what is not a Moon and a moon inside its planet."""
+    m1 = Moon(period=1.3, t0=0.2, a=0.3, inc=87.0, radius=0.03, mass_ratio=0.04, lnode=10.0)
+    m2 = Moon(period=2.9, t0=-0.4, a=0.55, inc=92.0, radius=0.02, mass_ratio=0.01, e=0.1, omega=40.0)
+    b = jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09, name="b", moons=[m1, m2])
+    c = jp.Planet(period=90.0, t0=0.05, a=100.0, inc=89.9, radius=0.05, name="c", moons=[m1])
+    system = jp.System(jp.Star.quadratic(0.4, 0.25), [b, c])
+    t = np.array([-0.2, 0.0, 0.1, 20.0])
+    x, y, r = system.positions(t, xp=np)
+    assert x.shape == (4, 5)
+    for pl, cols in ((b, [0, 2, 3]), (c, [1, 4])):
+        hx, hy, hz = (np.asarray(v) for v in hierarchical_positions(pl, pl.moons, t))
+        np.testing.assert_allclose(x[:, cols], hx, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(y[:, cols], hy, rtol=0, atol=1e-12)
+        radii = np.array([pl.radius] + [m.radius for m in pl.moons], float)
+        np.testing.assert_array_equal(r[:, cols], np.where(hz > 0, radii, 0.0))
+    assert np.all(r[3, [0, 2, 3]] == 0.0)  # b, half its orbit later: its group behind the star
+    xa, ya, _ = system.positions(t, alpha=30.0, case="opposite", xp=np)
+    ca, sa = np.cos(np.deg2rad(30.0)), np.sin(np.deg2rad(30.0))
+    np.testing.assert_allclose(xa[:, [0, 2, 3]], x[:, [0, 2, 3]] * ca + y[:, [0, 2, 3]] * sa, atol=1e-12)
+    np.testing.assert_allclose(ya[:, [0, 2, 3]], -x[:, [0, 2, 3]] * sa + y[:, [0, 2, 3]] * ca, atol=1e-12)
+    np.testing.assert_allclose(xa[:, [1, 4]], x[:, [1, 4]], atol=1e-12)
+    np.testing.assert_allclose(ya[:, [1, 4]], -y[:, [1, 4]], atol=1e-12)
+    f = np.asarray(system.flux(t))
+    f_ref = np.asarray(jp.occultation_flux(system.star, x, y, r, method="exact"))
+    np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13)
+    with pytest.raises(ValueError, match="must be a Moon"):
+        jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09, moons=[b])
+    with pytest.raises(ValueError, match="would hit its planet"):
+        jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09,
+                  moons=[Moon(period=1.0, t0=0.0, a=0.1, inc=90.0, radius=0.02)])

@@ -1,13 +1,17 @@
-"""N-body sky positions (``jaxppo.model._nbody``; the orbits integrated by
-jnkepler): the Keplerian limit against :meth:`jaxppo.System.positions`,
-Kepler-51 against REBOUND, jit and gradients.
+"""N-body orbits (``jaxppo.model._nbody``, ``System(orbits="nbody")``; the
+orbits integrated by jnkepler): the Keplerian limit against Keplerian
+Systems, Kepler-51's transit times, positions and a double-transit light
+curve against REBOUND, jit and gradients.
 
 The REBOUND reference is stored, not run here (REBOUND is no dependency of
 jaxppo's tests): ``tests/data/kepler51_rebound_transits.csv`` (every
 mid-transit of Kepler-51 b, c, d from BKJD 155 to 1600, the Kepler
-baseline) and ``tests/data/kepler51_rebound_positions.csv`` (astrocentric
+baseline), ``tests/data/kepler51_rebound_positions.csv`` (astrocentric
 positions [au] in REBOUND's frame at 170 times: random over the baseline,
-10 before the epoch of the elements, and 60 off mid-transit), both from
+10 before the epoch of the elements, and 60 off mid-transit) and
+``tests/data/kepler51_rebound_double_transit.csv`` (positions across the
+b + d double transit near BKJD 1513.7, inclinations 89.8, 89.5, 89.95 deg
+so that b and d overlap on the star), all from
 REBOUND 5.2.2's IAS15 with the elements below, written by
 ``python benchmarks/nbody_vs_rebound.py --write-csv``.
 
@@ -58,58 +62,98 @@ def _read(name):
     return np.genfromtxt(DATA / name, delimiter=",", names=True, dtype=None, encoding="utf-8")
 
 
-def test_keplerian_limit_equals_system_positions():
-    """Tiny masses: the N-body positions are System.positions of the same Keplerian planets (tilt alpha =
-    Omega, t0 = tic, a from Kepler's third law), before and after the epoch; (i, Omega) -> (180 - i, -Omega)
-    mirrors y."""
-    period = np.array([7.3, 13.1, 31.7])
-    ecc, omega = np.array([0.0, 0.1, 0.25]), np.array([90.0, 40.0, 250.0])
-    inc, lnode = np.array([88.5, 89.2, 89.7]), np.array([0.0, 20.0, -35.0])
-    tic, radii = np.array([100.2, 103.5, 111.0]), np.array([0.02, 0.03, 0.05])
-    star_mass, star_radius, epoch = 0.9, 0.85, 95.0
-    t = np.sort(np.concatenate([np.random.default_rng(1).uniform(epoch - 100, epoch + 500, 600), tic]))
-    kw = dict(periods=period, eccs=ecc, omegas=omega, lnodes=lnode, tics=tic, radii=radii, star_mass=star_mass,
-              star_radius=star_radius, epoch=epoch)
-    a = np.asarray(semi_major_axis(period, star_mass, star_radius))
-    planets = [jp.Planet(period=period[i], t0=tic[i], a=a[i], inc=inc[i], radius=radii[i], e=ecc[i], omega=omega[i],
-                         name="bcd"[i]) for i in range(3)]
-    ref = np.zeros((3, len(t), 3))
-    for i in range(3):
-        system = jp.System(jp.Star.quadratic(0.4, 0.2), planets, tilted=i)
-        ref[:, :, i] = np.asarray(system.positions(t, alpha=lnode[i]))[:, :, i]
-    for mass, tol in ((1e-10, 1e-5), (1e-14, 5e-9)):
-        x, y, r = nbody_positions(t, incs=inc, masses=np.full(3, mass), **kw)
-        err = np.hypot(np.asarray(x) - ref[0], np.asarray(y) - ref[1]).max()
-        assert err < tol, f"masses {mass}: {err:.2e} R* from the Keplerian orbits"
-        np.testing.assert_array_equal(np.asarray(r), ref[2])
-    x2, y2, _ = nbody_positions(t, incs=180.0 - inc, masses=np.full(3, 1e-14), **{**kw, "lnodes": -lnode})
-    np.testing.assert_allclose(np.asarray(x2), np.asarray(x), rtol=0, atol=1e-9)
-    np.testing.assert_allclose(np.asarray(y2), -np.asarray(y), rtol=0, atol=1e-9)
-
-
-def _sky_transit_times(guess, planet, h=1e-3, iters=4):
-    """Mid-transit (x.v = 0 on the sky) on nbody_xyz's positions: Newton steps with central
-    differences of x^2 + y^2 (step h [d])."""
-    t = np.asarray(guess, float)
-    rows = np.arange(len(t))
-    for _ in range(iters):
-        x, y, _ = nbody_xyz(np.stack([t - h, t, t + h]), **K51)
-        d2 = np.asarray(x**2 + y**2)[:, rows, planet]
-        t = t - h * (d2[2] - d2[0]) / (2.0 * (d2[2] - 2.0 * d2[1] + d2[0]))
-    return t
+def _kepler51_system(incs=(90.0, 90.0, 90.0), radii=(0.07, 0.06, 0.1), **kw):
+    """Kepler-51 b, c, d as an N-body jp.System (the elements above)."""
+    planets = [jp.Planet(period=K51_PERIOD[j], t0=K51_TIC[j], a=None, inc=incs[j], radius=radii[j], e=K51["eccs"][j],
+                         omega=K51["omegas"][j], mass=K51_MASS[j], name=NAMES[j]) for j in range(3)]
+    return jp.System(jp.Star.quadratic(0.42, 0.16), planets, orbits="nbody", epoch=K51["epoch"],
+                     star_mass=K51["star_mass"], star_radius=K51["star_radius"], **kw)
 
 
 def test_kepler51_transit_times_match_rebound():
-    """Every Kepler-51 transit over the Kepler baseline (60) within 0.005 min of REBOUND's IAS15 (measured:
-    0.0004 min), from a linear-ephemeris guess up to hours off (the TTVs)."""
+    """System(orbits="nbody").transit_times: every Kepler-51 transit over the Kepler baseline (60, the same
+    planets and epochs) within 0.005 min of REBOUND's IAS15 (measured: 0.0004 min), found from the osculating
+    ephemeris t0 + n P, which is up to hours off (the TTVs)."""
     ref = _read("kepler51_rebound_transits.csv")
+    table = _kepler51_system().transit_times(155.0, 1600.0)
+    got = {(str(r["planet"]), int(r["epoch"])): float(r["tc"]) for r in table}
+    assert sorted(got) == sorted((str(p), int(e)) for p, e in zip(ref["planet"], ref["epoch"]))
+    err = np.array([abs(got[(str(p), int(e))] - tc) for p, e, tc in zip(ref["planet"], ref["epoch"], ref["tc"])])
+    for name in NAMES:
+        worst = 1440 * err[ref["planet"] == name].max()
+        assert worst < 0.005, f"Kepler-51 {name}: {worst:.4f} min from REBOUND"
     planet = np.array([NAMES.index(p) for p in ref["planet"]])
     guess = K51_TIC[planet] + ref["epoch"] * K51_PERIOD[planet]
-    tc = _sky_transit_times(guess, planet)
-    for j, name in enumerate(NAMES):
-        err = 1440 * np.abs(tc - ref["tc"])[planet == j].max()
-        assert err < 0.005, f"Kepler-51 {name}: {err:.4f} min from REBOUND"
     assert 1440 * np.abs(guess - ref["tc"]).max() > 30  # the guesses were far off: the TTVs are real
+
+
+def test_kepler51_double_transit_light_curve_matches_rebound():
+    """The light curve across the b + d double transit near BKJD 1513.7, where b and d overlap on the star:
+    System(orbits="nbody").flux against REBOUND's positions fed to the exact engine, within 1e-7 (measured
+    7e-9; the positions agree to 3e-7 R*). The overlap is real: the sum of single-planet deficits (what
+    jnkepler, photodynam and Photodynamics.jl compute) is off by more than 1e-4 there (measured 1.9e-3)."""
+    ref = _read("kepler51_rebound_double_transit.csv")
+    t = ref["t"][::3]
+    xyz = np.stack([ref["x"], ref["y"], ref["z"]], -1).reshape(len(t), 3, 3) / (K51["star_radius"] * R_SUN_AU)
+    system = _kepler51_system(incs=(89.8, 89.5, 89.95))
+    radii = np.array([pl.radius for pl in system.planets], float)
+    r_ref = np.where(xyz[..., 2] > 0, radii, 0.0)
+    f_ref = np.asarray(jp.occultation_flux(system.star, -xyz[..., 0], xyz[..., 1], r_ref, method="exact"))
+    f = np.asarray(system.flux(t))
+    assert np.abs(f - f_ref).max() < 1e-7, np.abs(f - f_ref).max()
+    x, y, r = system.positions(t, xp=np)
+    singles = sum(np.asarray(jp.occultation_flux(system.star, x[:, [j]], y[:, [j]], r[:, [j]], method="exact")) - 1.0
+                  for j in range(3))
+    assert np.abs(1.0 + singles - f).max() > 1e-4
+    assert f.min() < 0.985  # both planets on the star
+
+
+def test_system_keplerian_limit_node_tilt_and_cases():
+    """An N-body System with negligible masses is the Keplerian System of the same elements (a from Kepler's
+    third law; each planet's lnode turns its orbit like a tilt); alpha adds to the tilted planet's node, and
+    the "opposite" case mirrors the untilted planets (i -> 180 - i)."""
+    t = np.linspace(150.0, 700.0, 2001)
+    light = _kepler51_system(incs=(89.6, 89.7, 89.8)).replace(
+        planets=[pl.replace(mass=1e-15, lnode=node) for pl, node in zip(_kepler51_system().planets, (0.0, 3.0, -5.0))])
+    light = light.replace(planets=[pl.replace(inc=i) for pl, i in zip(light.planets, (89.6, 89.7, 89.8))])
+    a = np.asarray(semi_major_axis(K51_PERIOD, K51["star_mass"], K51["star_radius"]))
+    kepler = jp.System(light.star, [pl.replace(mass=0.0, a=a[j]) for j, pl in enumerate(light.planets)])
+    for alpha, case in ((0.0, "same"), (25.0, "same"), (25.0, "opposite")):
+        xn, yn, rn = light.positions(t, alpha, case, xp=np)
+        xk, yk, rk = kepler.positions(t, alpha, case, xp=np)
+        assert np.hypot(xn - xk, yn - yk).max() < 1e-6, (alpha, case)
+        np.testing.assert_array_equal(rn, rk)
+    f = np.asarray(light.flux(t[:50], alpha=np.array([0.0, 25.0])))
+    np.testing.assert_allclose(f[1], np.asarray(light.flux(t[:50], alpha=25.0)), rtol=0, atol=1e-12)
+
+
+def test_system_nbody_bad_inputs():
+    """Missing or out-of-range N-body keywords, N-body keywords without orbits="nbody", planets out of
+    period order, listed transit times, an a that contradicts Kepler's third law, traced times without a
+    span, and a Keplerian planet without a: each a ValueError naming the problem."""
+    pl = _kepler51_system().planets
+    star = jp.Star.uniform()
+    ok = dict(orbits="nbody", epoch=155.0, star_mass=1.0, star_radius=0.9)
+    with pytest.raises(ValueError, match="needs star_mass"):
+        jp.System(star, pl, orbits="nbody", epoch=155.0, star_radius=0.9)
+    with pytest.raises(ValueError, match="star_radius must be a finite number > 0"):
+        jp.System(star, pl, **{**ok, "star_radius": -1.0})
+    with pytest.raises(ValueError, match="apply to N-body orbits only"):
+        jp.System(star, pl, star_mass=1.0)
+    with pytest.raises(ValueError, match="orbits must be"):
+        jp.System(star, pl, orbits="rebound")
+    with pytest.raises(ValueError, match="periods must increase"):
+        jp.System(star, pl[::-1], **ok)
+    with pytest.raises(ValueError, match="drop transit_times"):
+        jp.System(star, [pl[0].replace(transit_times=[159.1], transit_epochs=[0])], **ok)
+    with pytest.raises(ValueError, match="disagrees with Kepler's third law"):
+        jp.System(star, [pl[0].replace(a=40.0)], **ok)
+    with pytest.raises(ValueError, match="no a"):
+        jp.System(star, [pl[0].replace(a=None)])
+    with pytest.raises(ValueError, match="span"):
+        jax.jit(lambda t: jp.System(star, pl, **ok).flux(t))(jnp.array([200.0]))
+    inside = jax.jit(lambda t: jp.System(star, pl, **ok, span=(150.0, 250.0)).flux(t))(jnp.array([159.1102]))
+    assert float(inside[0]) < 0.999
 
 
 def test_kepler51_positions_match_rebound():
