@@ -305,7 +305,8 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     Raises
     ------
     ValueError
-        When the light curve has no points; ``grid`` is not an integer >= 3
+        When the system has N-body orbits, the light curve has no points;
+        ``grid`` is not an integer >= 3
         or ``min_points`` not an integer >= 1; ``planets`` names an unknown
         planet or one planet twice; ``free`` names a transit time or the t0
         of a measured planet (those are measured here); ``search`` is not a
@@ -339,6 +340,11 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     >>> table.meta["success"]
     True
     """
+    if system.orbits == "nbody":
+        raise ValueError("measure_transit_times fits each transit of planets on Keplerian orbits; an N-body system "
+                         "(orbits='nbody') makes its own transit times: fit its masses and elements to the light "
+                         "curve (jp.fit) and read system.transit_times, or measure the times on the Keplerian "
+                         "System of the same planets")
     lc = as_lightcurve(lightcurve)
     time = np.asarray(lc.time, float)
     if time.size == 0:

@@ -224,6 +224,13 @@ def transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
     """(first contact, last contact, planet index, mid-transit) [d] of every
     transit that touches [t_start, t_end], sorted by first contact."""
     windows = []
+    nbody = None
+    if system.orbits == "nbody":
+        # mid-times from the integrated orbits; contacts from each planet's osculating Keplerian orbit
+        from ._nbody import nbody_transit_times
+
+        pad = max(float(np.max(np.abs(system.planets[i].contacts()))) for i in idx) if len(idx) else 0.0
+        nbody = nbody_transit_times(system, t_start - pad, t_end + pad)
     for i in idx:
         pl = system.planets[i]
         # first and last contact about conjunction (asymmetric for e > 0)
@@ -231,7 +238,9 @@ def transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
         if t4 <= t1:
             continue
         half = max(-t1, t4)
-        for _, mid in _epochs_between(pl, t_start, t_end, pad=half):
+        mids = _epochs_between(pl, t_start, t_end, pad=half) if nbody is None else \
+            [(n, tc) for j, n, tc in nbody if j == i]
+        for _, mid in mids:
             if mid + t4 >= t_start and mid + t1 <= t_end:
                 windows.append((mid + t1, mid + t4, i, mid))
     windows.sort()
