@@ -210,6 +210,9 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     >>> print(f"A = {bump['amplitude']:.1e}, t_c = {bump['centre']:.4f} d, w = {bump['width']:.4f} d")
     A = 8.0e-04, t_c = 0.0100 d, w = 0.0060 d
     """
+    from ..model._system import require_keplerian
+
+    require_keplerian(system, "ppo_or_spot")
     windows = {w.number: w for w in result.windows}
     dips = [r for r in getattr(result, "summary", result)["table5"] if r["kind"] == "dip" and r["delta_chi2"] < 0]
     rows, panels = [], []

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..model._system import Planet, System
+from ..model._system import Planet, System, require_keplerian
 from ..model._transits import planet_label
 from ._fit import FitResult, fit
 from ._model import Model
@@ -305,7 +305,7 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     Raises
     ------
     ValueError
-        When the system has N-body orbits, the light curve has no points;
+        When the system has N-body orbits or moons, the light curve has no points;
         ``grid`` is not an integer >= 3
         or ``min_points`` not an integer >= 1; ``planets`` names an unknown
         planet or one planet twice; ``free`` names a transit time or the t0
@@ -340,11 +340,7 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     >>> table.meta["success"]
     True
     """
-    if system.orbits == "nbody":
-        raise ValueError("measure_transit_times fits each transit of planets on Keplerian orbits; an N-body system "
-                         "(orbits='nbody') makes its own transit times: fit its masses and elements to the light "
-                         "curve (jp.fit) and read system.transit_times, or measure the times on the Keplerian "
-                         "System of the same planets")
+    require_keplerian(system, "measure_transit_times")  # an N-body system makes its own times
     lc = as_lightcurve(lightcurve)
     time = np.asarray(lc.time, float)
     if time.size == 0:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._system import System, case_signs
+from ._system import System, case_signs, require_keplerian
 
 __all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]
@@ -126,6 +126,15 @@ def in_transit_mask(system: System, t, pad: float = 0.0) -> np.ndarray:
     t = np.asarray(t, float)
     mask = np.zeros(t.shape, bool)
     if t.size == 0:
+        return mask
+    if any(pl.moons for pl in system.planets):
+        require_keplerian(system, "in_transit_mask")
+    if system.orbits == "nbody":  # the windows of the integrated transit times
+        from ._transits import transit_windows
+
+        for t1, t4, _, _ in transit_windows(system, range(len(system.planets)), float(t.min()) - pad,
+                                            float(t.max()) + pad):
+            mask |= (t > t1 - pad) & (t < t4 + pad)
         return mask
     for pl in system.planets:
         half = float(pl.half_duration())

@@ -23,7 +23,7 @@ from ._contacts import eccentric_contacts
 from ._star import Star
 from ._ttv import check_transit_times, epochs_text, mid_time, shifted_time
 
-__all__ = ["scan_cases", "Planet", "System", "CASES", "hemisphere_cases", "case_label", "case_signs"]
+__all__ = ["scan_cases", "require_keplerian", "Planet", "System", "CASES", "hemisphere_cases", "case_label", "case_signs"]
 
 # Named hemisphere cases: every untilted planet in the tilted planet's
 # hemisphere ("same", paper case 1) or every one in the other ("opposite",
@@ -247,6 +247,21 @@ def from_quantity(name: str, value, unit: str):
             f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
         )
     raise ValueError(f"{name} must be {_WANT[unit]}, got the Quantity {value!r}")
+
+
+def require_keplerian(system, what: str) -> None:
+    """Refuse an N-body system or one whose planets have moons in a
+    workflow that assumes planets on their own Keplerian orbits (its
+    windows, masks or angle limits come from each planet's ephemeris and
+    contacts), naming the workflow: a clear error, never a linear
+    ephemeris or a moon left out in silence."""
+    if system.orbits == "nbody":
+        raise ValueError(f"{what} assumes planets on Keplerian orbits (with transit times, if listed); this system "
+                         "has N-body orbits (orbits='nbody'): fit it with jp.fit / jp.sample, or give its transit "
+                         "times (system.transit_times) to the Keplerian planets (Planet(..., transit_times=))")
+    if any(pl.moons for pl in system.planets):
+        raise ValueError(f"{what} does not model moons yet (its transit windows and masks would leave them out); "
+                         "fit a system with moons with jp.fit / jp.sample")
 
 
 def user_stacklevel() -> int:

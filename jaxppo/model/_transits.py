@@ -126,7 +126,8 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
     ------
     ValueError
         When the system has a single planet, ``other`` is not a planet's
-        name or an index in range, or ``other`` is the tilted planet itself.
+        name or an index in range, or ``other`` is the tilted planet itself;
+        for an N-body system or planets with moons.
 
     Examples
     --------
@@ -135,6 +136,9 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
     >>> print(", ".join(f"{v:.2f}" for v in limits))
     20.79, 157.71, 202.29, 339.21
     """
+    from ._system import require_keplerian
+
+    require_keplerian(system, "alpha_limits (Eqs. 3-6)")
     tb = system.planets[system.tilted]
     if other is None:
         candidates = [i for i in range(len(system.planets)) if i != system.tilted]

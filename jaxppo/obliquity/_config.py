@@ -15,7 +15,7 @@ import numpy as np
 from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality_bitmask
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
-from ..model._system import CASES, Planet, System, scan_cases
+from ..model._system import CASES, Planet, System, require_keplerian, scan_cases
 from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest, ttv_settings
 
 __all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
@@ -459,6 +459,7 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
     (the checks of ``check_scan_settings``, as for a config file)."""
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
+    require_keplerian(system, "the obliquity scan")
     if is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
         # a lightkurve LightCurve: its default quality bitmask, flux divided
         # by its median, exposure from TIMEDEL; the drops are in the report

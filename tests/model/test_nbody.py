@@ -222,3 +222,35 @@ def test_bad_inputs():
         nbody_positions([200.0], **{**kw, "tics": K51_TIC[:2]})
     with pytest.raises(ValueError, match="dt must be > 0"):
         nbody_positions([200.0], dt=0.0, **kw)
+
+
+def test_workflows_that_assume_keplerian_planets_refuse_nbody_and_moons():
+    """The obliquity scan, the marginal scan, alpha_limits, ppo_or_spot and measure_transit_times take
+    windows, masks or angle limits from Keplerian ephemerides: given an N-body system or planets with moons
+    they refuse by name instead of using a linear ephemeris or leaving a moon out; in_transit_mask of an
+    N-body system follows the integrated transit times (Kepler-51 b's TTVs move its transits by up to 20 min,
+    a linear ephemeris would put the mask's edges off)."""
+    from jaxppo.model._overlap import in_transit_mask
+
+    nbody = _kepler51_system()
+    moon = jp.Moon(period=1.0, t0=0.0, a=0.3, inc=90.0, radius=0.02)
+    with_moon = jp.System(jp.Star.uniform(), [jp.Planet(period=10.0, t0=0.0, a=20.0, inc=90.0, radius=0.05,
+                                                        moons=[moon]), jp.Planet(period=21.0, t0=3.0, a=33.0,
+                                                                                 inc=90.0, radius=0.05)])
+    lc = jp.LightCurve(np.linspace(0.0, 1.0, 10), np.ones(10), np.full(10, 1e-3))
+    for system in (nbody, with_moon):
+        for call in (lambda: jp.scan(system, lc), lambda: jp.marginal_scan(system, lc),
+                     lambda: jp.alpha_limits(system), lambda: jp.measure_transit_times(system, lc),
+                     lambda: jp.activity.ppo_or_spot(None, system)):
+            with pytest.raises(ValueError, match="Keplerian orbits|moons"):
+                call()
+    ref = _read("kepler51_rebound_transits.csv")
+    tc, others = ref["tc"][ref["planet"] == "b"], ref["tc"][ref["planet"] != "b"]
+    t1, t4 = (float(v) for v in nbody.planets[0].contacts())  # b's osculating contacts about mid-transit
+    inside = np.concatenate([tc + t1 + 0.003, tc + t4 - 0.003])  # 4 min inside first / last contact
+    outside = np.concatenate([tc + t1 - 0.003, tc + t4 + 0.003])
+    outside = outside[np.abs(outside[:, None] - others).min(1) > 0.5]  # not in a transit of c or d
+    mask = in_transit_mask(nbody, np.concatenate([inside, outside]))
+    assert mask[:inside.size].all() and not mask[inside.size:].any()
+    linear = in_transit_mask(jp.System(nbody.star, [nbody.planets[0]]), np.concatenate([inside, outside]))
+    assert not (linear[:inside.size].all() and not linear[inside.size:].any())  # what the TTVs change
