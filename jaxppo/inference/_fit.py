@@ -331,7 +331,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     _warn_if_degenerate(model.free, verdict)
     chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
     say("done")
-    return FitResult(model.to_system(theta), verdict["chi2"], cov, ok, message, tuple(model.free),
+    return FitResult(model.result_system(theta), verdict["chi2"], cov, ok, message, tuple(model.free),
                      np.asarray(model.physical(theta)), errors, chi2_data / (n - k), steps, model.union_idx, derived,
                      verdict["condition"])
 

@@ -65,6 +65,7 @@ class Model:
         if int(union_floor) != union_floor or union_floor < 0:
             raise ValueError(f"union_floor must be an integer >= 0, got {union_floor!r}")
         lc = as_lightcurve(lc)
+        self.user_span = system.span  # results get it back (``result_system``)
         if system.orbits == "nbody" and system.span is None:
             # the N-body grid is fixed once: the compiled model takes traced times
             tl = np.asarray(lc.time, float)
@@ -168,6 +169,15 @@ class Model:
     def to_system(self, theta) -> System:
         """The System that theta describes (traceable)."""
         return system_at(theta, self.system, tuple(self.slots))
+
+    def result_system(self, theta) -> System:
+        """The System at theta as a result hands it to the user: an N-body
+        system's integration span as the user gave it (the span this Model
+        fixed covers only the data; outside it a traced time gives NaN)."""
+        system = self.to_system(theta)
+        if system.orbits == "nbody" and system.span != self.user_span:
+            system = system.replace(span=self.user_span)
+        return system
 
     def theta_from(self, values, theta_ref=None) -> jnp.ndarray:
         """Unconstrained theta from parameter values in physical units, except

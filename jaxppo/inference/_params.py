@@ -335,8 +335,8 @@ def _split(name: str, system: System):
         raise ValueError(f"free parameter {name!r}: in an N-body system a planet's a is derived from its period and "
                          "the masses (free 'star.mass', 'star.radius' or the planets' masses instead)")
     if par in NBODY_PARAMS["planet"] and not nbody:
-        raise ValueError(f"free parameter {name!r}: planet masses are parameters of N-body orbits only "
-                         "(System(..., orbits='nbody'))")
+        what = "planet masses are parameters" if par == "mass" else "the node lnode is a parameter"
+        raise ValueError(f"free parameter {name!r}: {what} of N-body orbits only (System(..., orbits='nbody'))")
     if par not in PLANET_PARAMS + NBODY_PARAMS["planet"]:
         raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS} (N-body systems: also "
                          f"{NBODY_PARAMS['planet']}, and no 'a') and, for a planet with transit_times, its listed "

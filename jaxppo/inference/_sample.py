@@ -572,7 +572,9 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         docs/conventions.md), so inclinations are reported folded into
         [0, 90] deg. False samples the signed b (the old behaviour): the
         posterior of inc is then two mirrored modes, i and 180 deg - i, of
-        equal height, and its intervals mean nothing. Default True.
+        equal height, and its intervals mean nothing. Default True. An
+        N-body system (``orbits="nbody"``) keeps the sign (it acts on the
+        dynamics) and is never folded.
 
     Returns
     -------
@@ -627,6 +629,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     # star at the start, so that sampling again (below) is rarely needed.
     model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
     _check_priors(model, system, priors)
+    fold_inc = fold_inc and system.orbits == "kepler"  # N-body orbits keep the sign of cos i
     q0, start = _start_q(model, system), None
     for _ in range(3):
         result, q0 = _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
@@ -750,7 +753,7 @@ def _result(model: Model, system: System, coords: _Coords, mcmc, u, loglike_u, l
     samples = {n: phys[:, i] for i, n in enumerate(all_names)}
     chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(all_names)}
     best_i = int(np.argmax(loglike))
-    best = model.to_system(model.theta_from(jnp.asarray(q[best_i])))
+    best = model.result_system(model.theta_from(jnp.asarray(q[best_i])))
     intervals = {n: tuple(float(x) for x in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
     diagnostics = {n: rank_diagnostics(chains[n]) for n in all_names}
 

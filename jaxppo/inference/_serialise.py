@@ -49,10 +49,24 @@ def system_to_dict(system: System) -> dict:
                 entry[f.name] = v
             elif f.name == "transit_epochs":
                 entry[f.name] = None if v is None else [int(e) for e in v]
+            elif f.name == "moons":
+                entry[f.name] = [_moon_to_dict(m) for m in v]
+            elif f.name == "a" and system.orbits == "nbody":
+                entry[f.name] = None  # derived again on loading
             else:
                 entry[f.name] = None if v is None else to_jsonable(v)
         planets.append(entry)
-    return {"star": star, "planets": planets, "tilted": int(system.tilted)}
+    out = {"star": star, "planets": planets, "tilted": int(system.tilted)}
+    if system.orbits == "nbody":
+        opts = system.nbody_options()
+        out["nbody"] = {k: (None if v is None else list(v) if k == "span" else to_jsonable(v) if k in
+                            ("star_mass", "star_radius") else v) for k, v in opts.items() if k != "orbits"}
+    return out
+
+
+def _moon_to_dict(moon) -> dict:
+    return {f.name: (getattr(moon, f.name) if f.name == "name" else to_jsonable(getattr(moon, f.name)))
+            for f in dataclasses.fields(moon)}
 
 
 def system_from_dict(d: dict) -> System:
@@ -72,6 +86,18 @@ def system_from_dict(d: dict) -> System:
             kw[f.name] = jnp.asarray(from_jsonable(v), float)
     star = Star(**kw)
     # name and the epochs as written; transit_times None: a linear ephemeris
-    planets = [Planet(**{k: (v if k in ("name", "transit_epochs") or v is None else from_jsonable(v))
-                         for k, v in p.items()}) for p in d["planets"]]
+    from ..model._moon import Moon
+
+    planets = []
+    for p in d["planets"]:
+        kw = {k: (v if k in ("name", "transit_epochs", "moons") or v is None else from_jsonable(v))
+              for k, v in p.items()}
+        kw["moons"] = [Moon(**{k: (v if k == "name" else from_jsonable(v)) for k, v in m.items()})
+                       for m in kw.get("moons") or ()]
+        planets.append(Planet(**kw))
+    nbody = d.get("nbody")
+    if nbody:
+        nbody = {k: (tuple(v) if k == "span" and v is not None else from_jsonable(v) if k in
+                     ("star_mass", "star_radius") else v) for k, v in nbody.items()}
+        return System(star, planets, d["tilted"], orbits="nbody", **nbody)
     return System(star, planets, d["tilted"])

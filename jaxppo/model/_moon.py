@@ -366,9 +366,13 @@ def check_moons(planet_radius, moons) -> tuple:
     (``Planet(moons=...)``: each a Moon, none hitting the planet)."""
     probe = Planet(period=1.0, t0=0.0, a=None, inc=90.0, radius=planet_radius) \
         if not isinstance(planet_radius, jax.core.Tracer) else None
-    if probe is None:
-        return tuple(moons) if not isinstance(moons, Moon) else (moons,)
-    return _check_group(probe, moons)
+    moons = (tuple(moons) if not isinstance(moons, Moon) else (moons,)) if probe is None else \
+        _check_group(probe, moons)
+    # their labels in free-parameter names ("b.I.a"; "moon<k>" when unnamed) must be unique and free of "."
+    labels = [m.name or f"moon{k}" for k, m in enumerate(moons)]
+    if len(set(labels)) != len(labels) or any("." in n for n in labels):
+        raise ValueError(f"moon names must be unique and without '.' (unnamed moons are 'moon<k>'), got {labels}")
+    return moons
 
 
 def add_moons(system, t, alpha, signs, bary, xp, kepler: bool):

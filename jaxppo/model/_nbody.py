@@ -61,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike
 
-__all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "R_SUN_AU", "G_AU_DAY"]
+__all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "default_dt", "R_SUN_AU", "G_AU_DAY"]
 
 #: Nominal solar radius (IAU 2015 B3, 695 700 km) in au (IAU 2012, 149 597 870.7 km).
 R_SUN_AU = 695700.0 / 149597870.7
@@ -123,6 +123,16 @@ def semi_major_axis(period: ArrayLike, mass: ArrayLike, star_radius: ArrayLike) 
     period, mass = jnp.asarray(period, float), jnp.asarray(mass, float)
     a_au = (G_AU_DAY * mass * period**2 / (4.0 * np.pi**2)) ** (1.0 / 3.0)
     return a_au / (jnp.asarray(star_radius, float) * R_SUN_AU)
+
+
+def default_dt(periods, eccs) -> float:
+    """The default step [d] of the map: min over planets of P (1 - e)^1.5 / 40.
+
+    P / 40 for circular orbits (Kepler-51: 3e-6 R* from REBOUND's IAS15);
+    the factor (1 - e)^1.5 keeps about 40 steps per periastron passage of an
+    eccentric orbit (its time scale there is P (1 - e)^1.5)."""
+    periods, eccs = np.atleast_1d(np.asarray(periods, float)), np.atleast_1d(np.asarray(eccs, float))
+    return float(np.min(periods * (1.0 - eccs) ** 1.5)) / 40.0
 
 
 def _concrete(value, name: str, why: str) -> np.ndarray:
@@ -227,8 +237,8 @@ def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses
     epoch : float
         Time [d] at which the elements osculate (concrete).
     dt : float, optional
-        Step of the map [d] (concrete). Default: the shortest period / 40
-        (needs concrete periods).
+        Step of the map [d] (concrete). Default :func:`default_dt`, the
+        shortest P (1 - e)^1.5 / 40 (needs concrete periods and e).
     t_range : tuple of float, optional
         (t_min, t_max) [d] the grid must cover; needed when ``t`` is traced,
         default the span of ``t``. Times outside it are still evaluated, with
@@ -257,7 +267,8 @@ def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses
     |x| = 0.000000, y = 0.3409
     """
     if dt is None:
-        dt = float(np.min(_concrete(periods, "periods", "the default dt is the shortest period / 40; pass dt"))) / 40
+        dt = default_dt(_concrete(periods, "periods", "the default dt depends on the periods; pass dt"),
+                        _concrete(eccs, "eccs", "the default dt depends on the eccentricities; pass dt"))
     cols = [jnp.atleast_1d(jnp.asarray(v, float)) for v in (periods, eccs, omegas, incs, lnodes, tics, masses)]
     if len({c.shape for c in cols}) != 1 or cols[0].ndim != 1:
         raise ValueError(f"the element arrays must all be 1D of one length, got shapes {[c.shape for c in cols]}")
@@ -302,7 +313,7 @@ def nbody_positions(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, 
     epoch : float
         Time [d] at which the elements osculate (concrete).
     dt : float, optional
-        Step of the map [d]; default the shortest period / 40.
+        Step of the map [d]; default :func:`default_dt`.
     t_range : tuple of float, optional
         (t_min, t_max) the grid covers, needed when ``t`` is traced.
 
@@ -368,10 +379,11 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
         if np.any(np.diff(np.asarray(periods, float)) <= 0):
             raise ValueError(f"N-body planets are listed from the inside out (Jacobi coordinates: each orbits the "
                              f"star and the planets inside it), so their periods must increase; got {periods}")
+    eccs = [_concrete_or_none(pl.e) for pl in planets]
     if dt is None:
-        if any(p is None for p in periods):
-            raise ValueError("dt (the N-body step [d]) is needed when the periods are traced")
-        dt = float(min(periods)) / 40.0
+        if any(p is None for p in periods + eccs):
+            raise ValueError("dt (the N-body step [d]) is needed when the periods or eccentricities are traced")
+        dt = default_dt(periods, eccs)
     dt = float(_concrete(from_quantity("dt", dt, "d"), "dt", "it fixes the integration grid"))
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite step > 0 [d], got {dt!r}")
@@ -387,6 +399,10 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
     for pl in planets:
         if pl.transit_times is not None:
             raise ValueError(f"planet {pl.name!r}: N-body orbits make their own transit times; drop transit_times")
+        m = _concrete_or_none(pl.mass)
+        if m is not None and not m > 0:
+            raise ValueError(f"planet {pl.name!r}: an N-body planet needs mass > 0 [M_sun], got {float(m)!r} (the "
+                             "integrator divides by the masses; a test particle: 1e-12)")
         inner = inner + pl.mass
         a = semi_major_axis(pl.period, star_mass + inner, star_radius)
         given, derived = _concrete_or_none(pl.a), _concrete_or_none(a)
@@ -423,10 +439,23 @@ def system_xyz(system, t, alpha, signs, t_range=None):
     if isinstance(t, jax.core.Tracer) and t_range is None:
         raise ValueError("an N-body System evaluated at traced times (jit) needs span=(t_min, t_max) [d]: "
                          "System(..., orbits='nbody', span=...) fixes the integration grid")
-    if t_range is None:
+    if not isinstance(t, jax.core.Tracer):  # concrete times: the grid covers them all
         tc = np.asarray(t, float)
-        t_range = (float(tc.min()), float(tc.max())) if tc.size else None
-    opts = dict(epoch=system.epoch, dt=system.dt, t_range=t_range)
+        if tc.size:
+            lo, hi = float(tc.min()), float(tc.max())
+            t_range = (lo, hi) if t_range is None else (min(lo, t_range[0]), max(hi, t_range[1]))
+    xyz = _xyz(system, t, alpha, signs, dict(epoch=system.epoch, dt=system.dt, t_range=t_range))
+    if not isinstance(t, jax.core.Tracer):
+        return xyz
+    # the traced policy: a time beyond the grid (more than a step outside the span) gets NaN positions,
+    # never the error of a long read-out step
+    lo, hi = t_range
+    outside = (jnp.asarray(t) < lo - system.dt) | (jnp.asarray(t) > hi + system.dt)
+    return tuple(jnp.where(jnp.broadcast_to(outside, v.shape[:-1])[..., None], jnp.nan, v) for v in xyz)
+
+
+def _xyz(system, t, alpha, signs, opts):
+    """``system_xyz`` on its grid ``opts`` (epoch, dt, t_range)."""
     if jnp.ndim(alpha) == 0 or jnp.size(alpha) == 1:
         return nbody_xyz(t, **_elements(system, signs, jnp.reshape(alpha, ())), **opts)
     alpha = jnp.asarray(alpha)

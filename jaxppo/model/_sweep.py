@@ -18,7 +18,7 @@ import numpy as np
 
 from ._overlap import contact_frames, on_star, untilted_geometry
 from ._plan import one_disk_sum, overlap_flux
-from ._system import CASES, System, case_signs, from_quantity
+from ._system import CASES, System, case_signs, from_quantity, require_keplerian
 
 __all__ = ["sweep", "SweepStats"]
 
@@ -136,6 +136,7 @@ def sweep(
     >>> stats
     SweepStats(frames=4, single=4, union=3)
     """
+    require_keplerian(system, "sweep")  # its plans take every tilt from one geometry
     t = np.asarray(from_quantity("t", t, "d"), float)
     alpha = np.atleast_1d(np.asarray(from_quantity("alpha", alpha, "deg"), float))
     if t.ndim != 1 or alpha.ndim != 1:

@@ -1041,7 +1041,7 @@ class System(eqx.Module):
         extra = ""
         if self.orbits == "nbody":
             extra = (f",\n  orbits='nbody', epoch={self.epoch!r}, star_mass={self.star_mass}, "
-                     f"star_radius={self.star_radius}, dt={self.dt!r}")
+                     f"star_radius={self.star_radius}, dt={self.dt!r}, span={self.span!r}")
         return f"System(star={self.star!r},\n  planets=[\n{inner}],\n  tilted={tilted!r}{extra})"
 
     def nbody_options(self) -> dict:
@@ -1078,15 +1078,25 @@ class System(eqx.Module):
         System
             The new system (checked as by the constructor).
         """
-        if planets is None:
-            planets = self.planets
-            if self.orbits == "nbody":  # derived again (the masses may change)
-                planets = [eqx.tree_at(lambda p: p.a, pl, jnp.asarray(np.nan)) for pl in planets]
+        changed = planets is not None
+        planets = self.planets if planets is None else planets
+        options = {**self.nbody_options(), **nbody}
+        if self.orbits == "nbody" and options.get("orbits") == "nbody":
+            # a is derived again (the masses may have changed), and a default step follows new planets
+            planets = [eqx.tree_at(lambda p: p.a, pl, jnp.asarray(np.nan)) for pl in planets]
+            if changed and "dt" not in nbody:
+                from ._nbody import default_dt
+
+                old = [np.asarray(getattr(p, f), float) for f in ("period", "e") for p in self.planets]
+                n = len(self.planets)
+                if not any(isinstance(getattr(p, f), jax.core.Tracer) for p in self.planets for f in ("period", "e")) \
+                        and self.dt == default_dt(old[:n], old[n:]):
+                    options["dt"] = None
         return System(
             star if star is not None else self.star,
             planets,
             self.tilted if tilted is None else tilted,
-            **{**self.nbody_options(), **nbody},
+            **options,
         )
 
     def transit_times(self, t_start, t_end):

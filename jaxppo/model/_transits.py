@@ -127,7 +127,8 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
     ValueError
         When the system has a single planet, ``other`` is not a planet's
         name or an index in range, or ``other`` is the tilted planet itself;
-        for an N-body system or planets with moons.
+        for an N-body system, planets with moons, or a planet whose lnode
+        is not 0.
 
     Examples
     --------
@@ -139,6 +140,9 @@ def alpha_limits(system: System, other: int | str | None = None) -> tuple[float,
     from ._system import require_keplerian
 
     require_keplerian(system, "alpha_limits (Eqs. 3-6)")
+    if any(np.any(np.asarray(pl.lnode, float) != 0) for pl in system.planets):
+        raise ValueError("alpha_limits (Eqs. 3-6) takes every planet's node at 0 (the tilt alpha is then the angle "
+                         f"between the orbits); got lnode = {[float(np.asarray(pl.lnode)) for pl in system.planets]}")
     tb = system.planets[system.tilted]
     if other is None:
         candidates = [i for i in range(len(system.planets)) if i != system.tilted]
