@@ -325,6 +325,26 @@ def write_double_transit() -> Path:
     return out
 
 
+# two Jupiter-mass planets near 2:1 (TTVs of +-5 d on a 10-d period): every transit must still be found
+STRONG = dict(periods=np.array([10.0, 20.3]), eccs=np.array([0.05, 0.05]), omegas=np.array([40.0, -70.0]),
+              incs=np.array([89.7, 89.8]), lnodes=np.zeros(2), tics=np.array([101.0, 107.0]),
+              masses=np.array([1e-3, 1e-3]), star_mass=1.0, star_radius=1.0, epoch=100.0)
+
+
+def write_strong_ttv() -> Path:
+    """REBOUND IAS15 mid-transit times of ``STRONG`` from its epoch to 1600 d (planets "p0", "p1"):
+    tests/data/strong_ttv_rebound_transits.csv."""
+    global NAMES
+    names, NAMES = NAMES, ("p0", "p1")
+    try:
+        transits = rebound_transits(STRONG, 1600.0, step=0.25)
+    finally:
+        NAMES = names
+    out = ROOT / "tests" / "data" / "strong_ttv_rebound_transits.csv"
+    transits.to_csv(out, index=False, float_format="%.10f")
+    return out
+
+
 def _write(transits, times, ref_au):
     """The tests' REBOUND reference (tests/data)."""
     out = ROOT / "tests" / "data"
@@ -333,8 +353,8 @@ def _write(transits, times, ref_au):
     rows = [(t, NAMES[j], *ref_au[i, j]) for i, t in enumerate(times) for j in range(ref_au.shape[1])]
     pd.DataFrame(rows, columns=["t", "planet", "x", "y", "z"]).to_csv(
         out / "kepler51_rebound_positions.csv", index=False, float_format="%.14e")
-    print(f"\nwrote {out / 'kepler51_rebound_transits.csv'}, {out / 'kepler51_rebound_positions.csv'} and "
-          f"{write_double_transit()}")
+    print(f"\nwrote {out / 'kepler51_rebound_transits.csv'}, {out / 'kepler51_rebound_positions.csv'}, "
+          f"{write_double_transit()} and {write_strong_ttv()}")
 
 
 if __name__ == "__main__":

@@ -491,56 +491,67 @@ def nbody_transit_times(system, t_start: float, t_end: float) -> list[tuple[int,
     planets in [t_start, t_end].
 
     Mid-transit is the time of least sky-projected distance from the star's
-    centre, d/dt (x^2 + y^2) = 0 (jnkepler's and TTVFast's definition),
-    found by Newton's method from the osculating ephemeris t0 + n P (the
-    derivatives by forward differentiation of the positions); a transit
-    is kept when the planet is in front (z > 0) and its least distance is
-    below 1 + radius. Epoch n counts from the transit nearest to t0."""
+    centre, g = d/dt (x^2 + y^2) / 2 = 0 (jnkepler's and TTVFast's
+    definition). g is sampled on a grid of step min P (1 - e)^1.5 / 24 (a
+    dozen points per half orbit, so every extremum of the sky distance is
+    bracketed, however far the TTVs take the transits from a linear
+    ephemeris); each rise of g through 0 with the planet in front (z > 0)
+    is an inferior conjunction, refined by Newton steps kept inside its
+    bracket (the derivatives by forward differentiation of the positions).
+    Conjunctions are numbered consecutively, epoch 0 the one nearest to the
+    planet's t0; a conjunction is a transit when its least distance is
+    below 1 + radius."""
     n_pl = len(system.planets)
     signs = np.ones(n_pl)
     periods = np.array([float(p.period) for p in system.planets])
+    eccs = np.array([float(p.e) for p in system.planets])
     tics = np.array([float(p.t0) for p in system.planets])
-    lo, hi = t_start - 0.5 * periods.max(), t_end + 0.5 * periods.max()
-    guesses, owners, epochs = [], [], []
-    for j in range(n_pl):
-        for n in range(int(np.floor((lo - tics[j]) / periods[j])), int(np.ceil((hi - tics[j]) / periods[j])) + 1):
-            guesses.append(tics[j] + n * periods[j])
-            owners.append(j)
-            epochs.append(n)
-    if not guesses:
-        return []
-    owners = np.asarray(owners)
-    pick = jnp.asarray(owners)
-    span = (min(lo, min(guesses)) - 1.0, max(hi, max(guesses)) + 1.0)
+    radius = np.array([float(p.radius) for p in system.planets])
+    lo = min(t_start, float(tics.min())) - 0.6 * periods.max()
+    hi = max(t_end, float(tics.max())) + 0.6 * periods.max()
+    h = float(np.min(periods * (1.0 - eccs) ** 1.5)) / 24.0
+    grid = lo + h * np.arange(int(np.ceil((hi - lo) / h)) + 1)
+    span = (float(grid[0]) - 1.0, float(grid[-1]) + 1.0)
 
-    def sky(t):
-        x, y, _ = system_xyz(system, t, 0.0, signs, span)
-        return jnp.take_along_axis(x, pick[:, None], 1)[:, 0], jnp.take_along_axis(y, pick[:, None], 1)[:, 0]
+    def state(t):  # (x, y, z) and the sky-plane g = x vx + y vy, [n_times, n_planets]
+        (x, y, z), (vx, vy, _) = jax.jvp(lambda tt: system_xyz(system, tt, 0.0, signs, span), (t,),
+                                         (jnp.ones_like(t),))
+        return x, y, z, x * vx + y * vy
+
+    state_jit = jax.jit(state)
+    x, y, z, g = (np.asarray(v) for v in state_jit(jnp.asarray(grid)))
+    k, j = np.nonzero((g[:-1] < 0) & (g[1:] >= 0) & (z[:-1] + z[1:] > 0))
+    if k.size == 0:
+        return []
+    left, right = grid[k], grid[k + 1]
+    g0, g1 = g[k, j], g[k + 1, j]
+    t = left + (right - left) * g0 / (g0 - g1)  # the secant root, then Newton inside the bracket
+    pick = jnp.asarray(j)
 
     @jax.jit
     def newton(t):
-        ones = jnp.ones_like(t)
+        def gj(tt):
+            return jnp.take_along_axis(state(tt)[3], pick[:, None], 1)[:, 0]
 
-        def g(t):  # d/dt (x^2 + y^2) / 2
-            (x, y), (vx, vy) = jax.jvp(sky, (t,), (ones,))
-            return x * vx + y * vy
-
-        val, der = jax.jvp(g, (t,), (ones,))
+        val, der = jax.jvp(gj, (t,), (jnp.ones_like(t),))
         return t - val / der
 
-    t = jnp.asarray(guesses, float)
-    for _ in range(8):
-        t_new = newton(t)
-        done = bool(jnp.max(jnp.abs(t_new - t)) < 1e-10)
+    for _ in range(6):
+        t_new = np.clip(np.asarray(newton(jnp.asarray(t))), left, right)
+        done = np.max(np.abs(t_new - t)) < 1e-10
         t = t_new
         if done:
             break
-    x, y, z = (np.asarray(v) for v in system_xyz(system, t, 0.0, signs, span))
+    x, y, z, _ = (np.asarray(v) for v in state_jit(jnp.asarray(t)))
     rows = []
-    radius = np.array([float(p.radius) for p in system.planets])
-    for k, j in enumerate(owners):
-        tc = float(t[k])
-        d = math.hypot(x[k, j], y[k, j])
-        if t_start <= tc <= t_end and z[k, j] > 0 and d < 1.0 + radius[j]:
-            rows.append((int(j), int(epochs[k]), tc))
+    for planet in range(n_pl):
+        mine = np.nonzero(j == planet)[0]
+        mine = mine[np.argsort(t[mine])]
+        if mine.size == 0:
+            continue
+        zero = int(np.argmin(np.abs(t[mine] - tics[planet])))
+        for count, m in enumerate(mine):
+            d = math.hypot(x[m, planet], y[m, planet])
+            if t_start <= t[m] <= t_end and z[m, planet] > 0 and d < 1.0 + radius[planet]:
+                rows.append((planet, count - zero, float(t[m])))
     return rows

@@ -764,11 +764,12 @@ class System(eqx.Module):
         N-body only (required): stellar radius [R_sun], the unit of the sky
         positions.
     dt : float, optional
-        N-body only: the integrator's step [d]; default the shortest period / 40
-        (3e-6 R* from REBOUND's IAS15 for Kepler-51).
+        N-body only: the integrator's step [d]; default the shortest
+        P (1 - e)^1.5 / 40 (3e-6 R* from REBOUND's IAS15 for Kepler-51).
     span : tuple of float, optional
         N-body only: (t_min, t_max) [d] the integration covers; needed when
-        the times are traced (jit), default the span of the times asked for.
+        the times are traced (jit), where a time more than dt outside it
+        gives NaN; concrete times outside it widen the grid.
 
     Attributes
     ----------

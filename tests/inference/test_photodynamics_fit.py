@@ -64,3 +64,19 @@ def test_nbody_and_moon_coordinates_round_trip_and_derivative():
     fd = (model.residuals(theta + direction) - model.residuals(theta - direction)) / 2.0
     assert float(jnp.max(jnp.abs(deriv))) > 1e-4  # the light curve moves (3.5e-4 sigma)
     np.testing.assert_allclose(np.asarray(deriv), np.asarray(fd), rtol=0, atol=1e-3 * float(jnp.max(jnp.abs(fd))))
+
+
+@pytest.mark.skipif(importlib.util.find_spec("jnkepler") is None, reason="N-body orbits need jnkepler")
+def test_sample_keeps_the_sign_of_cos_i_of_nbody_planets():
+    """Mutual inclinations act on N-body dynamics, so NUTS must not fold an N-body planet's inclination into
+    [0, 90] deg (it did: a planet at 90.4 deg came back at 89.5, a different system): draws started at
+    90.4 deg stay above 90."""
+    b = jp.Planet(period=10.0, t0=101.0, a=None, inc=89.5, radius=0.05, mass=3e-5, name="b")
+    c = jp.Planet(period=21.0, t0=101.02, a=None, inc=90.4, radius=0.07, mass=3e-5, name="c")
+    truth = jp.System(jp.Star.quadratic(0.4, 0.2), [b, c], orbits="nbody", epoch=100.0, star_mass=1.0,
+                      star_radius=1.0)
+    lc = jp.simulate(truth, np.linspace(100.9, 101.15, 40), noise=1e-4, seed=2)
+    result = jp.sample(truth, lc, free=("c.inc",), num_warmup=3, num_samples=3, num_chains=1, optimise=False,
+                       progress_bar=False)
+    assert np.all(np.asarray(result.samples["c.inc"]) > 90.0)
+    assert float(result.best.planets[1].inc) > 90.0
