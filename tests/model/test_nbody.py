@@ -295,10 +295,13 @@ def test_span_replace_save_load_and_refusals_from_review():
     assert np.asarray(s.flux(far)).min() < 0.998  # a transit there
     assert np.isnan(np.asarray(jax.jit(lambda tt: s.flux(tt))(far))).all()
     assert np.isfinite(np.asarray(jax.jit(lambda tt: s.flux(tt))(np.linspace(150.0, 151.0, 5)))).all()
-    heavier = s.replace(star_mass=1.3)
+    heavier = s.replace(planets=s.planets, star_mass=1.3)  # planets that carry their derived a
     assert float(heavier.planets[0].a) == pytest.approx(float(semi_major_axis(10.0, 1.3 + 3.7e-5, 1.0)), rel=1e-12)
     faster = s.replace(planets=[s.planets[0].replace(period=1.5, a=None), s.planets[1]])
     assert faster.dt == pytest.approx(1.5 / 40)
+    eccentric = jp.System(star, [pls[0].replace(e=0.9, omega=80.0, period=100.0), pls[1].replace(period=400.0)],
+                          orbits="nbody", epoch=100.0, star_mass=1.0, star_radius=1.0)
+    assert eccentric.dt == pytest.approx(100.0 * 0.1**1.5 / 40)  # 40 steps per periastron passage
     moon = jp.Moon(period=1.2, t0=0.1, a=0.3, inc=88.0, radius=0.03, mass_ratio=0.02, name="I")
     s = s.replace(planets=[s.planets[0].replace(moons=[moon]), s.planets[1]])
     back = system_from_dict(system_to_dict(s))
