@@ -268,7 +268,6 @@ def q_fit():
     return truth, lc, res
 
 
-@pytest.mark.xdist_group("q_fit")  # one worker computes the module fixture once
 def test_fit_with_q1_q2_recovers_the_injected_u1_u2(q_fit):
     truth, lc, res = q_fit
     assert res.success, res.message
@@ -321,7 +320,6 @@ def test_fit_per_window_baseline():
         jp.fit(truth, lc, free=("b.t0", "lc.offset", "lc.baseline2"))
 
 
-@pytest.mark.xdist_group("q_fit")  # one worker computes the module fixture once
 def test_degenerate_covariance_warns_and_points_to_sample(q_fit):
     # a grazing transit (b = 1.05, p = 0.1): radius, a and inc are degenerate
     truth, lc = _one_planet(inc=87.0)
@@ -332,7 +330,6 @@ def test_degenerate_covariance_warns_and_points_to_sample(q_fit):
     assert q_fit[2].success and q_fit[2].condition < 100 and q_fit[2].caught == []
 
 
-@pytest.mark.xdist_group("q_fit")  # one worker computes the module fixture once
 def test_fit_result_save_load_round_trip(q_fit, tmp_path):
     import json
 
@@ -368,7 +365,6 @@ def dataclasses_replace(obj, **kw):
     return dataclasses.replace(obj, **kw)
 
 
-@pytest.mark.xdist_group("q_fit")  # one worker computes the module fixture once
 def test_fit_accepts_a_lightkurve_lightcurve(q_fit):
     import lightkurve as lk
     from astropy.time import Time

@@ -78,7 +78,6 @@ def small_run():
                                     progress_bar=False)
 
 
-@pytest.mark.xdist_group("small_run")  # one worker computes the module fixture once
 def test_to_arviz_gives_physical_quantities_under_public_names(small_run, tmp_path):
     """Issue 15 item 3: the posterior holds "b.inc" in degrees (the old
     export called b / (1 + p) "b_inc"), the log-likelihood sits in its own
@@ -121,7 +120,6 @@ def test_to_arviz_gives_physical_quantities_under_public_names(small_run, tmp_pa
         assert np.isfinite(az.loo(back).elpd_loo)
 
 
-@pytest.mark.xdist_group("small_run")  # one worker computes the module fixture once
 def test_diagnostics_agree_with_arviz(small_run):
     _, _, free, res = small_run
     for n in free:
@@ -255,7 +253,6 @@ def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
     assert float(coords.maps[1](coords.from_q(q)[1])) == pytest.approx(20.0, rel=1e-12)
 
 
-@pytest.mark.xdist_group("small_run")  # one worker computes the module fixture once
 def test_sample_result_save_load_round_trip(small_run, tmp_path):
     res = small_run[3]
     path = res.save(tmp_path / "post.npz")
