@@ -207,13 +207,20 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-_DEFAULT_FREE = ("b.t0", "b.radius", "c.t0", "c.radius")
+_DEFAULT_FREE = "the config's [fit] free, else every planet's t0 and radius"
 
 
-def _free_names(args) -> tuple:
-    """The --free names of ``fit`` / ``sample``, every option's together."""
+def _free_names(args, cfg=None) -> tuple:
+    """The --free names of ``fit`` / ``sample``, every option's together;
+    without --free the config's [fit] free, else the mid-time and radius
+    ratio of every planet (b.t0 b.radius c.t0 c.radius for Kepler-20 b + c)."""
     if args.free is None:
-        return _DEFAULT_FREE
+        if cfg is None:
+            return None
+        if cfg.fit_free is not None:
+            return tuple(cfg.fit_free)
+        labels = [pl.name or str(i) for i, pl in enumerate(cfg.system.planets)]
+        return tuple(f"{n}.{k}" for n in labels for k in ("t0", "radius"))
     twice = sorted({n for n in args.free if args.free.count(n) > 1})
     if twice:
         raise ValueError(f"--free names {', '.join(twice)} more than once: {' '.join(args.free)}")
@@ -245,8 +252,9 @@ def cmd_fit(args) -> int:
 
     if args.out:
         _out_file(args.out)
-    free = _free_names(args)
+    _free_names(args)  # a repeated name fails before the config loads
     cfg, lc = _fit_inputs(args)
+    free = _free_names(args, cfg)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
@@ -277,8 +285,10 @@ def cmd_sample(args) -> int:
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
-    priors, free = _cli_priors(args.prior or []), _free_names(args)
+    priors = _cli_priors(args.prior or [])
+    _free_names(args)
     cfg, lc = _fit_inputs(args)
+    free = _free_names(args, cfg)
     res = jp.sample(cfg.system, lc, free=free, num_warmup=args.warmup, num_samples=args.samples,
                     seed=args.seed, num_chains=args.chains, progress_bar=not args.quiet, priors=priors or None)
     for n, (med, lo, hi) in res.intervals.items():
@@ -435,7 +445,9 @@ def _add_fit_sample(sub) -> None:
                            "PLANET.period [d], PLANET.a [R*], PLANET.inc [deg], PLANET.radius [R*]; star.<coefficient> "
                            "(quadratic: u1 u2, or Kipping's q1 q2; nonlinear: c1..c4; power2: c alpha); lc.offset "
                            "(multiplicative flux offset), lc.jitter (error added in quadrature [relative flux]), "
-                           "lc.baseline / lc.baseline2 (linear / quadratic trend per data window; docs/cli.md).")
+                           "lc.baseline / lc.baseline2 (linear / quadratic trend per data window); N-body systems ([system] orbits = "
+                           "\"nbody\"): PLANET.mass [M_sun], PLANET.lnode [deg], star.mass [M_sun], star.radius [R_sun]; "
+                           "moons: PLANET.MOON.period, .t0, .a, .inc, .radius, .mass_ratio, .lnode (docs/cli.md).")
         # fit/sample default to the synthetic example: the real default data
         # (64,792 raw long cadences with stellar variability) need the scan's
         # per-window detrending (--windows)
@@ -446,7 +458,7 @@ def _add_fit_sample(sub) -> None:
         # option replaced the earlier ones); None so the default is not extended
         p.add_argument("--free", nargs="+", action="extend", default=None, metavar="NAME",
                        help="free parameters, e.g. b.t0 b.radius b.a b.inc star.q1 star.q2 lc.jitter; "
-                       "repeatable (units above; default: " + " ".join(_DEFAULT_FREE) + ")")
+                       "repeatable (units above; default: " + _DEFAULT_FREE + ")")
         p.add_argument("--windows", action="store_true",
                        help="fit only the multi-transit windows, detrended as by `jaxppo scan` (each divided by its "
                        "out-of-transit polynomial, outliers clipped); needed for real data with stellar variability "

@@ -18,7 +18,7 @@ from ..model._star import Star
 from ..model._system import CASES, Planet, System, require_keplerian, scan_cases
 from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest, ttv_settings
 
-__all__ = ["ScanConfig", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
+__all__ = ["ScanConfig", "require_scan_system", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
            "config_from_dict", "finished_scan_config", "load_config", "default_config_path", "synthetic_config_path"]
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
@@ -151,13 +151,19 @@ def _err(source, msg):
 # Every key a config may hold (docs/config.md documents each). A key not
 # listed is an error naming it, its section and the closest valid key: a
 # typo must never run with a default (``tilded = true`` tilting planet 1).
-SECTIONS = ("star", "planet", "data", "scan", "fit", "ttv")
+SECTIONS = ("star", "system", "planet", "data", "scan", "fit", "ttv")
 STAR_KEYS = {
     "uniform": ("law",), "quadratic": ("law", "coefficients"), "nonlinear": ("law", "coefficients"),
     "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
     "phoenix": ("law", "path", "limb"),
 }
-PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted", "transit_times", "transit_epochs")
+PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted", "transit_times", "transit_epochs",
+                                                                      "lnode", "mass", "moon")
+# [system]: the keywords of jaxppo.System that choose and set up the orbits
+SYSTEM_KEYS = ("orbits", "epoch", "star_mass", "star_radius", "dt", "span")
+# [[planet.moon]]: the parameters of jaxppo.Moon (docs/config.md)
+_MOON_FIELDS = ("period", "t0", "a", "inc", "radius")
+MOON_KEYS = ("name",) + _MOON_FIELDS + ("mass_ratio", "lnode", "e", "omega")
 DATA_KEYS = ("path", "columns", "exposure", "quality_bitmask", "mission")
 COLUMN_KEYS = tuple(COLUMN_ROLES)
 SCAN_KEYS = ("alpha", "cases", "margin", "block", "detrend", "baseline", "clip", "multi_transits", "marginalize")
@@ -459,7 +465,7 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
     (the checks of ``check_scan_settings``, as for a config file)."""
     if not isinstance(system, System):
         raise ValueError(f"system must be a jaxppo.System or a ScanConfig, got {type(system).__name__}")
-    require_keplerian(system, "the obliquity scan")
+    require_scan_system(system)
     if is_lightkurve(lightcurve) and not isinstance(lightcurve, LightCurve):
         # a lightkurve LightCurve: its default quality bitmask, flux divided
         # by its median, exposure from TIMEDEL; the drops are in the report
@@ -491,36 +497,104 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
                       s["detrend"], s["baseline"], s["clip"], s["events"])
 
 
+def require_scan_system(system: System, what: str = "the obliquity scan") -> None:
+    """Refuse a system the obliquity scan cannot model, naming why: one
+    planet (no pair to tilt against), N-body orbits or moons (its windows
+    and masks come from Keplerian ephemerides); fits and sampling take
+    every system."""
+    require_keplerian(system, what)
+    if len(system.planets) < 2:
+        raise ValueError(f"{what} needs at least two planets (one is tilted against the others), got "
+                         f"{len(system.planets)}; fit or sample a single planet with jaxppo fit / sample")
+
+
+def _numbers(table: dict, keys, where: str, source: str) -> dict:
+    """The numeric ``keys`` present in ``table`` as floats; a quoted number
+    ("0.018") or a bool is a typo, not a value."""
+    for f in keys:
+        if f in table and (isinstance(table[f], bool) or not isinstance(table[f], (int, float))):
+            raise _err(source, f"{where}: {f} must be a number, got {table[f]!r}")
+    return {f: float(table[f]) for f in keys if f in table}
+
+
+def _system_options(raw: dict, source: str) -> dict:
+    """[system]: the orbit model and, for orbits = "nbody", its keywords
+    (checked by ``System``, which names a missing or bad one)."""
+    sec = raw.get("system", {})
+    if not isinstance(sec, dict):
+        raise _err(source, "[system] must be a table (a [system] section)")
+    _check_keys(sec, SYSTEM_KEYS, "[system]", source)
+    orbits = sec.get("orbits", "kepler")
+    if orbits not in ("kepler", "nbody"):
+        raise _err(source, f"[system] orbits must be \"kepler\" or \"nbody\", got {orbits!r}")
+    options = dict(orbits=orbits, **_numbers(sec, ("epoch", "star_mass", "star_radius", "dt"), "[system]", source))
+    if "span" in sec:
+        span = sec["span"]
+        if not (isinstance(span, list) and len(span) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in span)):
+            raise _err(source, f"[system] span must be [t_min, t_max] in days, got {span!r}")
+        options["span"] = (float(span[0]), float(span[1]))
+    return options
+
+
+def _moons_from(p: dict, where: str, source: str) -> tuple:
+    """The [[planet.moon]] tables of one planet entry, as ``Moon``s."""
+    from ..model._moon import Moon
+
+    entries = p.get("moon", [])
+    if isinstance(entries, dict):
+        entries = [entries]
+    if not (isinstance(entries, list) and all(isinstance(m, dict) for m in entries)):
+        raise _err(source, f"{where}: moon must be [[planet.moon]] tables, got {entries!r}")
+    moons = []
+    for j, m in enumerate(entries):
+        at = f"{where} moon #{j + 1} ({m.get('name', 'unnamed')})"
+        _check_keys(m, MOON_KEYS, at, source)
+        if missing := [f for f in _MOON_FIELDS if f not in m]:
+            raise _err(source, f"{at} is missing {missing}")
+        if not isinstance(m.get("name", ""), str):
+            raise _err(source, f"{at}: name must be a string, got {m['name']!r}")
+        try:
+            moons.append(Moon(**_numbers(m, MOON_KEYS[1:], at, source), name=m.get("name", f"m{j + 1}")))
+        except (TypeError, ValueError) as e:
+            raise _err(source, f"{at}: {e}") from e
+    return tuple(moons)
+
+
 def _planets_from(raw: dict, star: Star, source: str, base=".") -> System:
-    """[[planet]] entries: the system, tilted the one with tilted = true."""
+    """[system] and the [[planet]] entries (with their [[planet.moon]]
+    tables): the system, tilted the one with tilted = true."""
+    options = _system_options(raw, source)
     planets, tilted = [], []
     entries = raw["planet"] if isinstance(raw["planet"], list) else [raw["planet"]]
-    if len(entries) < 2:
-        raise _err(source, f"the scan needs at least two [[planet]] entries, got {len(entries)}")
+    # N-body planets may leave out a (derived from the masses by Kepler's third law)
+    required = tuple(f for f in _PLANET_FIELDS if f != "a" or options["orbits"] == "kepler")
     for i, p in enumerate(entries):
         if not isinstance(p, dict):
             raise _err(source, "[[planet]] entries must be tables ([[planet]] sections)")
-        _check_keys(p, PLANET_KEYS, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')})", source)
+        where = f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')})"
+        _check_keys(p, PLANET_KEYS, where, source)
         if not isinstance(p.get("tilted", False), bool):
             raise _err(source, f"[[planet]] #{i + 1}: tilted must be true or false, got {p['tilted']!r}")
-        if missing := [f for f in _PLANET_FIELDS if f not in p]:
-            raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}) is missing {missing}")
-        for f in _PLANET_FIELDS + tuple(k for k in _PLANET_OPTIONAL if k in p):
-            # a quoted number ("0.018") is a typo, not a value
-            if isinstance(p[f], bool) or not isinstance(p[f], (int, float)):
-                raise _err(source, f"[[planet]] #{i + 1} ({p.get('name', 'unnamed')}): {f} must be a number, "
-                           f"got {p[f]!r}")
+        if missing := [f for f in required if f not in p]:
+            raise _err(source, f"{where} is missing {missing}")
+        values = _numbers(p, _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("lnode", "mass"), where, source)
+        moons = _moons_from(p, where, source)
         try:
-            values = {f: float(p[f]) for f in _PLANET_FIELDS}
-            values.update({k: float(p.get(k, v)) for k, v in _PLANET_OPTIONAL.items()}, **transit_times_from(p, base))
-            planets.append(Planet(**values, name=str(p.get("name", f"p{i + 1}"))))
+            values = {"a": None, **_PLANET_OPTIONAL, **values, **transit_times_from(p, base)}
+            planets.append(Planet(**values, moons=moons, name=str(p.get("name", f"p{i + 1}"))))
         except (TypeError, ValueError) as e:
             raise _err(source, f"[[planet]] #{i + 1}: {e}") from e
         if p.get("tilted", False):
             tilted.append(i)
     if len(tilted) > 1:
         raise _err(source, f"only one planet may have tilted = true, got {len(tilted)}")
-    return System(star, planets, tilted=tilted[0] if tilted else 0)
+    try:
+        return System(star, planets, tilted=tilted[0] if tilted else 0, **options)
+    except ImportError as e:
+        raise _err(source, f"[system] orbits = \"nbody\" needs jnkepler: pip install 'jaxppo[nbody]' ({e})") from e
+    except (TypeError, ValueError) as e:
+        raise _err(source, f"[system] / [[planet]]: {e}") from e
 
 
 def _fit_from(raw: dict, system: System, source: str):
@@ -577,7 +651,8 @@ def config_from_dict(raw: dict, base, source: str = "<dict>") -> ScanConfig:
         raise _err(source, str(e)) from None
     cases = scan.get("cases", list(CASES))
     try:
-        cases = scan_cases(system, cases)
+        # one planet (a fit or sample config): no cases unless [scan] names some
+        cases = scan_cases(system, cases) if len(system.planets) > 1 or "cases" in scan else ()
     except ValueError as e:
         raise _err(source, f"[scan] cases = {cases!r}: {e}") from None
     try:

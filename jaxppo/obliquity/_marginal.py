@@ -46,7 +46,7 @@ from types import SimpleNamespace
 import jax
 import numpy as np
 
-from ._config import ScanConfig, check_alpha_grid, config_from_arguments
+from ._config import ScanConfig, check_alpha_grid, config_from_arguments, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
 from ._marginal_result import MarginalResult, analyse_draws, marginal_csv, plot_marginal
 from ._progress import atomic_write, read_progress, record_line
@@ -262,6 +262,7 @@ def _config(system, lightcurve, kw) -> ScanConfig:
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
         refuse_with_config(kw, system, "jaxppo.marginal_scan")
+        require_scan_system(system.system, "the marginalised obliquity scan")
         return system
     cfg = config_from_arguments(system, lightcurve, **resolved(kw), block=60)
     check_alpha_grid(cfg.alpha)

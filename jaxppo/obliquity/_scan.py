@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._config import ScanConfig
+from ._config import ScanConfig, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
 from ._progress import atomic_write, read_progress, record_line
 from ._stats import geometry_probabilities
@@ -442,6 +442,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     already finished in ``out`` with the same config is returned as stored
     (``result.resumed["finished_before"]``): nothing is recomputed."""
     _require_x64("the obliquity scan")
+    require_scan_system(cfg.system)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_begin = time.perf_counter()

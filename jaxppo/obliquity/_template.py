@@ -34,6 +34,15 @@ coefficients = [1.0984732924, -1.74332475724, 2.46865245453, -0.995093958392]
 # law = "phoenix": path = "lte...PHOENIX-ACES-AGSS-COND-SPECINT-2011.fits";
 #   limb = "rescale" (default)
 
+# [system]              # optional; omitted: Keplerian orbits (the obliquity scan needs them)
+# orbits = "nbody"      # "kepler" (default) | "nbody": planets moved by their mutual gravity
+#                       # (pip install "jaxppo[nbody]"); fit and sample only
+# epoch = 155.0         # [d] when the planets' elements osculate (N-body: required)
+# star_mass = 0.985     # [M_sun] (N-body: required)
+# star_radius = 0.881   # [R_sun] (N-body: required)
+# dt = 1.0              # [d] integration step (default: shortest P (1 - e)^1.5 / 40)
+# span = [155.0, 1600.0]  # [d] times the integration covers (default: the data's)
+
 [[planet]]
 name = "b"            # label, used in free-parameter names ("b.t0")
 period = 3.69611590   # [d] orbital period
@@ -44,7 +53,17 @@ radius = 0.01805      # planet-to-star radius ratio
 e = 0.0               # eccentricity (optional, default 0: circular)
 omega = 90.0          # [deg] argument of periastron (optional, default 90: periastron at transit)
 # transit_times = [...] or "times.csv"; transit_epochs = [...]: measured mid-times [d] (TTVs, optional)
+# lnode = 0.0         # [deg] longitude of the ascending node on the sky (optional, default 0)
+# mass = 3e-5         # [M_sun] planet mass (N-body orbits; optional, default 0)
 tilted = true         # this orbit is rotated by alpha (at most one planet; default: the first)
+# [[planet.moon]]     # a moon of this planet (any number; fit and sample only)
+# name = "I"          # label: its free parameters are "b.I.period", ...
+# period = 1.5        # [d] of the moon's orbit about the planet
+# t0 = 134.5          # [d] a time the moon passes in front of the planet
+# a = 0.3             # [stellar radii] of the planet-moon orbit
+# inc = 90.0          # [deg] of that orbit to the sky
+# radius = 0.005      # moon-to-star radius ratio
+# mass_ratio = 0.01   # moon / planet mass (default 0); lnode, e, omega as for a planet
 
 [[planet]]
 name = "c"
@@ -98,7 +117,8 @@ marginalize = 0                # draws of the scan marginalised over the transit
 [fit]
 # free = ["b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius"]
 #   parameters the marginalised scan samples with NUTS (default: these five of every planet;
-#   the a/R* named here are tied to one stellar density by Kepler's third law)
+#   the a/R* named here are tied to one stellar density by Kepler's third law), and
+#   the default --free of jaxppo fit / sample (without it: every planet's t0 and radius)
 # [g/cm^3] mean, sd: Gaussian prior on rho* (omitted: the density the planets'
 # a/R* imply, 10 % wide); its source is copied to marginal.json
 stellar_density = {json.dumps(density)}

@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from ._config import ScanConfig
+from ._config import ScanConfig, require_scan_system
 from ..model._lightcurve import LightCurve
 from ..model._overlap import in_transit_mask
 from ..model._transits import MultiTransit, multi_transits
@@ -189,6 +189,7 @@ def windows_and_events(cfg: ScanConfig):
     """(windows, skipped) of a scan config: the detrended data window of
     every multi-transit of the tilted planet that has data, and the events
     left out with the reason."""
+    require_scan_system(cfg.system, "the scan's multi-transit windows (jaxppo scan; fit and sample --windows)")
     sysm, lc = cfg.system, cfg.lightcurve
     tilted_name = sysm.planets[sysm.tilted].name
     tilted_label = tilted_name or str(sysm.tilted)

@@ -317,3 +317,29 @@ def test_span_replace_save_load_and_refusals_from_review():
         jp.alpha_limits(kepler)
     with pytest.raises(ValueError, match="sweep assumes planets on Keplerian orbits"):
         jp.sweep(s, np.linspace(100.0, 101.0, 5), [0.0, 10.0])
+
+
+def test_bundled_nbody_config_is_the_photodynamical_fit(capsys):
+    """Issue 25 (config keys): jaxppo/data/kepler51/kepler51_nbody.toml
+    builds the N-body System of the photodynamical fit ([system] keys,
+    planet masses, a derived): chi^2 of its model on its data is the fit's
+    2089.6 for 1,689 points (examples/kepler51_photodynamics.py), and
+    `jaxppo scan` on it fails at once naming the N-body orbits."""
+    from jaxppo.cli import main
+    from jaxppo.model._exposure import exposure_mean, supersampled_times
+
+    path = Path(jp.__file__).parent / "data" / "kepler51" / "kepler51_nbody.toml"
+    cfg = jp.load_config(path)
+    s = cfg.system
+    assert s.orbits == "nbody" and s.epoch == 155.0 and float(s.star_mass) == 0.985
+    assert float(s.star_radius) == 0.81313342 and [pl.name for pl in s.planets] == list(NAMES)
+    want = semi_major_axis(s.planets[0].period, s.star_mass + s.planets[0].mass, s.star_radius)
+    np.testing.assert_allclose(float(s.planets[0].a), float(want), rtol=1e-12)  # b: a Jacobi orbit about star + b
+    assert len(cfg.fit_free) == 18 and "b.mass" in cfg.fit_free
+    lc = cfg.lightcurve
+    times, n = supersampled_times(lc.time, lc.exposure)
+    model = np.asarray(exposure_mean(s.flux(times), n))
+    chi2 = float(np.sum(((lc.flux - model) / lc.flux_err) ** 2))
+    assert lc.time.size == 1689 and abs(chi2 - 2089.634) < 0.01, chi2
+    assert main(["scan", str(path), "--out", "unused"]) == 2
+    assert "has N-body orbits" in capsys.readouterr().err

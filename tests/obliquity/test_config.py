@@ -138,8 +138,10 @@ def test_init_writes_a_template_that_loads_and_names_every_key(tmp_path, capsys)
     cfg = load_config(path)
     assert cfg.detrend == 2 and cfg.lightcurve.exposure == 0.0204335982 and cfg.alpha.size == 360
     text = path.read_text()
-    for key in _config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS:
-        assert f"{key} =" in text, key
+    keys = (_config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS
+            + _config.SYSTEM_KEYS + _config.MOON_KEYS)
+    for key in keys:
+        assert f"{key} =" in text or (key == "moon" and "[[planet.moon]]" in text), key
     assert main(["init", str(path)]) == 2  # never overwrites without --force
     assert "exists" in capsys.readouterr().err
     assert main(["init", str(path), "--force"]) == 0
@@ -177,7 +179,8 @@ def test_every_key_is_documented():
     from jaxppo.obliquity import _config
 
     doc = (Path(__file__).resolve().parents[2] / "docs" / "config.md").read_text()
-    keys = set(_config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS)
+    keys = set(_config.SCAN_KEYS + _config.DATA_KEYS + _config.PLANET_KEYS + _config.COLUMN_KEYS
+               + _config.SYSTEM_KEYS + _config.MOON_KEYS + _config.FIT_KEYS)
     keys |= {k for ks in _config.STAR_KEYS.values() for k in ks}
     for key in sorted(keys):
         assert f"`{key}`" in doc, key
@@ -293,3 +296,104 @@ def test_one_validator_for_config_and_python(tmp_path, key, bad):
         config_from_arguments(jp.kepler20_system(), lc, None, ("same",), **kw)
     assert str(from_file.value) == f"cfg.toml: [scan] {from_python.value}"
     assert str(from_python.value).startswith(f"{key} must be") and repr(bad) in str(from_python.value)
+
+
+MOON_CONFIG = """
+[star]
+law = "quadratic"
+coefficients = [0.4, 0.25]
+
+[[planet]]
+name = "b"
+period = 40.0
+t0 = 0.0
+a = 60.0
+inc = 89.9
+radius = 0.09
+mass = 3e-4
+
+[[planet.moon]]
+name = "I"
+period = 1.2
+t0 = {moon_t0}
+a = 0.35
+inc = 88.0
+radius = 0.04
+mass_ratio = 0.05
+lnode = 10.0
+
+[data]
+path = "moon.csv"
+
+[fit]
+free = ["b.I.t0"]
+"""
+
+
+def _moon_system(moon_t0=0.15):
+    moon = jp.Moon(period=1.2, t0=moon_t0, a=0.35, inc=88.0, radius=0.04, mass_ratio=0.05, lnode=10.0, name="I")
+    b = jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.9, radius=0.09, mass=3e-4, moons=[moon], name="b")
+    return jp.System(jp.Star.quadratic(0.4, 0.25), [b])
+
+
+def _moon_config(tmp_path, moon_t0=0.13):
+    """A one-planet config with a moon, on data simulated with the moon at t0 = 0.15."""
+    lc = jp.simulate(_moon_system(), np.arange(-0.3, 0.3, 4.0 / 1440.0), noise=2e-4, seed=3)
+    _csv(tmp_path / "moon.csv", "time,flux,flux_err", (lc.time, lc.flux, lc.flux_err))
+    p = tmp_path / "moon.toml"
+    p.write_text(MOON_CONFIG.format(moon_t0=moon_t0))
+    return p
+
+
+def test_moon_config_builds_the_python_system_and_fits_from_the_cli(tmp_path, capsys):
+    """Issue 25: [[planet.moon]] tables give the Moons of jp.Moon, a config
+    may hold one planet, `jaxppo fit` frees [fit] free by default and finds
+    the moon's phase; the scan and `jaxppo ttv` refuse the moon, saying so."""
+    import jax
+
+    from jaxppo.cli import main
+
+    p = _moon_config(tmp_path)
+    cfg = load_config(p)
+    want = _moon_system(0.13)
+    got_leaves, got_def = jax.tree_util.tree_flatten(cfg.system)
+    want_leaves, want_def = jax.tree_util.tree_flatten(want)
+    assert got_def == want_def
+    for g, w in zip(got_leaves, want_leaves):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+    assert cfg.fit_free == ("b.I.t0",)
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(p), "--quiet", "--out", str(out)]) == 0
+    res = jp.FitResult.load(out)
+    assert tuple(res.names) == ("b.I.t0",) and abs(res.values[0] - 0.15) < 3 * res.errors[0] < 0.01
+    text = p.read_text()
+    alone = tmp_path / "alone.toml"  # the planet without its moon
+    alone.write_text((text[:text.index("[[planet.moon]]")] + text[text.index("[data]"):]).replace("b.I.t0", "b.t0"))
+    for argv, match in ((["scan", str(p), "--out", str(tmp_path / "s")], "obliquity scan does not model moons"),
+                        (["fit", str(p), "--windows"], "windows (jaxppo scan; fit and sample --windows) does not "
+                         "model moons"),
+                        (["ttv", str(p), "--out", str(tmp_path / "t")], "does not model moons"),
+                        (["scan", str(alone), "--out", str(tmp_path / "s")], "needs at least two planets")):
+        assert main(argv) == 2, argv
+        assert match in capsys.readouterr().err, argv
+
+
+@pytest.mark.parametrize("edit, match", [
+    (("mass_ratio = 0.05", "mass_rato = 0.05"), r"moon #1 \(I\): unknown key 'mass_rato'; did you mean 'mass_ratio'"),
+    (("radius = 0.04\n", ""), r"moon #1 \(I\) is missing \['radius'\]"),
+    (("a = 0.35", 'a = "0.35"'), r"moon #1 \(I\): a must be a number, got '0.35'"),
+    (("a = 0.35", "a = -0.35"), r"moon #1 \(I\): moon 'I': a must be finite and > 0, got -0.35"),
+    (("mass = 3e-4", "mass = true"), r"\[\[planet\]\] #1 \(b\): mass must be a number"),
+    (("[fit]", "[system]\nepoch = 1.0\n\n[fit]"), r"\['epoch'\] apply to N-body orbits only"),
+    (("[fit]", "[system]\norbit = 'nbody'\n\n[fit]"), r"\[system\]: unknown key 'orbit'; did you mean 'orbits'"),
+    (("[fit]", "[system]\norbits = 'rebound'\n\n[fit]"), r"orbits must be \"kepler\" or \"nbody\", got 'rebound'"),
+    (("[fit]", "[system]\norbits = 'nbody'\nepoch = 0.0\nstar_mass = 1.0\n\n[fit]"), "star_radius"),
+    (("[fit]", "[system]\norbits = 'nbody'\nepoch = 0.0\nstar_mass = 1.0\nstar_radius = 1.0\n"
+      "span = [0.0]\n\n[fit]"), r"span must be \[t_min, t_max\]"),
+])
+def test_system_and_moon_keys_are_checked(tmp_path, edit, match):
+    """Bad [system] and [[planet.moon]] entries fail naming the key."""
+    p = _moon_config(tmp_path)
+    p.write_text(p.read_text().replace(*edit, 1))
+    with pytest.raises(ValueError, match=match):
+        load_config(p)
