@@ -22,6 +22,7 @@ import numpy as np
 
 from ..model._system import Planet, System, require_keplerian
 from ..model._transits import planet_label
+from ..model._units import from_quantity
 from ._fit import FitResult, fit
 from ._model import Model
 from ._params import as_lightcurve
@@ -270,8 +271,9 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
         ``jaxppo.parameter_names``, e.g. ``("b.radius", "b.a", "b.inc",
         "lc.baseline")``). Default none: the times alone, the rest fixed at
         ``system``.
-    search : float or None, optional
-        Half-width of the grid of starting shifts per planet [d] (default
+    search : float or Quantity or None, optional
+        Half-width of the grid of starting shifts per planet [d] (a time
+        Quantity is converted; default
         None: the half-duration of its transit, first to last contact).
     grid : int, optional
         Number of starting shifts per transit (default 41), >= 3.
@@ -356,7 +358,8 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
         if par.startswith("tc") or (par == "t0" and owner in [planet_label(system, i) for i in chosen]):
             raise ValueError(f"free: {name!r} is measured here (every transit time of the chosen planets is free; "
                              "their t0 is then degenerate with them); name the other parameters only")
-    if search is not None and not (np.isfinite(float(search)) and float(search) > 0):
+    search = None if search is None else from_quantity("search", search, "d")  # a time Quantity in days
+    if search is not None and not (np.ndim(search) == 0 and np.isfinite(float(search)) and float(search) > 0):
         raise ValueError(f"search must be a positive half-width [d], got {search!r}")
     start, plan = _plan(system, lc, chosen, int(min_points), search)
     names = [p["name"] for p in plan]

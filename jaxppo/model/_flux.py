@@ -12,6 +12,7 @@ from jaxtyping import Array, ArrayLike
 from ._star import Star
 from ._plan import is_concrete, run_padded, auto_frames, traced_auto_frames
 from ._terms import exact_frames
+from ._units import from_quantity
 from ..core.geometry import float_dtype
 from ..core.occult import MAX_RADIUS
 
@@ -82,6 +83,9 @@ def device_auto(order: int):
 
 
 def _prepare(x, y, r):
+    # stellar radii: a dimensionless Quantity converts, a length (ambiguous
+    # without the star's radius), a string or a bool is refused by name
+    x, y, r = (from_quantity(name, v, "") for name, v in (("x", x), ("y", y), ("r", r)))
     try:
         x, y, r = jnp.broadcast_arrays(jnp.asarray(x), jnp.asarray(y), jnp.asarray(r))
     except ValueError as err:

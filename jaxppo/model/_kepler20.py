@@ -9,6 +9,7 @@ from ._lightcurve import LightCurve
 from ._phoenix import kepler20_star
 from ._star import Star
 from ._system import Planet, System
+from ._units import from_quantity
 from ._transits import multi_transits
 
 __all__ = ["kepler20_system", "PAPER_MULTI_TRANSITS", "paper_multi_transits", "simulate", "simulate_kepler20"]
@@ -66,11 +67,13 @@ def simulate(system: System, t, noise: float = 4e-4, alpha: float = 0.0, case: s
     ----------
     system : System
         The star and planets.
-    t : array_like
-        Times [d], shape [n_times], distinct.
-    noise : float, optional
-        Standard deviation of the noise per point (relative flux; default
-        4e-4), > 0; also the ``flux_err`` of every point.
+    t : array_like or Quantity or TimeDelta
+        Times [d] (a time Quantity or TimeDelta is converted to days),
+        shape [n_times], distinct.
+    noise : float or Quantity, optional
+        Standard deviation of the noise per point (relative flux, or a
+        dimensionless Quantity such as ``0.01 * u.percent``; default 4e-4), > 0;
+        also the ``flux_err`` of every point.
     alpha : float, optional
         Tilt of the tilted planet's orbit [deg] (default 0).
     case : str or tuple of int, optional
@@ -86,7 +89,8 @@ def simulate(system: System, t, noise: float = 4e-4, alpha: float = 0.0, case: s
     Raises
     ------
     ValueError
-        When ``noise`` is not > 0.
+        When ``noise`` is not one number > 0, or ``t`` or ``noise`` is a
+        Quantity of the wrong kind (a length for t, a time for noise).
 
     Examples
     --------
@@ -101,9 +105,12 @@ def simulate(system: System, t, noise: float = 4e-4, alpha: float = 0.0, case: s
     >>> print(len(lc), lc.flux_err[0], f"{np.std(residual):.1e}")
     201 0.0001 9.3e-05
     """
-    if not noise > 0:
-        raise ValueError(f"noise must be > 0, got {noise}")
-    t = np.asarray(t, float)
+    noise = from_quantity("noise", noise, "")
+    if not np.ndim(noise) == 0 or not noise > 0:
+        raise ValueError(f"noise must be one number > 0, got {noise}")
+    noise = float(noise)
+    # a time Quantity or TimeDelta in days (its bare values were taken as days)
+    t = np.asarray(from_quantity("t", t, "d"), float)
     model = np.asarray(system.flux(t, alpha=alpha, case=case))
     rng = np.random.default_rng(seed)
     return LightCurve(t, model + rng.normal(0.0, noise, t.size), np.full(t.size, noise))

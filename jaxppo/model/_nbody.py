@@ -389,8 +389,13 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
         raise ValueError(f"dt must be a finite step > 0 [d], got {dt!r}")
     if span is not None:
         try:
-            lo, hi = (float(v) for v in span)
-        except (TypeError, ValueError):
+            # each end a number of days, a time Quantity or a TimeDelta (or a
+            # time Quantity of two values)
+            ends = list(span) if not hasattr(span, "unit") else [span[0], span[1]]
+            if len(ends) != 2:
+                raise ValueError
+            lo, hi = (float(from_quantity("span", v, "d")) for v in ends)
+        except (TypeError, ValueError, IndexError):
             raise ValueError(f"span must be (t_min, t_max) [d], got {span!r}") from None
         if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
             raise ValueError(f"span must be finite (t_min, t_max) with t_min <= t_max [d], got {span!r}")

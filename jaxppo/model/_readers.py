@@ -173,6 +173,8 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
         days = (np.asarray(tdb.jd1, float) - zero) + np.asarray(tdb.jd2, float)
         note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if label else "") + f", from astropy Time ({fmt}, {t.scale})"
         return np.atleast_1d(days), note
+    if type(t).__name__ == "TimeDelta" or any(c.__name__ == "TimeDelta" for c in type(t).__mro__):
+        return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None
     if isinstance(t, u.Quantity) or (hasattr(t, "unmasked") and isinstance(getattr(t, "unmasked"), u.Quantity)):
         return plain_values(t, "time", u.day), None
     return plain_values(t, "time", None)[0], None
@@ -199,8 +201,17 @@ def flux_values(f, e, normalize):
 
     fv, funit = plain_values(f, "flux")
     ev = None
-    if e is not None:
-        ev = plain_values(e, "flux_err", funit) if funit is not None else plain_values(e, "flux_err")[0]
+    if e is not None and funit is not None:
+        ev = plain_values(e, "flux_err", funit)  # plain errors: in the flux's unit
+    elif e is not None:
+        # errors with a unit beside a plain (relative) flux: dimensionless
+        # units convert (0.1 % is 1e-3, not 0.1); a physical unit cannot
+        ev, eunit = plain_values(e, "flux_err")
+        if eunit is not None:
+            if eunit.physical_type != "dimensionless":
+                raise ValueError(f"flux_err has unit {eunit} but flux has none: give relative errors (a plain number "
+                                 "or a dimensionless Quantity), or flux and flux_err in the same unit")
+            ev = ev * eunit.to(u.dimensionless_unscaled)
     if funit is not None and funit.physical_type == "dimensionless":
         scale = funit.to(u.dimensionless_unscaled)
         fv = fv * scale

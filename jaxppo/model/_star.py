@@ -40,6 +40,9 @@ def _check_mu_nodes(mu_np: np.ndarray, pad_ends: bool) -> None:
 def _check_finite(name: str, value) -> None:
     if isinstance(value, jax.core.Tracer):
         return
+    # a quoted number or a bool is a typo (True became u1 = 1), not a coefficient
+    if isinstance(value, (str, bytes, bool, np.bool_)) or np.asarray(value).dtype.kind in "bUSO":
+        raise ValueError(f"{name} must be a number, got {type(value).__name__} {value!r}")
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")
@@ -659,7 +662,10 @@ class Star(eqx.Module):
         Star.quadratic(0.4, 0.25)
         """
         law = str(law).lower()
-        coefficients = list(np.atleast_1d(np.asarray(coefficients, dtype=float))) if len(np.atleast_1d(coefficients)) else []
+        given = np.atleast_1d(np.asarray(coefficients, dtype=object))
+        for k, v in enumerate(given):
+            _check_finite(f"coefficients[{k}]", v)  # a quoted number or a bool is refused by name
+        coefficients = list(np.asarray(given, dtype=float)) if given.size else []
         need = {"uniform": 0, "quadratic": 2, "nonlinear": 4, "power2": 2}
         if law not in need:
             raise ValueError(f"unknown limb-darkening law {law!r}; expected one of {tuple(need)} (tables: Star.tabulated)")

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ._system import System
+from ._units import from_quantity
 
 __all__ = ["transit_times", "alpha_limits", "MultiTransit", "multi_transits", "multi_transit_counts", "transit_windows",
            "simultaneous_sets", "planet_label"]
@@ -33,8 +34,9 @@ def transit_times(system: System, t_start, t_end):
     ----------
     system : System
         The planets.
-    t_start, t_end : float
-        The time span [d], inclusive; finite, with t_start <= t_end.
+    t_start, t_end : float or Quantity or TimeDelta
+        The time span [d] (a time Quantity or TimeDelta is converted),
+        inclusive; finite, with t_start <= t_end.
 
     Returns
     -------
@@ -64,7 +66,7 @@ def transit_times(system: System, t_start, t_end):
     """
     from astropy.table import Table
 
-    t_start, t_end = float(t_start), float(t_end)
+    t_start, t_end = (float(from_quantity(n, v, "d")) for n, v in (("t_start", t_start), ("t_end", t_end)))
     if not (math.isfinite(t_start) and math.isfinite(t_end) and t_end >= t_start):
         raise ValueError(f"need finite t_start <= t_end [d], got t_start = {t_start!r}, t_end = {t_end!r}")
     rows = []
@@ -294,9 +296,9 @@ def multi_transits(
     ----------
     system : System
         The planets.
-    t_start, t_end : float
-        The time span [d]; an event counts when some transit of it touches
-        the span.
+    t_start, t_end : float or Quantity or TimeDelta
+        The time span [d] (a time Quantity or TimeDelta is converted); an
+        event counts when some transit of it touches the span.
     planets : sequence of str or int, optional
         Restrict to these planets (names or indices); default all.
 
@@ -324,6 +326,8 @@ def multi_transits(
     3 ('b', 'c') 496.77
     4 ('b', 'c') 670.46
     """
+    # a time Quantity or TimeDelta in days; a string, bool or length refused by name
+    t_start, t_end = (float(from_quantity(n, v, "d")) for n, v in (("t_start", t_start), ("t_end", t_end)))
     for name, v in (("t_start", t_start), ("t_end", t_end)):
         if not np.isfinite(v):
             raise ValueError(f"{name} must be finite, got {v!r}")

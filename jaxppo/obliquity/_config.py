@@ -16,6 +16,7 @@ from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
 from ..model._system import CASES, Planet, System, require_keplerian, scan_cases
+from ..model._units import from_quantity
 from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest, ttv_settings
 
 __all__ = ["ScanConfig", "require_scan_system", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
@@ -472,11 +473,18 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
         lightcurve = LightCurve.from_lightkurve(lightcurve)
     if not isinstance(lightcurve, LightCurve):
         raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got {type(lightcurve).__name__}")
-    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(alpha, float)
+    # an angle Quantity in degrees (its bare radians were taken as degrees)
+    alpha = np.arange(0.0, 360.0, 1.0) if alpha is None else np.asarray(from_quantity("alpha", alpha, "deg"), float)
     try:
         cases = scan_cases(system, cases)
     except ValueError as e:
         raise ValueError(f"cases = {cases!r}: {e}") from None
+    # time Quantities (or TimeDeltas) in days; plain values are checked as in a config file
+    margin, baseline = (from_quantity(n, v, "d") if hasattr(v, "unit") or hasattr(v, "jd1") else v
+                        for n, v in (("margin", margin), ("baseline", baseline)))
+    margin, baseline = (float(v) if isinstance(v, np.ndarray) and v.ndim == 0 else v for v in (margin, baseline))
+    if multi_transits is not None and (hasattr(multi_transits, "unit") or hasattr(multi_transits, "jd1")):
+        multi_transits = np.atleast_1d(from_quantity("multi_transits", multi_transits, "d")).tolist()
     s = check_scan_settings(margin, detrend, baseline, clip, block, multi_transits)
     star = system.star
     # what determines the results goes into the digest (resuming, --restart);
@@ -486,7 +494,7 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
                  "mu_nodes": None if star.mu_nodes is None else np.asarray(star.mu_nodes).tolist(),
                  "interpolation": star.interpolation},
         "planet": [{"name": pl.name, **{f: float(getattr(pl, f)) for f in ("period", "t0", "a", "inc", "radius")},
-                    **planet_ttv_dict(pl)} for pl in system.planets],
+                    **_orientation(pl), **planet_ttv_dict(pl)} for pl in system.planets],
         "tilted": system.tilted,
         "data": {"exposure": lightcurve.exposure, "errors_estimated": lightcurve.errors_estimated},
         "scan": {"alpha": alpha.tolist(), "cases": list(cases), "margin": s["margin"],
@@ -495,6 +503,17 @@ def config_from_arguments(system, lightcurve, alpha, cases, margin, detrend, bas
     }
     return ScanConfig(system, lightcurve, alpha, cases, s["margin"], s["block"], raw, "<jaxppo.scan>",
                       s["detrend"], s["baseline"], s["clip"], s["events"])
+
+
+def _orientation(pl: Planet) -> dict:
+    """e, omega and lnode of a planet for the digest of a scan from Python
+    arguments: only where they differ from the defaults, so that circular,
+    unrotated planets keep the digests of earlier runs (a scan of an
+    eccentric planet once resumed the circular planet's progress)."""
+    out = {} if pl.circular else {"e": float(pl.e), "omega": float(pl.omega)}
+    if float(pl.lnode) != 0.0:
+        out["lnode"] = float(pl.lnode)
+    return out
 
 
 def require_scan_system(system: System, what: str = "the obliquity scan") -> None:

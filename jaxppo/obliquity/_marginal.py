@@ -386,14 +386,14 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     cases : str or sequence of str, optional
         Hemisphere cases as in ``jaxppo.scan`` (default ``("same",
         "opposite")``).
-    margin : float, optional
-        Out-of-transit data [d] in the chi^2 on each side of an event
+    margin : float or Quantity, optional
+        Out-of-transit data [d] (a time Quantity is converted) in the chi^2 on each side of an event
         (default 0.05).
     detrend : int or "none", optional
         Order 0..5 of each event's out-of-transit polynomial (default 2);
         "none" uses the flux as loaded.
-    baseline : float, optional
-        Baseline [d] fitted on each side of an event, > ``margin``
+    baseline : float or Quantity, optional
+        Baseline [d] (a time Quantity is converted) fitted on each side of an event, > ``margin``
         (default 0.3).
     clip : float or "none", optional
         Outlier threshold [robust sigmas] >= 2 for the baseline points

@@ -522,8 +522,8 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
     lightcurve : LightCurve or lightkurve.LightCurve, optional
         The data; a lightkurve ``LightCurve`` is converted by
         ``LightCurve.from_lightkurve``. Not with a config.
-    alpha : array_like, optional
-        Tilt grid [deg], [n_alpha]; evenly spaced over 360 deg with a step
+    alpha : array_like or Quantity, optional
+        Tilt grid [deg] (an angle Quantity is converted), [n_alpha]; evenly spaced over 360 deg with a step
         that divides 360 (default 0, 1, ..., 359).
     cases : str or sequence of str, optional
         Hemisphere cases: "same" (paper case 1) and/or "opposite" (paper
@@ -533,14 +533,14 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
         Folder for scan.csv, scan.ecsv, table5.csv, table5.md, summary.json,
         the progress file (resumes) and, with ``figures``, the figures;
         None: a temporary folder, removed afterwards.
-    margin : float, optional
-        Out-of-transit data [d] in the chi^2 on each side of an event
+    margin : float or Quantity, optional
+        Out-of-transit data [d] (a time Quantity is converted) in the chi^2 on each side of an event
         (default 0.05).
     detrend : int or "none", optional
         Order 0..5 of each event's out-of-transit polynomial (default 2);
         "none" uses the flux as loaded.
-    baseline : float, optional
-        Baseline [d] fitted on each side of an event, > ``margin``
+    baseline : float or Quantity, optional
+        Baseline [d] (a time Quantity is converted) fitted on each side of an event, > ``margin``
         (default 0.3).
     clip : float or "none", optional
         Outlier threshold [robust sigmas] >= 2 for the baseline points

@@ -21,7 +21,12 @@ Properties:
   the error envelope RasterSettings documents for its largest disk;
 * Planet and System.flux give the same numbers for a quantity in any time
   or length unit as for its value in days / stellar radii, and refuse
-  strings and booleans by name.
+  strings and booleans by name;
+* so does every other public entry point that takes a time, an angle or a
+  stellar-radius value (simulate, LightCurve, transit_times,
+  multi_transits, positions, sweep, occultation_flux, Moon, Star, the
+  scan's settings): the same numbers in any unit, a wrong kind of unit or
+  a string or bool refused with the parameter named.
 """
 
 import math
@@ -193,3 +198,93 @@ def test_bad_parameter_types_are_refused_by_name(name, value):
         return
     with pytest.raises((ValueError, TypeError), match=name):
         jp.Planet(**kw)
+
+
+TIME_UNITS = [(u.d, 1.0), (u.h, 24.0), (u.min, 1440.0), (u.s, 86400.0)]
+ANGLE_UNITS = [(u.deg, 1.0), (u.rad, math.pi / 180.0), (u.arcmin, 60.0)]
+K20 = jp.kepler20_system()
+
+
+def _same(a, b):
+    """Equal to the rounding of a unit conversion (1e-12 relative)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    assert a.shape == b.shape and np.allclose(a, b, rtol=1e-12, atol=1e-15), (a, b)
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(st.sampled_from(TIME_UNITS), st.sampled_from(ANGLE_UNITS), st.floats(-0.15, 0.15), st.floats(0.0, 359.0))
+def test_every_entry_point_converts_units(time_unit, angle_unit, dt, alpha):
+    """Issue 24 (units over all entry points). Before: ``simulate`` took
+    hours as days (t = 3228 for 134.5 d), ``LightCurve`` took a flux_err of
+    0.1 % as 0.1, ``occultation_flux`` took metres as stellar radii,
+    ``transit_times`` / ``multi_transits`` / ``measure_transit_times(search=)``
+    failed with a TypeError, ``scan(alpha=)`` took radians as degrees."""
+    from jaxppo.obliquity._config import config_from_arguments
+
+    tu, per_day = time_unit
+    au, per_deg = angle_unit
+    t = float(K20.planets[0].t0) + dt + np.array([0.0, 0.01])
+    ref = jp.simulate(K20, t, noise=1e-4, seed=1)
+    got = jp.simulate(K20, t * per_day * tu, noise=0.01 * u.percent, seed=1)
+    _same(got.time, ref.time), _same(got.flux, ref.flux), _same(got.flux_err, ref.flux_err)
+    lc = jp.LightCurve(t * per_day * tu, ref.flux, 0.01 * u.percent * np.ones(2), exposure=30.0 * 60.0 / 86400.0 * per_day * tu)
+    _same(lc.time, t), _same(lc.flux_err, [1e-4, 1e-4]), _same(lc.exposure, 30.0 / 1440.0)
+    span = (130.0 * per_day * tu, 145.0 * per_day * tu)
+    _same(jp.transit_times(K20, *span)["tc"], jp.transit_times(K20, 130.0, 145.0)["tc"])
+    assert [e.mid for e in jp.multi_transits(K20, 130.0 * per_day * tu, 700.0 * per_day * tu)] == \
+        [e.mid for e in jp.multi_transits(K20, 130.0, 700.0)]
+    a_q = alpha * per_deg * au
+    for k in range(3):
+        _same(K20.positions(t * per_day * tu, alpha=a_q, xp=np)[k], K20.positions(t, alpha=alpha, xp=np)[k])
+    _same(jp.sweep(K20, t * per_day * tu, np.array([alpha]) * per_deg * au), jp.sweep(K20, t, np.array([alpha])))
+    x = np.array([0.1, 0.3])
+    _same(jp.occultation_flux(STAR, x * u.dimensionless_unscaled, x * 0.0, 0.1 * u.one),
+          jp.occultation_flux(STAR, x, x * 0.0, 0.1))
+    moon = jp.Moon(period=1.2 * per_day * tu, t0=dt * per_day * tu, a=0.3, inc=88.0 * per_deg * au, radius=0.01,
+                   lnode=alpha * per_deg * au)
+    plain = jp.Moon(period=1.2, t0=dt, a=0.3, inc=88.0, radius=0.01, lnode=alpha)
+    for name in ("period", "t0", "inc", "lnode"):
+        _same(getattr(moon, name), getattr(plain, name))
+    grid = np.arange(0.0, 360.0, 90.0)
+    cfg = config_from_arguments(K20, ref, grid * per_deg * au, ("same",), 0.05 * per_day * tu, "none",
+                                0.3 * per_day * tu, "none", None, 60)
+    _same(cfg.alpha, grid), _same(cfg.margin, 0.05), _same(cfg.baseline, 0.3)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.sampled_from(["simulate.t", "simulate.noise", "LightCurve.flux_err", "transit_times.t_start",
+                        "multi_transits.t_end", "occultation_flux.x", "occultation_flux.r", "Moon.period",
+                        "Moon.inc", "Star.u1", "sweep.alpha", "scan.alpha", "measure_transit_times.search"]),
+       st.sampled_from(["3.7", True, "length", "time", "angle"]))
+def test_wrong_types_and_units_are_refused_by_name(where, value):
+    """A string, a bool or a Quantity of the wrong kind at any entry point is
+    a ValueError naming the parameter (a string coefficient or True once
+    became u1 = 0.4 or 1 in Star.quadratic)."""
+    from jaxppo.obliquity._config import config_from_arguments
+
+    kind = {"t": "time", "noise": "one", "flux_err": "one", "t_start": "time", "t_end": "time", "x": "one",
+            "r": "one", "period": "time", "inc": "angle", "u1": "one", "alpha": "angle", "search": "time"}
+    entry, name = where.split(".")
+    if value in ("length", "time", "angle"):
+        if value == kind[name] or (value == "length" and kind[name] == "one" and entry == "LightCurve"):
+            return  # the right kind converts (test above); a flux_err in metres: its own message below
+        value = {"length": 3.0 * u.m, "time": 3.0 * u.h, "angle": 3.0 * u.deg}[value]
+    t = np.array([134.4, 134.5])
+    lc = jp.LightCurve(t, np.ones(2), np.full(2, 1e-4))
+    calls = {
+        "simulate.t": lambda v: jp.simulate(K20, v if np.ndim(v) else v, noise=1e-4),
+        "simulate.noise": lambda v: jp.simulate(K20, t, noise=v),
+        "LightCurve.flux_err": lambda v: jp.LightCurve(t, np.ones(2), v),
+        "transit_times.t_start": lambda v: jp.transit_times(K20, v, 140.0),
+        "multi_transits.t_end": lambda v: jp.multi_transits(K20, 130.0, v),
+        "occultation_flux.x": lambda v: jp.occultation_flux(STAR, v, 0.0, 0.1),
+        "occultation_flux.r": lambda v: jp.occultation_flux(STAR, 0.0, 0.0, v),
+        "Moon.period": lambda v: jp.Moon(period=v, t0=0.0, a=0.3, inc=88.0, radius=0.01),
+        "Moon.inc": lambda v: jp.Moon(period=1.0, t0=0.0, a=0.3, inc=v, radius=0.01),
+        "Star.u1": lambda v: jp.Star.quadratic(v, 0.2),
+        "sweep.alpha": lambda v: jp.sweep(K20, t, v),
+        "scan.alpha": lambda v: config_from_arguments(K20, lc, v, ("same",), 0.05, "none", 0.3, "none", None, 60),
+        "measure_transit_times.search": lambda v: jp.measure_transit_times(K20, lc, search=v),
+    }
+    with pytest.raises(ValueError, match=name):
+        calls[where](value)

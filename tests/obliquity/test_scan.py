@@ -149,6 +149,29 @@ def test_changed_config_is_not_mixed(tmp_path):
     run_scan(cfg2, tmp_path / "out", restart=True, progress=False)
 
 
+def test_python_scan_digest_sees_eccentricity_and_node():
+    """A scan from Python arguments hashed only period, t0, a, inc and radius:
+    `jp.scan(eccentric_system, lc, out=DIR)` after the circular system's scan
+    in DIR returned the circular chi^2 (2885.9 instead of 2902.2 for
+    Kepler-20 b at e = 0.3) as "finished before". Circular, unrotated
+    planets keep their digest."""
+    from jaxppo.obliquity._config import config_from_arguments
+
+    s = jp.kepler20_system()
+    lc = jp.LightCurve(np.linspace(134.4, 134.6, 20), np.ones(20), np.full(20, 1e-4))
+    b, c = s.planets
+
+    def digest(system):
+        return config_from_arguments(system, lc, None, ("same",), 0.05, "none", 0.3, "none", None, 60).digest
+
+    base = digest(s)
+    assert digest(s.replace(planets=[b.replace(omega=30.0), c])) == base  # omega of a circular orbit: no effect
+    others = [digest(s.replace(planets=[b.replace(e=0.3, omega=30.0), c])),
+              digest(s.replace(planets=[b.replace(e=0.3, omega=40.0), c])),
+              digest(s.replace(planets=[b, c.replace(lnode=5.0)]))]
+    assert len({base, *others}) == 4, others
+
+
 @pytest.mark.parametrize(
     "edit, match",
     [
