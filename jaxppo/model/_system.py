@@ -424,7 +424,12 @@ class Planet(eqx.Module):
             b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
             # an eccentric orbit's sky distance is smallest off conjunction,
             # so a b just above 1 + radius may still graze: ask the contacts
-            never = b >= 1.0 + np.asarray(radius, float)
+            # a moon reaches up to a_m (1 + e_m) from its planet, and may
+            # transit when the planet does not (no warning then)
+            reach = max([float(np.max(np.asarray(m.a) * (1.0 + np.asarray(m.e)) + np.asarray(m.radius)))
+                         for m in self.moons if not any(isinstance(v, jax.core.Tracer) for v in (m.a, m.e, m.radius))]
+                        or [0.0])
+            never = b >= 1.0 + np.maximum(np.asarray(radius, float), reach)
             if np.any(never) and not self.circular:
                 never = never & (np.asarray(self.contacts()[1]) == 0)
             if np.any(never):

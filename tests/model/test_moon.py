@@ -260,3 +260,19 @@ def test_system_with_moons_disks_tilt_cases_and_refusals():
     with pytest.raises(ValueError, match="would hit its planet"):
         jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09,
                   moons=[Moon(period=1.0, t0=0.0, a=0.1, inc=90.0, radius=0.02)])
+
+
+def test_no_never_transits_warning_when_a_moon_can_transit():
+    """A planet at |b| = 1.26 whose moon (a = 0.5 R*) crosses the star warned
+    "never transits"; without the moon (or with the moon out of reach) it
+    still warns."""
+    import warnings
+
+    moon = jp.Moon(period=1.2, t0=0.0, a=0.5, inc=90.0, radius=0.02, name="I")
+    for moons, warns in (([moon], False), ([], True)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            jp.Planet(period=40.0, t0=0.0, a=60.0, inc=88.8, radius=0.05, moons=moons, name="b")
+        assert any("never transits" in str(w.message) for w in caught) == warns, moons
+    with pytest.warns(UserWarning, match="never transits"):  # |b| = 1.57: the moon cannot reach the star either
+        jp.Planet(period=40.0, t0=0.0, a=60.0, inc=88.5, radius=0.05, moons=[moon], name="b")
