@@ -418,6 +418,13 @@ def test_outputs_are_what_the_scan_says(tmp_path, monkeypatch, capsys):
     summary = _json.loads((tmp_path / "o" / "summary.json").read_text())
     paths = summary["figures"] + summary["table5_files"] + [summary["ppo_or_spot"]["figure"]]
     assert all(Path(p).is_absolute() and Path(p).is_file() for p in paths), paths
+    # docs/cli.md names every file the scan leaves and every column of table5.csv
+    # (table5.csv/.md and ppo_or_spot.png were missing, the columns undocumented)
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "cli.md").read_text()
+    written = sorted(p.name for p in (tmp_path / "o").iterdir() if p.is_file())
+    assert [n for n in written if f"`{n}`" not in doc] == [], written
+    columns = (tmp_path / "o" / "table5.csv").read_text().splitlines()[0].split(",")
+    assert [c for c in columns if f"`{c}`" not in doc] == [], columns
     (tmp_path / "o" / "ppo_or_spot.png").write_bytes(b"stale")
     from jaxppo.obliquity._scan import _clear_outputs
 

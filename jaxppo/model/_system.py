@@ -508,7 +508,13 @@ class Planet(eqx.Module):
         # would refuse, reached under jit/grad/vmap, give NaN positions (and
         # so NaN fluxes), never a plausible number
         ok = self.in_domain(xp)
-        return tuple(xp.where(ok, v, xp.nan) for v in pos)
+        # and NaN derivatives: where() alone passes a zero gradient to the
+        # parameters, which looks like a valid one; 0 (in domain) or NaN
+        # times their sum carries NaN into every derivative outside it
+        poison = xp.where(ok, 0.0, xp.nan) * (xp.asarray(self.period) + xp.asarray(self.t0) + a
+                                              + xp.asarray(self.inc) + xp.asarray(self.radius)
+                                              + xp.asarray(self.e) + xp.asarray(self.omega))
+        return tuple(xp.where(ok, v, xp.nan) + poison for v in pos)
 
     def in_domain(self, xp=jnp):
         """Whether the parameters are ones the constructor accepts.

@@ -425,3 +425,14 @@ def test_selections_keep_the_time_zero():
         assert np.array_equal(part.to_time_zero("bkjd").time, part.time)
     with pytest.raises(ValueError, match="time_zero must be 'bkjd', 'btjd' or a Julian date, got True"):
         bk.to_time_zero(True)
+
+
+def test_negative_errors_are_reported_as_such():
+    """Issue 24 item 10: a negative error was counted and reported as
+    "non-finite"; the report and the constructor's refusal say "error <= 0"."""
+    t = np.linspace(0.0, 1.0, 6)
+    lc = jp.LightCurve.from_arrays(t, np.ones(6), np.array([1e-3, -1e-3, 1e-3, 0.0, 1e-3, 1e-3]))
+    assert len(lc) == 4 and lc.report["non_finite"] == 2
+    assert "2 non-finite or with error <= 0" in lc.report_line()
+    with pytest.raises(ValueError, match=r"flux_err must be > 0, found -0.001"):
+        jp.LightCurve(t, np.ones(6), np.array([1e-3, -1e-3, 1e-3, 1e-3, 1e-3, 1e-3]))

@@ -27,9 +27,14 @@ Properties:
   multi_transits, positions, sweep, occultation_flux, Moon, Star, the
   scan's settings): the same numbers in any unit, a wrong kind of unit or
   a string or bool refused with the parameter named.
+
+Profiles: CI runs the example counts written here with fixed draws;
+``python benchmarks/properties_long.py --scale K`` runs K times as many,
+with fresh random draws.
 """
 
 import math
+import os
 
 import astropy.units as u
 import jax
@@ -53,7 +58,14 @@ def I_R(r):
 
 
 TOTAL = reference_total(I_R)
-SETTINGS = settings(max_examples=25, deadline=None, derandomize=True,
+# the CI profile: the example counts below; JAXPPO_HYPOTHESIS_SCALE=K runs K
+# times as many, with fresh random draws (benchmarks/properties_long.py)
+SCALE = int(os.environ.get("JAXPPO_HYPOTHESIS_SCALE", "1"))
+
+
+def _n(examples: int) -> int:
+    return examples * SCALE
+SETTINGS = settings(max_examples=_n(25), deadline=None, derandomize=SCALE == 1,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 NUDGES = [0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1e-3, -1e-3]
 RADII = [1e-4, 0.01, 0.1, 0.5, 0.99, 1.0, 1.5]
@@ -116,7 +128,7 @@ def test_bounds_monotonicity_and_order(disks, rnd):
         assert abs(_flux(shuffled, "auto") - f) <= 1e-13, (disks, shuffled)
 
 
-@settings(max_examples=15, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=_n(15), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
 @given(scene(max_disks=2))
 def test_gradients_finite(disks):
     x, y, r = (jnp.asarray([d[k] for d in disks]) for k in range(3))
@@ -124,7 +136,7 @@ def test_gradients_finite(disks):
     assert all(np.all(np.isfinite(np.asarray(v))) for v in g(x, y, r)), disks
 
 
-@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=_n(12), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
 @given(scene(max_disks=2).filter(lambda ds: all(min(d[2], 1.0) >= 0.01 for d in ds)))
 def test_raster_within_its_bound(disks):
     exact = _flux(disks)
@@ -142,7 +154,7 @@ def test_raster_within_its_bound(disks):
 STAR32 = jax.tree_util.tree_map(lambda v: v.astype(jnp.float32) if hasattr(v, "astype") else v, STAR)
 
 
-@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=_n(20), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
 @given(scene().filter(lambda ds: all(d[2] >= 1e-3 for d in ds)))
 def test_float32_within_its_bound(disks):
     """float32 inputs and a float32 star run in float32 (docs/methods.md,
@@ -158,7 +170,7 @@ def test_float32_within_its_bound(disks):
         assert abs(float(got[0]) - ref) <= 3e-6, (method, disks, float(got[0]), ref)
 
 
-@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=_n(12), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
 @given(scene(), st.sampled_from(["exact", "auto"]))
 def test_traced_paths_equal_the_eager_call(disks, method):
     """jit and vmap give the eager call's numbers: the scene and its mirror
@@ -173,7 +185,7 @@ def test_traced_paths_equal_the_eager_call(disks, method):
     assert np.all(np.abs(got - eager) <= 1e-13), (disks, method, got, eager)
 
 
-@settings(max_examples=20, deadline=None, derandomize=True)
+@settings(max_examples=_n(20), deadline=None, derandomize=SCALE == 1)
 @given(st.sampled_from([(u.d, 1.0), (u.h, 24.0), (u.min, 1440.0), (u.s, 86400.0)]),
        st.sampled_from([(u.dimensionless_unscaled, 1.0)]), st.floats(-0.2, 0.2))
 def test_units_give_the_same_numbers(time_unit, _, t):
@@ -186,7 +198,7 @@ def test_units_give_the_same_numbers(time_unit, _, t):
     assert np.allclose(got, np.asarray(s_ref.flux(np.array([t, 0.0]))), rtol=0, atol=1e-15)
 
 
-@settings(max_examples=20, deadline=None, derandomize=True)
+@settings(max_examples=_n(20), deadline=None, derandomize=SCALE == 1)
 @given(st.sampled_from(["period", "t0", "a", "inc", "radius"]), st.sampled_from(["3.7", True, None, "x"]))
 def test_bad_parameter_types_are_refused_by_name(name, value):
     kw = dict(period=3.7, t0=0.0, a=10.0, inc=89.0, radius=0.05)
@@ -211,7 +223,7 @@ def _same(a, b):
     assert a.shape == b.shape and np.allclose(a, b, rtol=1e-12, atol=1e-15), (a, b)
 
 
-@settings(max_examples=12, deadline=None, derandomize=True)
+@settings(max_examples=_n(12), deadline=None, derandomize=SCALE == 1)
 @given(st.sampled_from(TIME_UNITS), st.sampled_from(ANGLE_UNITS), st.floats(-0.15, 0.15), st.floats(0.0, 359.0))
 def test_every_entry_point_converts_units(time_unit, angle_unit, dt, alpha):
     """Issue 24 (units over all entry points). Before: ``simulate`` took
@@ -251,7 +263,7 @@ def test_every_entry_point_converts_units(time_unit, angle_unit, dt, alpha):
     _same(cfg.alpha, grid), _same(cfg.margin, 0.05), _same(cfg.baseline, 0.3)
 
 
-@settings(max_examples=25, deadline=None, derandomize=True)
+@settings(max_examples=_n(25), deadline=None, derandomize=SCALE == 1)
 @given(st.sampled_from(["simulate.t", "simulate.noise", "LightCurve.flux_err", "transit_times.t_start",
                         "multi_transits.t_end", "occultation_flux.x", "occultation_flux.r", "Moon.period",
                         "Moon.inc", "Star.u1", "sweep.alpha", "scan.alpha", "measure_transit_times.search"]),

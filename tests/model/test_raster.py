@@ -157,3 +157,20 @@ def test_raster_worst_over_positions(r, kw, bound):
     x = np.linspace(0.0, 1.0 + r, 301)[:, None]
     ras, exact = _raster_vs_exact(x, np.zeros_like(x), np.full_like(x, r), **kw)
     assert np.max(np.abs(ras - exact)) <= bound, (r, float(np.max(np.abs(ras - exact))))
+
+
+def test_docstrings_state_the_default_pixel_size():
+    """Issue 24 item 12: occultation_flux's docstring said the raster pixel
+    was "smallest radius / 24" while the code sizes each disk's pixels as
+    its window (2 r for a disk inside the star) / n_window = r / 16."""
+    from jaxppo.model import _flux
+
+    from jaxppo.core import raster as R
+
+    ratio = RasterSettings().n_window // 2
+    # the code's pixel: the side of the disk's box on the star / n_window
+    side = R.visible_box(np.array([[0.2]]), np.array([[0.1]]), np.array([[0.05]]), xp=np)[0]
+    assert np.isclose(float(np.ravel(side)[0]) / RasterSettings().n_window, 0.05 / ratio, rtol=1e-12)
+    for doc in (_flux.occultation_flux.__doc__, RasterSettings.__doc__):
+        assert f"r / {ratio}" in " ".join(doc.split())
+        assert "/ 24" not in doc and "smallest radius" not in doc

@@ -33,6 +33,16 @@ def test_jit_gives_nan_for_out_of_domain(bad):
         _flux(**{k: float(v) for k, v in bad.items()})
 
 
+@pytest.mark.parametrize("bad", BAD, ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
+def test_grad_is_nan_for_out_of_domain(bad):
+    """Issue 24 item 6 under grad: the flux was NaN but its gradient 0.0 (a
+    step a sampler or optimiser could take as valid); now NaN too."""
+    names = list(bad)
+    g = jax.grad(lambda *v: jnp.sum(_flux(**dict(zip(names, v)))), argnums=tuple(range(len(names))))
+    for d in g(*[jnp.asarray(v, float) for v in bad.values()]):
+        assert np.isnan(float(d)), (bad, d)
+
+
 def test_valid_values_unchanged_and_gradients_finite():
     ref = np.asarray(_flux(a=10.0, e=0.2, omega=70.0))
     got = np.asarray(jax.jit(lambda a, e: _flux(a=a, e=e, omega=70.0))(10.0, 0.2))
