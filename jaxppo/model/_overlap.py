@@ -15,7 +15,7 @@ import numpy as np
 
 from ._system import System, case_signs, require_keplerian
 
-__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "contact_frames", "ppo_table", "may_touch",
+__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]
 
 
@@ -52,6 +52,26 @@ def untilted_geometry(system: System, t, alpha):
     return x0, y0, r0, xa[..., system.tilted], ya[..., system.tilted]
 
 
+def case_xy(system: System, x0, y0, signs):
+    """The untilted planets' sky positions in a hemisphere case, from those
+    of case "same" (``untilted_geometry``; the disks on the last axis).
+
+    ``System.positions`` mirrors a planet (y -> -y, inc -> 180 - inc)
+    before turning it by its node ``lnode``; mirroring the turned position
+    instead (y' -> -y') put a planet with a nonzero node elsewhere (the scan
+    of case "opposite" then differed from ``System.flux`` by 1 %). With
+    (x', y') the node-turned position, the mirrored one is
+    (x' cos 2W - y' sin 2W, -x' sin 2W - y' cos 2W), W the node."""
+    signs = np.asarray(signs, float)
+    node = np.deg2rad(np.array([float(pl.lnode) for pl in system.planets]))
+    c2, s2 = np.cos(2.0 * node), np.sin(2.0 * node)
+    x0, y0 = np.asarray(x0), np.asarray(y0)
+    mirror = signs < 0
+    x = np.where(mirror, x0 * c2 - y0 * s2, x0)
+    y = np.where(mirror, -x0 * s2 - y0 * c2, y0)
+    return x, y
+
+
 def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_only: bool = False,
                    geometry=None) -> np.ndarray:
     """[case, alpha, time]: the frames in which two disks overlap on the star
@@ -73,19 +93,20 @@ def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_
     out = np.zeros((len(cases), alpha.size, x0.shape[0]), bool)
     for ci, case in enumerate(cases):
         signs = case_signs(k, i, case)
+        xc, yc = case_xy(system, x0, y0, signs)
         hit = out[ci]
         for j in range(k):
             if j == i:
                 continue
             both = on[:, i] & on[:, j]
-            dist2 = (xt - x0[:, j]) ** 2 + (yt - signs[j] * y0[:, j]) ** 2
+            dist2 = (xt - xc[:, j]) ** 2 + (yt - yc[:, j]) ** 2
             hit |= both[None, :] & (dist2 < (r0[:, i] + r0[:, j] + margin)[None, :] ** 2)
             if tilted_only:
                 continue
             for m in range(j + 1, k):
                 if m == i:
                     continue
-                dd = np.hypot(x0[:, j] - x0[:, m], signs[j] * y0[:, j] - signs[m] * y0[:, m])
+                dd = np.hypot(xc[:, j] - xc[:, m], yc[:, j] - yc[:, m])
                 hit |= (on[:, j] & on[:, m] & (dd < r0[:, j] + r0[:, m] + margin))[None, :]
     return out
 

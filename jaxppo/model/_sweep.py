@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from ._overlap import contact_frames, on_star, untilted_geometry
+from ._overlap import case_xy, contact_frames, on_star, untilted_geometry
 from ._plan import one_disk_sum, overlap_flux
 from ._system import CASES, System, case_signs, from_quantity, require_keplerian
 
@@ -182,8 +182,7 @@ def sweep(
             jobs.append((ci, ai, ti, signs))
     n_union = 0
     for ci, ai, ti, signs in jobs:
-        X = np.array(x0[ti])
-        Y = np.array(y0[ti]) * signs[None, :]
+        X, Y = (np.array(v) for v in case_xy(system, x0[ti], y0[ti], signs))
         X[:, tilted] = xt[ai, ti]
         Y[:, tilted] = yt[ai, ti]
         vals = overlap_flux(system.star, X, Y, r0[ti], order, chunk)
