@@ -207,20 +207,22 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-_DEFAULT_FREE = "the config's [fit] free, else every planet's t0 and radius"
+_DEFAULT_FREE = "the config's [fit] free, else every planet's t0 (its transit times, tc, where listed) and radius"
 
 
 def _free_names(args, cfg=None) -> tuple:
     """The --free names of ``fit`` / ``sample``, every option's together;
-    without --free the config's [fit] free, else the mid-time and radius
-    ratio of every planet (b.t0 b.radius c.t0 c.radius for Kepler-20 b + c)."""
+    without --free the config's [fit] free, else the mid-time (its listed
+    transit times "b.tc" where it has them) and radius ratio of every planet
+    (b.t0 b.radius c.t0 c.radius for Kepler-20 b + c)."""
     if args.free is None:
         if cfg is None:
             return None
         if cfg.fit_free is not None:
             return tuple(cfg.fit_free)
-        labels = [pl.name or str(i) for i, pl in enumerate(cfg.system.planets)]
-        return tuple(f"{n}.{k}" for n in labels for k in ("t0", "radius"))
+        # a planet with listed transit times has its times, not t0, free ("b.tc")
+        return tuple(f"{pl.name or i}.{k}" for i, pl in enumerate(cfg.system.planets)
+                     for k in ("t0" if pl.transit_times is None else "tc", "radius"))
     twice = sorted({n for n in args.free if args.free.count(n) > 1})
     if twice:
         raise ValueError(f"--free names {', '.join(twice)} more than once: {' '.join(args.free)}")

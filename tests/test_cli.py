@@ -108,6 +108,31 @@ def test_repeated_free_options_add_up(cmd, monkeypatch, capsys):
     assert "--free names b.t0 more than once" in capsys.readouterr().err
 
 
+def test_default_free_names_follow_the_config(tmp_path, monkeypatch):
+    """Without --free: the config's [fit] free, else every planet's t0 and
+    radius, and a planet with transit times has its times free ("b.tc"):
+    the default "b.t0" of such a planet failed with an error about a name
+    the user never gave."""
+    import jaxppo as jp
+    from jaxppo.obliquity._config import synthetic_config_path
+
+    seen = []
+
+    def fake(system, lc, free, **kw):
+        seen.append(free)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(jp, "fit", fake)
+    text = synthetic_config_path().read_text().replace(
+        'path = "kepler20_synthetic_bc.csv"', f'path = "{synthetic_config_path().parent / "kepler20_synthetic_bc.csv"}"')
+    cfg = tmp_path / "c.toml"
+    times = 'transit_times = [134.501962, 138.198073]\n'
+    cfg.write_text(text.replace('name = "b"\n', 'name = "b"\n' + times, 1))
+    assert main(["fit", str(cfg)]) == 2 and seen[-1] == ("b.tc", "b.radius", "c.t0", "c.radius")
+    cfg.write_text(text + '\n[fit]\nfree = ["c.inc", "b.radius"]\n')
+    assert main(["fit", str(cfg)]) == 2 and seen[-1] == ("c.inc", "b.radius")
+
+
 def test_sample_prior_option(monkeypatch, capsys):
     import numpyro.distributions as dist
 

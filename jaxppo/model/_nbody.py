@@ -391,7 +391,7 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
         try:
             # each end a number of days, a time Quantity or a TimeDelta (or a
             # time Quantity of two values)
-            ends = list(span) if not hasattr(span, "unit") else [span[0], span[1]]
+            ends = list(span)
             if len(ends) != 2:
                 raise ValueError
             lo, hi = (float(from_quantity("span", v, "d")) for v in ends)

@@ -43,6 +43,10 @@ def _check_finite(name: str, value) -> None:
     # a quoted number or a bool is a typo (True became u1 = 1), not a coefficient
     if isinstance(value, (str, bytes, bool, np.bool_)) or np.asarray(value).dtype.kind in "bUSO":
         raise ValueError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    # a coefficient is a plain number: a Quantity in percent, degrees or
+    # seconds would have its bare value used (0.4 % as 0.4)
+    if hasattr(value, "unit") and str(getattr(value, "unit", "")) != "":
+        raise ValueError(f"{name} must be a plain number (a limb-darkening coefficient), got the Quantity {value!r}")
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")
@@ -662,6 +666,8 @@ class Star(eqx.Module):
         Star.quadratic(0.4, 0.25)
         """
         law = str(law).lower()
+        if hasattr(coefficients, "unit"):
+            _check_finite("coefficients", coefficients)  # a Quantity array is refused as a whole
         given = np.atleast_1d(np.asarray(coefficients, dtype=object))
         for k, v in enumerate(given):
             _check_finite(f"coefficients[{k}]", v)  # a quoted number or a bool is refused by name

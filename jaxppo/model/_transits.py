@@ -16,6 +16,15 @@ __all__ = ["transit_times", "alpha_limits", "MultiTransit", "multi_transits", "m
            "simultaneous_sets", "planet_label"]
 
 
+def _one_time(name: str, value) -> float:
+    """One time [d]: a number, a time Quantity or a TimeDelta (a string,
+    bool, other unit or several values refused by name)."""
+    days = np.asarray(from_quantity(name, value, "d"))
+    if days.ndim != 0:
+        raise ValueError(f"{name} must be one time [d], got {days.size} values: {value!r}")
+    return float(days)
+
+
 def transit_times(system: System, t_start, t_end):
     """List the mid-transit times [d] the model predicts in [t_start, t_end].
 
@@ -66,7 +75,7 @@ def transit_times(system: System, t_start, t_end):
     """
     from astropy.table import Table
 
-    t_start, t_end = (float(from_quantity(n, v, "d")) for n, v in (("t_start", t_start), ("t_end", t_end)))
+    t_start, t_end = (_one_time(n, v) for n, v in (("t_start", t_start), ("t_end", t_end)))
     if not (math.isfinite(t_start) and math.isfinite(t_end) and t_end >= t_start):
         raise ValueError(f"need finite t_start <= t_end [d], got t_start = {t_start!r}, t_end = {t_end!r}")
     rows = []
@@ -327,7 +336,7 @@ def multi_transits(
     4 ('b', 'c') 670.46
     """
     # a time Quantity or TimeDelta in days; a string, bool or length refused by name
-    t_start, t_end = (float(from_quantity(n, v, "d")) for n, v in (("t_start", t_start), ("t_end", t_end)))
+    t_start, t_end = (_one_time(n, v) for n, v in (("t_start", t_start), ("t_end", t_end)))
     for name, v in (("t_start", t_start), ("t_end", t_end)):
         if not np.isfinite(v):
             raise ValueError(f"{name} must be finite, got {v!r}")

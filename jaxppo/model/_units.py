@@ -15,7 +15,7 @@ def _is_quantity(value) -> bool:
     return hasattr(value, "unit") and hasattr(value, "to")
 
 
-_WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (stellar radii)", "M_sun": "a mass [M_sun]",
+_WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (a plain number; lengths in stellar radii)", "M_sun": "a mass [M_sun]",
          "R_sun": "a length [R_sun]"}
 
 
@@ -33,6 +33,19 @@ def from_quantity(name: str, value, unit: str):
     the zero point of the planets' t0 is the caller's to choose."""
     if isinstance(value, (str, bytes, bool, np.bool_)):
         raise ValueError(f"{name} must be {_WANT[unit]}, got {type(value).__name__} {value!r}")
+    if np.ma.isMaskedArray(value) or (hasattr(value, "unmasked") and hasattr(value, "mask")):
+        # a masked entry has no value to compute with: refused, never used
+        if np.any(np.asarray(value.mask)):
+            raise ValueError(f"{name} holds {int(np.sum(np.asarray(value.mask)))} masked (missing) values; drop or "
+                             "fill them (LightCurve.from_arrays drops masked points and reports them)")
+        value = value.unmasked if hasattr(value, "unmasked") else np.ma.getdata(value)
+    if isinstance(value, (list, tuple)) and any(_is_quantity(v) or _is_time_class(v, "TimeDelta")
+                                                or _is_time_class(v, "Time") for v in value):
+        # a list of Quantities: each converted (a bare TypeError from astropy otherwise)
+        return np.asarray([from_quantity(name, v, unit) for v in value], float)
+    if isinstance(value, (list, tuple, np.ndarray)) and np.asarray(value).dtype.kind in "bUS":
+        raise ValueError(f"{name} must be {_WANT[unit]}, got an array of {np.asarray(value).dtype} "
+                         f"({np.asarray(value).ravel()[:3].tolist()}...)")
     if _is_time_class(value, "Time"):
         raise ValueError(
             f"{name} must be a number of days, a time Quantity or a TimeDelta, got an absolute astropy Time "
@@ -56,7 +69,8 @@ def from_quantity(name: str, value, unit: str):
         pass
     if unit == "" and value.unit.physical_type == "length":
         raise ValueError(
-            f"{name} must be in stellar radii (a plain number or a dimensionless Quantity), got {value!r}: "
+            f"{name} must be dimensionless (a plain number or a dimensionless Quantity; lengths in stellar "
+            f"radii), got {value!r}: "
             f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
         )
     raise ValueError(f"{name} must be {_WANT[unit]}, got the Quantity {value!r}")

@@ -524,7 +524,8 @@ def require_scan_system(system: System, what: str = "the obliquity scan") -> Non
     require_keplerian(system, what)
     if len(system.planets) < 2:
         raise ValueError(f"{what} needs at least two planets (one is tilted against the others), got "
-                         f"{len(system.planets)}; fit or sample a single planet with jaxppo fit / sample")
+                         f"{len(system.planets)}; jaxppo fit / sample (without --windows) and jp.fit / jp.sample "
+                         "take a single planet")
 
 
 def _numbers(table: dict, keys, where: str, source: str) -> dict:
@@ -573,8 +574,10 @@ def _moons_from(p: dict, where: str, source: str) -> tuple:
             raise _err(source, f"{at} is missing {missing}")
         if not isinstance(m.get("name", ""), str):
             raise _err(source, f"{at}: name must be a string, got {m['name']!r}")
+        values = _numbers(m, MOON_KEYS[1:], at, source)  # names the key itself
         try:
-            moons.append(Moon(**_numbers(m, MOON_KEYS[1:], at, source), name=m.get("name", f"m{j + 1}")))
+            # unnamed: "" as for jp.Moon, so its parameters are b.moon<k>.* either way
+            moons.append(Moon(**values, name=m.get("name", "")))
         except (TypeError, ValueError) as e:
             raise _err(source, f"{at}: {e}") from e
     return tuple(moons)

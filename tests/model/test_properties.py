@@ -300,3 +300,32 @@ def test_wrong_types_and_units_are_refused_by_name(where, value):
     }
     with pytest.raises(ValueError, match=name):
         calls[where](value)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: jp.Star.quadratic(0.4 * u.percent, 0.25), "u1 must be a plain number"),
+    (lambda: jp.Star.from_law("quadratic", [0.4, 0.25] * u.percent), "coefficients must be a plain number"),
+    (lambda: jp.occultation_flux(STAR, 0.0, 0.0, np.array(True)), "r must be dimensionless"),
+    (lambda: jp.occultation_flux(STAR, [True], 0.0, 0.1), "x must be dimensionless"),
+    (lambda: jp.LightCurve([1.0, 2.0], [1.0, 1.0], [1e-3, 1e-3], exposure=np.array(True)), "exposure must be a time"),
+    (lambda: K20.flux(["0.0", "0.1"]), "t must be a time"),
+    (lambda: jp.simulate(K20, [True, False]), "t must be a time"),
+    (lambda: jp.simulate(K20, np.ma.masked_array([1.0, 2.0], mask=[0, 1])), "t holds 1 masked"),
+    (lambda: jp.transit_times(K20, [0.0, 1.0] * u.d, 10.0), r"t_start must be one time \[d\], got 2 values"),
+    (lambda: jp.System(STAR, [jp.Planet(period=3.0, t0=0.0, a=None, inc=89.0, radius=0.1, mass=1e-5)],
+                       orbits="nbody", epoch=0.0, star_mass=1.0, star_radius=1.0, span=[155.0, 1600.0, 1700.0] * u.d),
+     r"span must be \(t_min, t_max\)"),
+])
+def test_review_refusals(call, match):
+    """What a review found still slipping through: a coefficient in percent
+    used as its bare value, bool arrays taken as 0/1, strings as times, a
+    masked time used as if present, a three-value span cut to two."""
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_lists_of_quantities_convert():
+    """A list of time Quantities raised astropy's bare TypeError."""
+    t = float(K20.planets[0].t0)
+    got = jp.simulate(K20, [t * 24.0 * u.h, (t + 0.01) * 24.0 * u.h], noise=1e-4, seed=1)
+    _same(got.time, [t, t + 0.01])

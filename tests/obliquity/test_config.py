@@ -395,5 +395,27 @@ def test_system_and_moon_keys_are_checked(tmp_path, edit, match):
     """Bad [system] and [[planet.moon]] entries fail naming the key."""
     p = _moon_config(tmp_path)
     p.write_text(p.read_text().replace(*edit, 1))
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match=match) as err:
         load_config(p)
+    assert str(err.value).count("moon #1") <= 1 and str(err.value).count(str(p)) == 1  # the place named once
+
+
+def test_docs_nbody_example_is_the_bundled_config_and_unnamed_moons_match_python(tmp_path):
+    """docs/config.md's N-body example said it was the bundled
+    kepler51_nbody.toml with other numbers (star_radius 0.881, omega 12);
+    an unnamed [[planet.moon]] was "m1" in parameter names where jp.Moon
+    without a name is "moon0"."""
+    import re
+    import tomllib
+
+    root = Path(__file__).resolve().parents[2]
+    doc = (root / "docs" / "config.md").read_text()
+    block = re.search(r"An N-body config.*?```toml\n(.*?)```", doc, re.S).group(1)
+    example = tomllib.loads(block)
+    bundled = tomllib.loads((root / "jaxppo" / "data" / "kepler51" / "kepler51_nbody.toml").read_text())
+    assert example["system"] == bundled["system"]
+    assert example["planet"][0] == bundled["planet"][0]
+    p = _moon_config(tmp_path)
+    p.write_text(p.read_text().replace('name = "I"\n', "").replace('free = ["b.I.t0"]', 'free = ["b.moon0.t0"]'))
+    cfg = load_config(p)
+    assert cfg.system.planets[0].moons[0].name == "" and cfg.fit_free == ("b.moon0.t0",)
