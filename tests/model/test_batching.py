@@ -70,7 +70,7 @@ def test_derivatives_under_vmap_equal_the_unbatched_ones():
     got = {
         "vmap(grad)": jax.jit(jax.vmap(jax.grad(total)))(x, y, r),
         "vmap(jacfwd)": jax.jit(jax.vmap(jax.jacfwd(total)))(x, y, r),
-        "grad(vmap)": jax.grad(lambda a: jnp.sum(jax.vmap(auto)(a, y, r)))(x),
+        # (under jit only: the eager grad(vmap) runs the same transpose rule, op by op, in a minute of CI)
         "jit(grad(vmap))": jax.jit(jax.grad(lambda a: jnp.sum(jax.vmap(auto)(a, y, r))))(x),
     }
     for name, g in got.items():
@@ -81,10 +81,11 @@ def test_derivatives_under_vmap_equal_the_unbatched_ones():
     flux = lambda uu, m: jp.occultation_flux(jp.Star.quadratic(uu[0], uu[1]), xs, ys, rs, method=m)
     assert np.array_equal(np.asarray(jax.jit(jax.vmap(lambda uu: flux(uu, "auto")))(u)),
                           np.asarray(jax.jit(jax.vmap(lambda uu: flux(uu, "exact")))(u)))
-    gu = jax.vmap(jax.grad(lambda uu: jnp.sum(flux(uu, "auto"))))(u)
+    grad_u = jax.grad(lambda uu: jnp.sum(flux(uu, "auto")))
+    gu = jax.jit(jax.vmap(grad_u))(u)
+    one = jax.jit(grad_u)
     for i in range(2):
-        np.testing.assert_allclose(np.asarray(gu[i]), np.asarray(jax.grad(lambda uu: jnp.sum(flux(uu, "auto")))(u[i])),
-                                   rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(np.asarray(gu[i]), np.asarray(one(u[i])), rtol=1e-13, atol=1e-15)
 
 
 def test_shared_branch():

@@ -128,12 +128,21 @@ def test_bounds_monotonicity_and_order(disks, rnd):
         assert abs(_flux(shuffled, "auto") - f) <= 1e-13, (disks, shuffled)
 
 
+def _one_frame(a, b, c, method="auto"):
+    return jp.occultation_flux(STAR, a[None], b[None], c[None], method=method)[0]
+
+
+# compiled once per disk count and reused by every example (a jit of a new
+# lambda per example recompiled the engine each time: a minute of CI)
+_GRAD = jax.jit(jax.grad(_one_frame, argnums=(0, 1, 2)))
+_JIT = {m: jax.jit(lambda a, b, c, m=m: _one_frame(a, b, c, m)) for m in ("exact", "auto")}
+
+
 @settings(max_examples=_n(15), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
 @given(scene(max_disks=2))
 def test_gradients_finite(disks):
     x, y, r = (jnp.asarray([d[k] for d in disks]) for k in range(3))
-    g = jax.jit(jax.grad(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None])[0], argnums=(0, 1, 2)))
-    assert all(np.all(np.isfinite(np.asarray(v))) for v in g(x, y, r)), disks
+    assert all(np.all(np.isfinite(np.asarray(v))) for v in _GRAD(x, y, r)), disks
 
 
 @settings(max_examples=_n(12), deadline=None, derandomize=SCALE == 1, suppress_health_check=[HealthCheck.too_slow])
@@ -178,8 +187,7 @@ def test_traced_paths_equal_the_eager_call(disks, method):
     under vmap, and the scene under jit, to 1e-13."""
     x, y, r = (jnp.asarray([d[k] for d in disks]) for k in range(3))
     eager = float(jp.occultation_flux(STAR, x[None], y[None], r[None], method=method)[0])
-    jitted = jax.jit(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None], method=method)[0])
-    assert abs(float(jitted(x, y, r)) - eager) <= 1e-13, (disks, method)
+    assert abs(float(_JIT[method](x, y, r)) - eager) <= 1e-13, (disks, method)
     batch = jax.vmap(lambda a, b, c: jp.occultation_flux(STAR, a[None], b[None], c[None], method=method)[0])
     got = np.asarray(batch(jnp.stack([x, -x]), jnp.stack([y, y]), jnp.stack([r, r])))
     assert np.all(np.abs(got - eager) <= 1e-13), (disks, method, got, eager)
