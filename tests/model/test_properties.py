@@ -243,20 +243,30 @@ def test_every_entry_point_converts_units(time_unit, angle_unit, dt, alpha):
 
     tu, per_day = time_unit
     au, per_deg = angle_unit
+    # each entry point gets the Quantity; the reference the days (degrees)
+    # astropy converts it to, so that the comparison is exact and not
+    # blurred by the rounding of the conversion itself (1e-14 d in t moves a
+    # planet by 1e-12 R*)
     t = float(K20.planets[0].t0) + dt + np.array([0.0, 0.01])
-    ref = jp.simulate(K20, t, noise=1e-4, seed=1)
-    got = jp.simulate(K20, t * per_day * tu, noise=0.01 * u.percent, seed=1)
+    tq = t * per_day * tu
+    td = tq.to_value(u.d)
+    assert np.allclose(td, t, rtol=1e-14, atol=0)
+    ref = jp.simulate(K20, td, noise=1e-4, seed=1)
+    got = jp.simulate(K20, tq, noise=0.01 * u.percent, seed=1)
     _same(got.time, ref.time), _same(got.flux, ref.flux), _same(got.flux_err, ref.flux_err)
-    lc = jp.LightCurve(t * per_day * tu, ref.flux, 0.01 * u.percent * np.ones(2), exposure=30.0 * 60.0 / 86400.0 * per_day * tu)
-    _same(lc.time, t), _same(lc.flux_err, [1e-4, 1e-4]), _same(lc.exposure, 30.0 / 1440.0)
+    exposure = 30.0 * 60.0 / 86400.0 * per_day * tu
+    lc = jp.LightCurve(tq, ref.flux, 0.01 * u.percent * np.ones(2), exposure=exposure)
+    _same(lc.time, td), _same(lc.flux_err, [1e-4, 1e-4]), _same(lc.exposure, exposure.to_value(u.d))
     span = (130.0 * per_day * tu, 145.0 * per_day * tu)
-    _same(jp.transit_times(K20, *span)["tc"], jp.transit_times(K20, 130.0, 145.0)["tc"])
-    assert [e.mid for e in jp.multi_transits(K20, 130.0 * per_day * tu, 700.0 * per_day * tu)] == \
-        [e.mid for e in jp.multi_transits(K20, 130.0, 700.0)]
+    _same(jp.transit_times(K20, *span)["tc"], jp.transit_times(K20, *(v.to_value(u.d) for v in span))["tc"])
+    wide = (130.0 * per_day * tu, 700.0 * per_day * tu)
+    assert [e.mid for e in jp.multi_transits(K20, *wide)] == \
+        [e.mid for e in jp.multi_transits(K20, *(v.to_value(u.d) for v in wide))]
     a_q = alpha * per_deg * au
+    a_d = float(a_q.to_value(u.deg))
     for k in range(3):
-        _same(K20.positions(t * per_day * tu, alpha=a_q, xp=np)[k], K20.positions(t, alpha=alpha, xp=np)[k])
-    _same(jp.sweep(K20, t * per_day * tu, np.array([alpha]) * per_deg * au), jp.sweep(K20, t, np.array([alpha])))
+        _same(K20.positions(tq, alpha=a_q, xp=np)[k], K20.positions(td, alpha=a_d, xp=np)[k])
+    _same(jp.sweep(K20, tq, np.array([alpha]) * per_deg * au), jp.sweep(K20, td, np.array([a_d])))
     x = np.array([0.1, 0.3])
     _same(jp.occultation_flux(STAR, x * u.dimensionless_unscaled, x * 0.0, 0.1 * u.one),
           jp.occultation_flux(STAR, x, x * 0.0, 0.1))
