@@ -121,6 +121,9 @@ def plain_values(x, what: str, unit=None):
     returned for the caller to judge."""
     import astropy.units as u
 
+    if any(c.__name__ in ("Time", "TimeDelta") for c in type(x).__mro__):
+        raise ValueError(f"{what} must be numbers{'' if unit is None else f' in {unit}'}, got an astropy "
+                         f"{type(x).__name__} ({x!r})")
     mask = None
     if hasattr(x, "unmasked") and hasattr(x, "mask"):  # astropy Masked / MaskedQuantity
         mask, x = np.asarray(x.mask, bool), x.unmasked

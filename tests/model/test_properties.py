@@ -279,13 +279,18 @@ def test_every_entry_point_converts_units(time_unit, angle_unit, dt, alpha):
     cfg = config_from_arguments(K20, ref, grid * per_deg * au, ("same",), 0.05 * per_day * tu, "none",
                                 0.3 * per_day * tu, "none", None, 60)
     _same(cfg.alpha, grid), _same(cfg.margin, 0.05), _same(cfg.baseline, 0.3)
+    # plain ints and lists are days and degrees as they stand
+    whole = [134, 135]
+    _same(jp.simulate(K20, whole, noise=1e-4, seed=1).flux, jp.simulate(K20, np.array(whole, float), noise=1e-4,
+                                                                          seed=1).flux)
+    _same(K20.positions(whole, alpha=90, xp=np)[0], K20.positions(np.array(whole, float), alpha=90.0, xp=np)[0])
 
 
 @settings(max_examples=_n(25), deadline=None, derandomize=SCALE == 1)
 @given(st.sampled_from(["simulate.t", "simulate.noise", "LightCurve.flux_err", "transit_times.t_start",
                         "multi_transits.t_end", "occultation_flux.x", "occultation_flux.r", "Moon.period",
                         "Moon.inc", "Star.u1", "sweep.alpha", "scan.alpha", "measure_transit_times.search"]),
-       st.sampled_from(["3.7", True, "length", "time", "angle"]))
+       st.sampled_from(["3.7", True, "length", "time", "angle", "abstime"]))
 def test_wrong_types_and_units_are_refused_by_name(where, value):
     """A string, a bool or a Quantity of the wrong kind at any entry point is
     a ValueError naming the parameter (a string coefficient or True once
@@ -299,6 +304,10 @@ def test_wrong_types_and_units_are_refused_by_name(where, value):
         if value == kind[name] or (value == "length" and kind[name] == "one" and entry == "LightCurve"):
             return  # the right kind converts (test above); a flux_err in metres: its own message below
         value = {"length": 3.0 * u.m, "time": 3.0 * u.h, "angle": 3.0 * u.deg}[value]
+    elif value == "abstime":  # an absolute astropy Time: no day count of its own, refused everywhere
+        from astropy.time import Time
+
+        value = Time(2455000.0, format="jd")
     t = np.array([134.4, 134.5])
     lc = jp.LightCurve(t, np.ones(2), np.full(2, 1e-4))
     calls = {
