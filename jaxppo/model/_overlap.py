@@ -15,7 +15,7 @@ import numpy as np
 
 from ._system import System, case_signs, require_keplerian
 
-__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "contact_frames", "ppo_table", "may_touch",
+__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]
 
 
@@ -70,6 +70,22 @@ def case_xy(system: System, x0, y0, signs):
     x = np.where(mirror, x0 * c2 - y0 * s2, x0)
     y = np.where(mirror, -x0 * s2 - y0 * c2, y0)
     return x, y
+
+
+def quiet_model(system: System, t, case) -> np.ndarray:
+    """The light curve of a tilt at which the tilted planet touches no other
+    disk, in hemisphere case ``case``: the untilted planets' union (their
+    own overlaps exact) and the tilted planet's one-disk deficit; what a
+    scan's quiet alpha computes, also where the grid has none (the sum of
+    one-disk terms left out overlaps of two untilted planets)."""
+    from ._flux import occultation_flux
+
+    x, y, r = system.positions(np.asarray(t, float), 0.0, case, xp=np)
+    i = system.tilted
+    r_untilted = np.array(r)
+    r_untilted[..., i] = 0.0
+    own = np.asarray(occultation_flux(system.star, x[..., i:i + 1], y[..., i:i + 1], r[..., i:i + 1]))
+    return np.asarray(occultation_flux(system.star, x, y, r_untilted)) - (1.0 - own)
 
 
 def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_only: bool = False,

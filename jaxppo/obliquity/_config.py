@@ -522,6 +522,14 @@ def require_scan_system(system: System, what: str = "the obliquity scan") -> Non
     and masks come from Keplerian ephemerides); fits and sampling take
     every system."""
     require_keplerian(system, what)
+    nodes = {float(pl.lnode) for i, pl in enumerate(system.planets) if i != system.tilted}
+    if len(nodes) > 1:
+        # the hemisphere cases list the tilted planet in one hemisphere only:
+        # its mirror image is a tilt of the listed cases when every untilted
+        # planet shares one node (a turn of the whole sky then undoes it),
+        # not otherwise (half the geometries would be missing, 5e-3 off)
+        raise ValueError(f"{what} needs the untilted planets on one node (lnode), got "
+                         f"{sorted(nodes)} deg: turn them to a common node, or tilt another planet")
     if len(system.planets) < 2:
         raise ValueError(f"{what} needs at least two planets (one is tilted against the others), got "
                          f"{len(system.planets)}; jaxppo fit / sample (without --windows) and jp.fit / jp.sample "

@@ -51,12 +51,12 @@ from ._keywords import Default, refuse_with_config, resolved
 from ._marginal_result import MarginalResult, analyse_draws, marginal_csv, plot_marginal
 from ._progress import atomic_write, read_progress, record_line
 from ._scan import run_scan
-from ._windows import windows_and_events
+from ._windows import windows_and_events, windows_data
 from ..inference._importance import MIN_IMPORTANCE_ESS
 from ..inference._params import check_ttv_free
 from ..inference._posterior import PLANET_PARAMS, check_density, default_density, nuts_draws
 from ..model._lightcurve import LightCurve
-from ..model._overlap import contact_frames, on_star, ppo_table, untilted_geometry
+from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
 from ..model._system import System, case_signs
 
@@ -185,8 +185,10 @@ def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
     if jobs is None:
         return chi2, chi2_null, ppo
     jd, jc, ja, jt, xt_j, yt_j = jobs
-    X = x0[jd, jt].copy()
-    Y = y0[jd, jt] * np.stack(signs_of)[jc]  # untilted planets mirrored per case
+    # untilted planets mirrored per case as System.positions mirrors them
+    # (before their node: case_xy); multiplying y by the sign misplaced a
+    # planet with a nonzero lnode
+    X, Y = (np.array(v) for v in case_xy(systems[0], x0[jd, jt], y0[jd, jt], np.stack(signs_of)[jc]))
     X[:, tilted] = xt_j
     Y[:, tilted] = yt_j
     vals = np.asarray(overlap_flux(star, X, Y, r0[jd, jt], _ORDER, _KCHUNK))
@@ -209,16 +211,21 @@ def marginal_chi2(systems, tm, nsub, y, sig, alpha, cases):
     return chi2, chi2_null, ppo
 
 
-def _chi2_0(chi2, chi2_null, ppo):
+def _chi2_0(chi2, ppo, systems, tm, nsub, y, sig, cases):
     """Ground level per draw and case as the scan defines it: the median of
     chi^2 over the alphas with no PPO in any frame; with none, the chi^2 of
-    the no-PPO model."""
+    the model of such an alpha (``quiet_model``: the untilted planets'
+    overlaps kept; the sum of one-disk terms left them out)."""
     n_d, n_c, _ = chi2.shape
     out = np.empty((n_d, n_c))
     for d in range(n_d):
         for c in range(n_c):
             quiet = ~ppo[d, c]
-            out[d, c] = np.median(chi2[d, c, quiet]) if quiet.any() else chi2_null[d]
+            if quiet.any():
+                out[d, c] = np.median(chi2[d, c, quiet])
+            else:
+                model = quiet_model(systems[d], tm, cases[c]).reshape(-1, nsub).mean(-1)
+                out[d, c] = float(np.sum(((y - model) / sig) ** 2))
     return out
 
 
@@ -557,7 +564,7 @@ def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, ti
         for i in range(0, len(todo), o.chunk):
             idx = todo[i:i + o.chunk]
             chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
-            c0 = _chi2_0(chi2, chi2_null, ppo)
+            c0 = _chi2_0(chi2, ppo, [systems[d] for d in idx], tm, nsub, y, sig, cfg.cases)
             if a_ref is not None:
                 c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
                                       (sampler["case_ref"],))[0][:, 0, 0]
@@ -606,8 +613,7 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
         warnings.warn(note, stacklevel=3)
 
     windows, _ = windows_and_events(cfg)
-    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
-                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
+    data = windows_data(windows, cfg.lightcurve.exposure)
     tm, nsub = data.supersampled_times()
     y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
     timing = {}

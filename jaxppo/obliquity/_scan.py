@@ -38,9 +38,9 @@ from ._progress import atomic_write, read_progress, record_line
 from ._stats import geometry_probabilities
 from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
-from ._windows import ScanWindow, windows_and_events
+from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
-from ..model._overlap import ppo_table
+from ..model._overlap import ppo_table, quiet_model
 from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
@@ -398,6 +398,12 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
     bar.close()
 
 
+def _quiet_chi2(system, tm, nsub: int, y, sig, case) -> float:
+    """chi^2 of ``quiet_model`` (exposure-averaged) on the data y, sig."""
+    model = quiet_model(system, tm, case).reshape(-1, nsub).mean(-1)
+    return float(np.sum(((y - model) / sig) ** 2))
+
+
 def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float):
     """Per case: chi^2_0, Delta chi^2, the posterior, the geometry
     probabilities and the PPO transits. Returns (csv rows, table rows,
@@ -414,9 +420,11 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
         ppo = ppo_table(sysm, times_per_event, cfg.alpha, case)
         quiet = ~ppo.any(1)
         # Ground level: the median over alphas with no PPO in any frame; when
-        # the grid has none, the chi^2 of the no-PPO model itself (the sum of
-        # one-disk terms, which is what every quiet alpha computes).
-        chi2_0 = float(np.median(chi2[quiet])) if quiet.any() else chi2_null
+        # the grid has none, the chi^2 of the model a quiet alpha computes:
+        # the tilted planet's own transit beside the untilted planets with
+        # their overlaps in this case (the sum of one-disk terms left out
+        # overlaps of two untilted planets: 2e6 off for such a triple)
+        chi2_0 = float(np.median(chi2[quiet])) if quiet.any() else _quiet_chi2(sysm, tm, nsub, y, sig, case)
         dchi2 = chi2 - chi2_0
         w = np.exp(-0.5 * (dchi2 - dchi2.min()))
         post = w / (np.sum(w) * step)
@@ -458,8 +466,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
             return stored
 
     windows, skipped = windows_and_events(cfg)
-    data = LightCurve(np.concatenate([w.time for w in windows]), np.concatenate([w.flux for w in windows]),
-                      np.concatenate([w.flux_err for w in windows]), cfg.lightcurve.exposure)
+    data = windows_data(windows, cfg.lightcurve.exposure)
     _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress)
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, table, summary_cases = _analyse(cfg, done, windows, data, step)

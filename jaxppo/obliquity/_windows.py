@@ -14,7 +14,7 @@ from ..model._lightcurve import LightCurve
 from ..model._overlap import in_transit_mask
 from ..model._transits import MultiTransit, multi_transits
 
-__all__ = ["ScanWindow", "scan_windows", "windows_and_events", "scan_events", "robust_sigma", "windows_lightcurve"]
+__all__ = ["ScanWindow", "scan_windows", "windows_and_events", "scan_events", "robust_sigma", "windows_lightcurve", "windows_data"]
 
 # Extra width [d] (15 min) of each transit window in the out-of-transit mask:
 # room for ephemeris errors, so no ingress point bends the baseline.
@@ -254,9 +254,18 @@ def windows_lightcurve(cfg: ScanConfig) -> LightCurve:
     windows of neighbouring events kept once): the data as the scan sees
     them, e.g. for fitting real data with stellar variability."""
     wins = scan_windows(cfg)
-    t = np.concatenate([w.time for w in wins])
-    f = np.concatenate([w.flux for w in wins])
-    e = np.concatenate([w.flux_err for w in wins])
+    return windows_data(wins, cfg.lightcurve.exposure,
+                        report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}"})
+
+
+def windows_data(windows, exposure, report=None) -> LightCurve:
+    """The points of ``windows`` as one ``LightCurve``, a point shared by
+    the windows of neighbouring events (a chain of events through one
+    transit of the tilted planet) kept once, as its first window has it:
+    the chi^2 counts each point once (the scan crashed on the repeated
+    time stamps)."""
+    t = np.concatenate([w.time for w in windows])
+    f = np.concatenate([w.flux for w in windows])
+    e = np.concatenate([w.flux_err for w in windows])
     _, first = np.unique(t, return_index=True)
-    return LightCurve(t[first], f[first], e[first], exposure=cfg.lightcurve.exposure,
-                      report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}"})
+    return LightCurve(t[first], f[first], e[first], exposure=exposure, report=report or {})

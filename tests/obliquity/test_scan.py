@@ -669,3 +669,92 @@ def test_scan_result_is_frozen_and_dict_access_is_deprecated(tmp_path):
     with pytest.warns(DeprecationWarning):
         assert "table5" in res
     assert "figures" not in res.summary and "ppo_or_spot" not in res.summary  # the scan draws and judges nothing
+
+
+def _three(lnode_d=0.0):
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(5.0, 0.0, 12.0, 90.0, 0.1, name="b")
+    c = jp.Planet(7.0, 0.0, 14.0, 90.0, 0.15, name="c")
+    d = jp.Planet(8.0, 0.0, 16.0, 90.0, 0.1, name="d", lnode=lnode_d)
+    return jp.System(star, [b, c, d], tilted="c")
+
+
+def test_ground_level_keeps_the_overlap_of_two_untilted_planets(tmp_path):
+    """When every alpha has a PPO of the tilted planet, chi^2_0 fell back to
+    the sum of one-disk terms, leaving out the overlap of the untilted b and
+    d (4.165e6 instead of 2.096e6 here, every Delta chi^2 shifted): it is
+    now the chi^2 of b and d together (System.flux of [b, d]) beside c's own
+    transit."""
+    from jaxppo.obliquity._config import config_from_arguments
+
+    s = _three()
+    t = np.arange(-0.3, 0.3, 2.0 / 1440.0)
+    lc = jp.simulate(s, t, noise=1e-4, seed=3)
+    alpha = np.arange(0.0, 360.0, 30.0)
+    res = jp.scan(s, lc, alpha=alpha, cases=("same",), detrend="none")
+    assert res.summary["cases"]["same"]["alphas_without_ppo"] == 0
+    (w,) = jp.scan_windows(config_from_arguments(s, lc, alpha, ("same",), 0.05, "none", 0.3, "none", None, 60))
+    b, c, d = s.planets
+    bd = np.asarray(jp.System(s.star, [b, d]).flux(w.time))
+    c_alone = np.asarray(jp.System(s.star, [c]).flux(w.time))
+    want = float(np.sum(((w.flux - (bd + c_alone - 1.0)) / w.flux_err) ** 2))
+    assert abs(res.chi2_0["same"] - want) < 1e-9 * want, (res.chi2_0["same"], want)
+    # the marginal scan's ground level of a draw (its own copy of the rule had the same fault)
+    from jaxppo.obliquity._marginal import _chi2_0, marginal_chi2
+
+    chi2, _, ppo = marginal_chi2([s], w.time, 1, w.flux, w.flux_err, alpha, ("same",))
+    assert ppo.all()  # no quiet alpha: the fallback
+    assert abs(_chi2_0(chi2, ppo, [s], w.time, 1, w.flux, w.flux_err, ("same",))[0, 0] - want) < 1e-9 * want
+
+
+def test_marginal_chi2_mirrors_a_planet_with_a_node_as_system_flux_does():
+    """The marginal scan's chi^2 mirrored the untilted planet after its node
+    (y -> -y of the turned position) like the sweep did: case "opposite"
+    with lnode = 30 deg was another light curve than System.flux's."""
+    from jaxppo.obliquity._marginal import marginal_chi2
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    s = jp.System(star, [jp.Planet(3.0, 0.0, 10.0, 89.0, 0.1, name="b"),
+                         jp.Planet(10.0, 0.0, 20.0, 89.5, 0.1, name="c", lnode=30.0)], tilted="b")
+    t = np.linspace(-0.08, 0.08, 61)
+    alpha = np.arange(0.0, 360.0, 20.0)
+    y = np.asarray(s.flux(t, 150.0, case="opposite")) + 1e-4
+    sig = np.full(t.size, 1e-4)
+    chi2, _, _ = marginal_chi2([s], t, 1, y, sig, alpha, ("same", "opposite"))
+    for ci, case in enumerate(("same", "opposite")):
+        want = np.sum(((y - np.asarray(s.flux(t, alpha, case=case))) / sig) ** 2, axis=1)
+        np.testing.assert_allclose(chi2[0, ci], want, rtol=1e-9, err_msg=case)
+
+
+def test_scan_of_events_sharing_a_transit_counts_each_point_once(tmp_path):
+    """b + c, then c + d through one transit of the tilted c: the two
+    windows share points and the scan crashed ("repeated time stamps"); each
+    point now counts once, and the chi^2 is System.flux's on those points."""
+    from jaxppo.obliquity._config import config_from_arguments
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    s = jp.System(star, [jp.Planet(6.0, -0.25, 10.0, 89.5, 0.1, name="b"), jp.Planet(10.0, 0.0, 12.0, 90.5, 0.12, name="c"),
+                         jp.Planet(20.0, 0.25, 20.0, 89.7, 0.09, name="d", e=0.2, omega=45.0)], tilted="c")
+    t = np.arange(-1.0, 1.5, 2.0 / 1440.0)
+    lc = jp.simulate(s, t, noise=1e-4, alpha=200.0, seed=5)
+    alpha = np.arange(0.0, 360.0, 30.0)
+    res = jp.scan(s, lc, alpha=alpha, cases=("same",), detrend="none")
+    cfg = config_from_arguments(s, lc, alpha, ("same",), 0.05, "none", 0.3, "none", None, 60)
+    wins = jp.scan_windows(cfg)
+    times = np.concatenate([w.time for w in wins])
+    assert len(wins) == 2 and np.unique(times).size < times.size  # the windows share points
+    tt, first = np.unique(times, return_index=True)
+    ff, ee = np.concatenate([w.flux for w in wins])[first], np.concatenate([w.flux_err for w in wins])[first]
+    want = np.sum(((ff - np.asarray(s.flux(tt, alpha, case="same"))) / ee) ** 2, axis=1)
+    np.testing.assert_allclose(res.by_case()["same"]["chi2"], want, rtol=1e-10)
+
+
+def test_scan_refuses_untilted_planets_on_different_nodes():
+    """With untilted planets on different nodes, the mirror image of the
+    tilted planet is no tilt of the listed cases: the scan missed half the
+    geometries (light curves 5e-3 from any it computed); it refuses them."""
+    s = _three(lnode_d=30.0)
+    lc = jp.simulate(s, np.linspace(-0.2, 0.2, 50), noise=1e-4)
+    with pytest.raises(ValueError, match=r"untilted planets on one node \(lnode\), got \[0.0, 30.0\]"):
+        jp.scan(s, lc, alpha=np.arange(0.0, 360.0, 30.0))
+    jp.sweep(s, lc.time, [0.0, 90.0])  # the light curves themselves are fine
