@@ -414,8 +414,11 @@ class Planet(eqx.Module):
             moons = check_moons(radius, moons)
         self.moons = tuple(moons)
         # ---- transit times (TTVs): checked and stored apart from the orbit
-        if transit_times is not None:
+        if transit_times is not None and not isinstance(transit_times, (list, tuple, np.ndarray)):
+            # a Quantity or TimeDelta in days; lists and arrays are checked below, naming what is wrong
             transit_times = from_quantity("transit_times", transit_times, "d")
+        elif transit_times is not None and any(hasattr(v, "unit") or hasattr(v, "jd1") for v in transit_times):
+            transit_times = from_quantity("transit_times", list(transit_times), "d")
         self.transit_times, self.transit_epochs = check_transit_times(
             transit_times, transit_epochs, period, t0, self.name)
         # ---- end transit times

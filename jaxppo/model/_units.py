@@ -19,6 +19,10 @@ _WANT = {"deg": "an angle", "d": "a time", "": "dimensionless (a plain number; l
          "R_sun": "a length [R_sun]"}
 
 
+# parameters that are lengths in stellar radii (the others given as "" are pure numbers)
+_LENGTHS = {"a", "radius", "x", "y", "r"}
+
+
 def _is_time_class(value, name: str) -> bool:
     # astropy.time classes by name, so that plain inputs need no astropy import
     return any(c.__name__ == name for c in type(value).__mro__)
@@ -68,9 +72,10 @@ def from_quantity(name: str, value, unit: str):
     except u.UnitConversionError:
         pass
     if unit == "" and value.unit.physical_type == "length":
+        want = ("in stellar radii (a plain number or a dimensionless Quantity)" if name in _LENGTHS else
+                "dimensionless (a plain number or a dimensionless Quantity; lengths in stellar radii)")
         raise ValueError(
-            f"{name} must be dimensionless (a plain number or a dimensionless Quantity; lengths in stellar "
-            f"radii), got {value!r}: "
+            f"{name} must be {want}, got {value!r}: "
             f"a length is ambiguous without the star's radius; pass ({name} / R_star).decompose()"
         )
     raise ValueError(f"{name} must be {_WANT[unit]}, got the Quantity {value!r}")
