@@ -60,7 +60,8 @@ from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_
 from ..model._plan import one_disk_sum, overlap_flux
 from ..model._system import System, case_signs
 
-__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "quiet_alpha"]
+__all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "quiet_alpha", "density_prior",
+           "centre_epochs"]
 
 PROGRESS = "marginal_progress.jsonl"
 DRAWS = "marginal_draws.json"
@@ -247,7 +248,7 @@ def quiet_alpha(system: System, tm: np.ndarray, case) -> float:
     return float(grid[int(np.argmax(np.where(quiet, dist, -1)))])
 
 
-def _centre_epochs(system: System, t_mid: float) -> System:
+def centre_epochs(system: System, t_mid: float) -> System:
     """The same orbits with each planet's t0 moved by whole periods to the
     transit nearest t_mid [d]; listed transit epochs are renumbered with
     it (the listed times stay)."""
@@ -296,7 +297,7 @@ def _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains):
     return draws
 
 
-def _density_prior(system, sysm: System, free, given, stellar_density):
+def density_prior(system, sysm: System, free, given, stellar_density):
     """(density prior [mean, sd] [g/cm^3] or None, its source) of the
     sampler: only when NUTS samples a free a/R*."""
     density, density_source = None, None
@@ -473,7 +474,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         given = {n: np.asarray(samples[n], float).tolist() for n in snames}
     else:
         given = None
-    density, density_source = _density_prior(system, sysm, free, given, stellar_density)
+    density, density_source = density_prior(system, sysm, free, given, stellar_density)
     settings = {"draws": draws, "free": list(free), "num_warmup": int(num_warmup), "thin": int(thin),
                 "seed": int(seed), "chains": int(chains), "density": density, "samples_sha256": None if given is None else
                 hashlib.sha256(json.dumps(given, sort_keys=True).encode()).hexdigest()[:20]}
@@ -517,7 +518,7 @@ def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, o, timing: d
         # same orbit, but t0 and the period are then nearly uncorrelated
         # (a config's t0 lies hundreds of periods before most events, where
         # the two are correlated to |r| ~ 1 and NUTS needs deep trees).
-        centred = _centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
+        centred = centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
         t0 = time.perf_counter()
         samples, sampler = nuts_draws(centred, data, o.free, o.density, a_ref, cfg.cases[0], o.draws, o.num_warmup,
                                       o.thin, o.seed, o.chains, o.progress)

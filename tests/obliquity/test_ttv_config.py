@@ -60,13 +60,13 @@ def test_marginal_scan_keeps_transit_times_consistent():
     listed epochs are renumbered with it (same orbit), the default free
     parameters leave out the t0 of a planet with transit times, and draws
     of that t0 are refused."""
-    from jaxppo.obliquity._marginal import _centre_epochs, _check_samples, default_free
+    from jaxppo.obliquity._marginal import centre_epochs, _check_samples, default_free
 
     b = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.5, radius=0.1, name="b",
                   transit_times=[0.01, 9.985, 20.02, 30.0, 40.03], transit_epochs=[0, 1, 2, 3, 4])
     c = jp.Planet(period=13.0, t0=-6.0, a=25.0, inc=89.6, radius=0.08, name="c")
     system = jp.System(jp.Star("quadratic", [0.4, 0.2]), [b, c])
-    centred = _centre_epochs(system, 31.0)
+    centred = centre_epochs(system, 31.0)
     cb = centred.planets[0]
     assert float(cb.t0) == 30.0 and cb.transit_epochs == (-3, -2, -1, 0, 1)
     t = np.linspace(-2.0, 42.0, 4001)
