@@ -384,20 +384,25 @@ def joint_alpha(system: System, data: LightCurve, free, density, case: str, wind
 
 
 
-def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: float = 30.0, max_steps: int = 200):
+def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: float = 30.0, chunk: int = 16,
+                rounds: int = 4):
     """The modes of the joint posterior of (transit parameters, alpha) in
     the coordinates (w, alpha) of the joint sampler (u = u_mode + L w, alpha
     [deg]), for ``post``'s case, with their Laplace covariances.
 
     The profile of the log posterior over alpha at w = 0 (every 0.5 deg)
-    shows where a PPO can change the likelihood; Levenberg-Marquardt
-    (optimistix, batched over the starts) then moves (w, alpha) jointly from
-    a start every ``step`` deg over those tilts (widened by 10 deg) and from
-    each local maximum of the profile: the PPO ties alpha to the planets'
-    t0, so the mode lies along a ridge the profile at fixed w does not see
-    (on a high-SNR injection 26 whitened widths from the no-PPO mode).
-    Solutions within 0.3 deg and 0.5 in log density are one mode; modes more
-    than ``keep`` below the best are dropped.
+    shows the tilts where a PPO changes the likelihood; Levenberg-Marquardt
+    (optimistix, batched over ``chunk`` starts at a time, 40 steps) moves (w,
+    alpha) jointly from a start every ``step`` deg over those tilts (widened
+    by 4 deg) and from each local maximum of the profile 1 above its quiet
+    level: the PPO ties alpha to the planets' t0, so a mode lies along a
+    ridge the profile at fixed w does not see (on a high-SNR injection 26
+    whitened widths from the no-PPO mode). The best ``chunk`` solutions at
+    distinct tilts go on for up to ``rounds`` more rounds of 40 steps.
+    Solutions where the PPO does not change the likelihood are the no-PPO
+    mode (the plateau) and are dropped; solutions within 0.3 deg and 0.5 in
+    log density are one mode; modes more than ``keep`` below the best are
+    dropped.
 
     Returns (modes: [(log Laplace mass, mean [dim + 1], chol [dim + 1,
     dim + 1])] (mean and chol in (w, alpha [deg])), plateau: log Laplace mass
@@ -411,64 +416,85 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     grid = np.arange(0.0, 360.0, 0.5)
     prof = np.asarray(jax.jit(jax.vmap(lambda a: post.log_density(uj, a)))(jnp.asarray(grid)), float)
     quiet = float(np.median(prof))
+    a_quiet = float(grid[np.argmin(np.abs(prof - quiet))])
     loud = np.abs(prof - quiet) > 1e-6
-    # tilts within 10 deg of a loud one (on the circle)
     near = np.zeros(grid.size, bool)
     for k in np.nonzero(loud)[0]:
-        near[(k + np.arange(-20, 21)) % grid.size] = True
+        near[(k + np.arange(-8, 9)) % grid.size] = True
     starts = [a for a in np.arange(0.0, 360.0, step) if near[int(round(a / 0.5)) % grid.size]]
-    peaks = loud & (prof >= np.roll(prof, 1)) & (prof >= np.roll(prof, -1)) & (prof > quiet)
+    peaks = (prof >= np.roll(prof, 1)) & (prof >= np.roll(prof, -1)) & (prof > quiet + 1.0)
     starts = np.array(sorted(set(starts) | set(grid[peaks].tolist())), float)
     info = {"profile_quiet": quiet, "starts": int(starts.size)}
-    scale = np.ones(dim + 1)
-    scale[-1] = 10.0  # alpha in units of 10 deg, so LM's identity damping treats w and alpha alike
+    a_unit = 10.0  # alpha in units of 10 deg, so LM's identity damping treats w and alpha alike
 
     def res(z, _):
-        return post.residuals(uj + Lj @ z[:-1], scale[-1] * z[-1])
+        return post.residuals(uj + Lj @ z[:-1], a_unit * z[-1])
 
-    def solve(a0):
-        z0 = jnp.concatenate([jnp.zeros(dim), jnp.array([a0 / scale[-1]])])
-        sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), z0, max_steps=max_steps,
+    def solve(z0):
+        sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), z0, max_steps=40,
                                  throw=False)
         return sol.value
 
+    solve_b = jax.jit(jax.vmap(solve))
+    logd_b = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
+
+    def run(z0):
+        """40 LM steps from each row of z0, in chunks; (z, log density)."""
+        n = z0.shape[0]
+        pad = -(-n // chunk) * chunk
+        zz = np.concatenate([z0, np.repeat(z0[-1:], pad - n, axis=0)])
+        z = np.concatenate([np.asarray(solve_b(jnp.asarray(zz[i:i + chunk]))) for i in range(0, pad, chunk)])[:n]
+        z[:, -1] = np.mod(z[:, -1] * a_unit, 360.0) / a_unit
+        ld = np.asarray(logd_b(jnp.asarray(z), jnp.asarray(a_unit * z[:, -1])), float)
+        return z, np.where(np.isfinite(ld), ld, -np.inf)
+
     modes, plateau_frac = [], float(np.mean(~loud))
     if starts.size:
-        z = np.array(jax.jit(jax.vmap(solve))(jnp.asarray(starts)), float)
-        z[:, -1] = np.mod(z[:, -1] * scale[-1], 360.0) / scale[-1]
-        logd = np.asarray(jax.jit(jax.vmap(lambda v: post.log_density(uj + Lj @ v[:-1], scale[-1] * v[-1])))(
-            jnp.asarray(z)), float)
-        ok = np.isfinite(logd)
+        z, logd = run(np.column_stack([np.zeros((starts.size, dim)), starts / a_unit]))
+        # the best distinct tilts go on
+        for _ in range(rounds):
+            order = np.argsort(logd)[::-1]
+            best = []
+            for k in order:
+                if len(best) == chunk or not np.isfinite(logd[k]):
+                    break
+                if all(abs((z[k, -1] - z[j, -1]) * a_unit + 180.0) % 360.0 - 180.0 > 1.0 for j in best):
+                    best.append(k)
+            z2, ld2 = run(z[best])
+            moved = np.max(np.abs(ld2 - logd[best]))
+            z[best], logd[best] = z2, ld2
+            if moved < 0.01:
+                break
+        # drop the plateau: where the PPO leaves the likelihood as at a quiet tilt
+        at_quiet = np.asarray(logd_b(jnp.asarray(z), jnp.full(z.shape[0], a_quiet)), float)
+        ok = np.isfinite(logd) & (np.abs(logd - at_quiet) > 1e-6)
         z, logd = z[ok], logd[ok]
         order = np.argsort(logd)[::-1]
         kept = []
         for k in order:
             if logd[k] < logd[order[0]] - keep:
                 break
-            a = scale[-1] * z[k, -1]
-            if not near[int(round(a / 0.5)) % grid.size]:
-                continue  # a mode on the plateau is the no-PPO mode
-            if any(abs((a - scale[-1] * z[j, -1] + 180.0) % 360.0 - 180.0) < 0.3 and abs(logd[k] - logd[j]) < 0.5
+            if any(abs((z[k, -1] - z[j, -1]) * a_unit + 180.0) % 360.0 - 180.0 < 0.3 and abs(logd[k] - logd[j]) < 0.5
                    for j in kept):
                 continue
             kept.append(k)
         jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
+        scale = np.r_[np.ones(dim), a_unit]
         for k in kept:
             J = np.asarray(jac(jnp.asarray(z[k])), float)
             # prior curvature: a unit width in w, 30 deg in alpha
-            info_z = J.T @ J + np.diag(np.r_[np.full(dim, 1e-2), (scale[-1] / 30.0) ** 2])
+            info_z = J.T @ J + np.diag(np.r_[np.full(dim, 1e-2), (a_unit / 30.0) ** 2])
             cov = np.diag(scale) @ np.linalg.inv(info_z) @ np.diag(scale)
             cov = 0.5 * (cov + cov.T)
             try:
                 chol = np.linalg.cholesky(cov)
             except np.linalg.LinAlgError:
                 continue
-            mean = z[k] * scale
             log_mass = float(logd[k]) + float(np.sum(np.log(np.diag(chol)))) + 0.5 * (dim + 1) * np.log(2 * np.pi)
-            modes.append((log_mass, mean, chol))
+            modes.append((log_mass, z[k] * scale, chol))
     # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
-    plateau = (float(post.log_density(uj, float(grid[np.argmin(np.abs(prof - quiet))]))) + 0.5 * dim * np.log(2 * np.pi)
+    plateau = (float(post.log_density(uj, a_quiet)) + 0.5 * dim * np.log(2 * np.pi)
                + np.log(360.0 * max(plateau_frac, 1e-3)))
-    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": m[0]} for m in modes], "plateau_log_mass": plateau,
-                 "seconds": time.perf_counter() - t_begin})
+    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0])} for m in modes],
+                 "plateau_log_mass": float(plateau), "seconds": time.perf_counter() - t_begin})
     return modes, plateau, info
