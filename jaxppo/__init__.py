@@ -61,6 +61,7 @@ from .obliquity._scan import scan as scan
 from .obliquity._windows import scan_windows as scan_windows
 from .obliquity._marginal import MarginalResult as MarginalResult
 from .obliquity._marginal import marginal_scan as marginal_scan
+from .obliquity._joint import joint_scan as joint_scan
 from . import activity as activity
 from .inference._times import measure_transit_times as measure_transit_times
 from .inference._times import linear_ephemeris as linear_ephemeris
@@ -109,6 +110,7 @@ __all__ = [
     "scan_windows",
     "MarginalResult",
     "marginal_scan",
+    "joint_scan",
     "activity",
     "measure_transit_times",
     "linear_ephemeris",

@@ -157,8 +157,19 @@ def cmd_scan(args) -> int:
         print("\n".join(m.summary_lines()))
         from jaxppo.obliquity._scan import with_summary
 
-        with_summary(out, result, marginal=m.summary)  # marginal.json's layout, beside the fixed scan's
+        result = with_summary(out, result, marginal=m.summary)  # marginal.json's layout, beside the fixed scan's
         print(f"wrote {out / 'marginal.csv'}, marginal.json and marginal.png (and the marginal block of summary.json)")
+    if args.joint:
+        from jaxppo.obliquity._joint import joint_lines, joint_scan
+        from jaxppo.obliquity._scan import with_summary
+
+        j = joint_scan(cfg, particles=args.joint, out=out, free=cfg.fit_free, restart=args.restart,
+                       progress=not args.quiet)
+        print("\n".join(joint_lines(j)))
+        keep = {**j, "cases": {c: {k: v for k, v in d.items() if k not in ("particles", "posterior")}
+                               for c, d in j["cases"].items()}}
+        with_summary(out, result, joint=keep)  # joint.json's result without the particles
+        print(f"wrote {out / 'joint.csv'}, joint.json (and the joint block of summary.json)")
     return 0
 
 
@@ -414,6 +425,17 @@ def _draws(text: str) -> int:
     return n
 
 
+def _particles(text: str) -> int:
+    """argparse type of --joint: 0 (off) or an integer >= 16."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be 0 or a whole number of particles >= 16, got {text!r}") from None
+    if n != 0 and n < 16:
+        raise argparse.ArgumentTypeError(f"must be 0 or a whole number of particles >= 16, got {text!r}")
+    return n
+
+
 def _add_scan(sub) -> None:
     """The ``scan`` subcommand."""
     p = sub.add_parser("scan", help="orbital obliquity scan: chi^2(alpha), posterior, geometry probabilities, figures",
@@ -433,6 +455,11 @@ def _add_scan(sub) -> None:
                    help="also run the scan marginalised over N NUTS draws of the transit parameters "
                    "([fit] free; docs/marginal.md), writing marginal.csv/.json/.png; 0: off "
                    "(default: the config's [scan] marginalize, usually 0)")
+    p.add_argument("--joint", type=_particles, default=0, metavar="N",
+                   help="also sample alpha jointly with the transit parameters ([fit] free) by tempered SMC with N "
+                   "particles per case and seed (two seeds; docs/marginal.md, 'The joint sampler'): geometry "
+                   "probabilities with errors and the cases' evidences, in joint.csv/.json and the joint block of "
+                   "summary.json; 0: off (default)")
     p.add_argument("--restart", action="store_true",
                    help="discard earlier results in --out instead of resuming (default: resume)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (default: show it)")

@@ -1,43 +1,39 @@
 """The obliquity posterior sampled jointly with the transit parameters:
 per hemisphere case, adaptive tempered SMC over (transit parameters, alpha)
-(:func:`jaxppo.inference._smc.tempered_smc`), run with two seeds; each
-geometry's probability is its posterior mass, with an error from the
-particles' ESS and the spread over the seeds; Bayes factors between cases
-from the evidences. docs/marginal.md, "Joint sampling"."""
+(:func:`jaxppo.inference._smc.tempered_smc`) from a reference built on the
+joint posterior's modes (:func:`jaxppo.inference._posterior.joint_modes`),
+run once per seed; each geometry's probability is its posterior mass, with
+an error from the particles' ESS and the spread over the seeds; Bayes
+factors between cases from the evidences. docs/marginal.md, "The joint
+sampler"."""
 
 from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..inference._smc import joint_case_smc
-from ..model._lightcurve import LightCurve
 from ._config import ScanConfig
-from ._marginal import centre_epochs, default_free, density_prior, quiet_alpha
+from ._keywords import Default
+from ._marginal import _config, centre_epochs, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
 from ._stats import geometry_names, jeffreys
-from ._windows import windows_and_events
+from ._windows import windows_and_events, windows_data
 
-__all__ = ["joint_scan", "prograde"]
+__all__ = ["joint_scan", "prograde", "joint_lines"]
+
+JOINT = "joint.json"
+JOINT_CSV = "joint.csv"
 
 
 def prograde(alpha) -> np.ndarray:
     """The paper's prograde range: alpha in [0, 90] or (270, 360) deg."""
     a = np.mod(np.asarray(alpha, float), 360.0)
     return (a <= 90.0) | (a > 270.0)
-
-
-def _data(cfg: ScanConfig) -> LightCurve:
-    windows, _ = windows_and_events(cfg)
-    if not windows:
-        raise ValueError(f"{cfg.source}: no multi-transit of the tilted planet with data: nothing to sample")
-    t = np.concatenate([w.time for w in windows])
-    _, first = np.unique(t, return_index=True)
-    return LightCurve(t[first], np.concatenate([w.flux for w in windows])[first],
-                      np.concatenate([w.flux_err for w in windows])[first], cfg.lightcurve.exposure)
 
 
 def _case_summary(case: str, runs: list[dict]) -> dict:
@@ -47,77 +43,162 @@ def _case_summary(case: str, runs: list[dict]) -> dict:
     pro = np.array([float(np.sum(r["weights"][prograde(r["alpha"])])) for r in runs])
     ess = np.array([r["ess"] for r in runs])
     p = float(pro.mean())
-    err = float(np.sqrt(np.mean(p * (1 - p) / ess) / len(runs) + (pro.var(ddof=1) if len(runs) > 1 else 0.0)))
+    # binomial error of each seed's mass from its ESS, and the seeds' spread
+    err = float(np.sqrt(np.mean(np.maximum(p * (1 - p), 0.25 / ess) / ess) / len(runs)
+                        + (pro.var(ddof=1) / len(runs) if len(runs) > 1 else 0.0)))
     a = np.concatenate([r["alpha"] for r in runs])
     wts = np.concatenate([r["weights"] for r in runs]) / len(runs)
     hist, edges = np.histogram(a, bins=360, range=(0.0, 360.0), weights=wts)
     peak = float(0.5 * (edges[np.argmax(hist)] + edges[np.argmax(hist) + 1]))
-    # a 68 % interval about the peak, on the circle
+    # the shortest arc about the peak holding 68 % of the mass
     d = (a - peak + 180.0) % 360.0 - 180.0
     order = np.argsort(np.abs(d))
     inside = order[: int(np.searchsorted(np.cumsum(wts[order]), 0.6827)) + 1]
     log_z = np.array([r["log_z"] for r in runs])
-    k = p / (1 - p) if p < 1 else np.inf
+    k = p / (1 - p) if 0 < p < 1 else np.inf
+    rated = np.isfinite(k)
     return {"geometries": {names[0]: {"probability": p, "error": err},
                            names[1]: {"probability": 1 - p, "error": err}},
-            "bayes_factor": float(k if k >= 1 else 1 / k) if np.isfinite(k) and k > 0 else None,
             "favoured": names[0] if p >= 0.5 else names[1],
-            "rating": jeffreys(k if k >= 1 else 1 / k) if np.isfinite(k) and k > 0 else "decisive",
+            "bayes_factor": float(max(k, 1 / k)) if rated else None,
+            "jeffreys": jeffreys(max(k, 1 / k)) if rated else "decisive (every particle in one geometry)",
             "alpha_peak": peak, "alpha_68": [float(peak + d[inside].min()), float(peak + d[inside].max())],
-            "log_z": float(log_z.mean()), "log_z_error": float(log_z.std(ddof=1) / np.sqrt(2)) if len(runs) > 1
-            else None, "ess": ess.tolist(), "steps": [r["steps"] for r in runs], "calls": [r["calls"] for r in runs],
-            "seconds": [r["seconds"] for r in runs], "max_log_gamma": [r.get("max_log_gamma") for r in runs],
-            "log_z_per_seed": log_z.tolist(), "prograde_per_seed": pro.tolist()}
+            "log_z": float(log_z.mean()),
+            "log_z_error": float(log_z.std(ddof=1) / np.sqrt(len(runs))) if len(runs) > 1 else None,
+            "ess": ess.tolist(), "steps": [r["steps"] for r in runs], "calls": [r["calls"] for r in runs],
+            "seconds": [r["seconds"] for r in runs], "log_z_per_seed": log_z.tolist(),
+            "prograde_per_seed": pro.tolist(), "modes": runs[0].get("modes"),
+            "posterior": np.histogram(a, bins=360, range=(0.0, 360.0), weights=wts)[0].tolist(),
+            "particles": {"alpha": a.tolist(), "weight": wts.tolist()}}
 
 
-def _guides(cfg: ScanConfig) -> dict:
-    """Per case, -Delta chi^2 / 2 of the fixed-parameter scan on 360
-    one-degree bins (circular linear interpolation of the config's grid):
-    where the joint sampler's independent alpha draws look first."""
-    import tempfile
-
-    from ._scan import run_scan
-
-    with tempfile.TemporaryDirectory(prefix="jaxppo_joint_") as tmp:
-        res = run_scan(cfg, tmp, progress=False)
-    out = {}
-    centres = np.arange(360) + 0.5
-    for case in cfg.cases:
-        rows = res.table[res.table["case"] == case]
-        a, d = np.asarray(rows["alpha"], float), np.asarray(rows["delta_chi2"], float)
-        out[case] = -0.5 * np.interp(centres, a, d, period=360.0)
-    return out
-
-
-def joint_scan(cfg: ScanConfig, *, particles: int = 256, seeds=(0, 1), free=None, stellar_density=None,
-               out=None, progress: bool = True, cess: float = 0.5, n_moves: int = 6) -> dict:
-    """The joint (alpha, transit parameters) posterior of each case of the
-    config, by tempered SMC with ``particles`` particles, once per seed.
-
-    Returns (and with ``out``, writes ``joint.json`` there, each case and
-    seed as it finishes; a rerun with the same settings resumes) {"cases":
-    {case: {"geometries": {name: {"probability", "error"}}, "favoured",
-    "bayes_factor", "rating", "alpha_peak", "alpha_68", "log_z",
-    "log_z_error", "ess", ...}}, "case_bayes_factors": {"a/b": Z_a / Z_b},
-    "method", "free", "seconds"}."""
-    if int(particles) != particles or particles < 16:
+def _check(particles, seeds, cess, n_moves):
+    if isinstance(particles, bool) or int(particles) != particles or particles < 16:
         raise ValueError(f"particles must be an integer >= 16, got {particles!r}")
-    seeds = [int(s) for s in seeds]
+    try:
+        seeds = [int(s) for s in seeds]
+    except (TypeError, ValueError):
+        raise ValueError(f"seeds must be a sequence of distinct integers, got {seeds!r}") from None
     if not seeds or len(set(seeds)) != len(seeds):
-        raise ValueError(f"seeds must be distinct integers, got {seeds!r}")
+        raise ValueError(f"seeds must be a sequence of distinct integers, got {seeds!r}")
+    if not 0.0 < cess < 1.0:
+        raise ValueError(f"cess must be in (0, 1), got {cess!r}")
+    if isinstance(n_moves, bool) or int(n_moves) != n_moves or n_moves < 1:
+        raise ValueError(f"n_moves must be an integer >= 1, got {n_moves!r}")
+    return int(particles), seeds
+
+
+def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), out=None, free=None,
+               stellar_density=None, restart: bool = False, progress: bool = True, cess: float = 0.5,
+               n_moves: int = 4, alpha=Default(np.arange(0.0, 360.0, 1.0)), cases=Default(("same", "opposite")),
+               margin: float = Default(0.05), detrend=Default(2), baseline: float = Default(0.3),
+               clip=Default(5.0), multi_transits=Default(None)) -> dict:
+    """Sample the tilt alpha jointly with the transit parameters, per case.
+
+    The obliquity posterior p(alpha, theta | D) of each hemisphere case by
+    adaptive tempered sequential Monte Carlo with ``particles`` particles,
+    once per seed, with the model at the sampled alpha (the exact overlap
+    integral wherever two disks can meet). It is what the marginal scan's
+    importance average estimates, without resting on the few no-PPO draws
+    that happen to fall where the PPO signal is: the particles start from
+    the posterior's own modes (found by joint Levenberg-Marquardt fits of
+    alpha and theta) and the no-PPO plateau, and move by Metropolis kernels
+    in (theta, alpha). Each geometry's probability is its posterior mass
+    within the case, with an error (binomial from the particles' ESS and
+    the spread over the seeds); each case has its evidence log Z (with the
+    seeds' spread), and the Bayes factors between cases are their ratios.
+    Transit parameters and priors as ``jaxppo.marginal_scan`` (t0, P, p,
+    b / (1 + p) per planet; every free a/R* tied to one stellar density).
+
+    Parameters
+    ----------
+    system : ScanConfig or System
+        A ``ScanConfig`` (its own scan settings), or a ``System`` with
+        ``lightcurve``.
+    lightcurve : LightCurve, optional
+        The data, with a System; not with a config.
+    particles : int, optional
+        SMC particles per case and seed (>= 16; default 256).
+    seeds : sequence of int, optional
+        Distinct seeds; one run per seed and case (default (0, 1): two
+        runs give the seeds' spread in the errors).
+    out : str or pathlib.Path or None, optional
+        Folder for joint.json (every run as it finishes; a rerun with the
+        same settings resumes) and joint.csv (case, alpha, posterior
+        density per degree); None: nothing written.
+    free : sequence of str or None, optional
+        The sampled transit parameters (default: t0, period, a, inc and
+        radius of every planet).
+    stellar_density : sequence of 2 float or None, optional
+        (mean, sd) [g/cm^3] of the Gaussian prior on rho* when an a/R* is
+        free; default: a config's ``[fit] stellar_density``, else the
+        density the system's a/R* imply, 10 % wide.
+    restart : bool, optional
+        Discard joint.json in ``out`` first.
+    progress : bool, optional
+        Print one line per tempering step.
+    cess : float, optional
+        The conditional-ESS fraction kept per tempering step (0, 1).
+    n_moves : int, optional
+        Rounds of the Metropolis kernels per step (>= 1).
+    alpha, cases, margin, detrend, baseline, clip, multi_transits : optional
+        As ``jaxppo.scan``; only with a System (a ScanConfig's own settings
+        are used). ``alpha`` sets nothing here but the check of the
+        config: alpha is sampled continuously.
+
+    Returns
+    -------
+    dict
+        {"cases": {case: {"geometries": {name: {"probability", "error"}},
+        "favoured", "bayes_factor", "jeffreys", "alpha_peak" [deg],
+        "alpha_68" [deg], "log_z", "log_z_error", "ess", "steps",
+        "calls", "seconds", "modes", "posterior" (360 one-degree bins),
+        "particles"}}, "case_bayes_factors" {"a/b": Z_a / Z_b}, "method",
+        "free", "density_prior", "seconds"}; joint.json holds it under
+        "result".
+
+    Raises
+    ------
+    ValueError
+        For a bad ``particles``, ``seeds``, ``cess``, ``n_moves``,
+        ``stellar_density`` or scan setting; when the data hold no
+        multi-transit of the tilted planet; when ``out`` holds a joint run
+        of other settings (use ``restart=True``).
+
+    Examples
+    --------
+    >>> import jaxppo as jp  # doctest: +SKIP
+    >>> res = jp.joint_scan(jp.load_config(), particles=256, out="joint_out")  # doctest: +SKIP
+    >>> res["cases"]["same"]["geometries"]  # doctest: +SKIP
+    """
+    import jax
+
+    if not jax.config.jax_enable_x64:
+        raise ValueError("joint_scan needs float64: jax.config.update('jax_enable_x64', True) first")
+    particles, seeds = _check(particles, seeds, cess, n_moves)
+    cfg = _config(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
+                                           baseline=baseline, clip=clip, multi_transits=multi_transits),
+                  "jaxppo.joint_scan", "the joint obliquity sampler")
     t_begin = time.perf_counter()
-    data = _data(cfg)
+    windows, _ = windows_and_events(cfg)
+    if not windows:
+        raise ValueError(f"{cfg.source}: no multi-transit of the tilted planet with data: nothing to sample")
+    data = windows_data(windows, cfg.lightcurve.exposure)
     tm, _ = data.supersampled_times()
     sysm = centre_epochs(cfg.system, 0.5 * (float(tm.min()) + float(tm.max())))
     free = default_free(sysm) if free is None else tuple(free)
     density, density_source = density_prior(cfg, sysm, free, None, stellar_density)
-    settings = {"particles": int(particles), "free": list(free), "density": density, "config": cfg.digest,
+    settings = {"particles": particles, "free": list(free), "density": density, "config": cfg.digest,
                 "cess": float(cess), "n_moves": int(n_moves)}
-    path = Path(out) / "joint.json" if out is not None else None
+    path = Path(out) / JOINT if out is not None else None
     done = {}
-    if path is not None and path.exists():
-        rec = json.loads(path.read_text())
-        if rec.get("settings") == settings:
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists() and not restart:
+            rec = json.loads(path.read_text())
+            if rec.get("settings") != settings:
+                raise ValueError(f"{path} holds a joint run of other settings ({rec.get('settings')}); "
+                                 "use restart=True (--restart) or another folder")
             done = rec.get("runs", {})
     say = (lambda m: print(f"joint: {m}", flush=True)) if progress else None
     cases = {}
@@ -128,24 +209,46 @@ def joint_scan(cfg: ScanConfig, *, particles: int = 256, seeds=(0, 1), free=None
             key = f"{case}#{seed}"
             if key not in done:
                 r = joint_case_smc(sysm, data, free, density, case, a_ref, n_particles=particles, seed=seed,
-                                   found=found, cess=cess, n_moves=n_moves, progress=(lambda m, c=case, s=seed: say(f"{c} seed {s}: {m}")) if say else None)
+                                   found=found, cess=cess, n_moves=n_moves,
+                                   progress=(lambda m, c=case, s=seed: say(f"{c} seed {s}: {m}")) if say else None)
                 found = r["found"]
-                done[key] = {"modes": r["modes"], "alpha": r["alpha"].tolist(), "weights": r["weights"].tolist(), "log_z": r["log_z"],
-                             "max_log_gamma": float(np.max(r["log_gamma"])),
+                done[key] = {"modes": r["modes"], "alpha": r["alpha"].tolist(), "weights": r["weights"].tolist(),
+                             "log_z": r["log_z"], "max_log_gamma": float(np.max(r["log_gamma"])),
                              "ess": r["ess"], "steps": r["steps"], "calls": r["calls"], "seconds": r["seconds"]}
                 if path is not None:
                     atomic_write(path, json.dumps({"settings": settings, "runs": done}))
             rec = done[key]
             runs.append({**rec, "alpha": np.asarray(rec["alpha"]), "weights": np.asarray(rec["weights"])})
         cases[case] = _case_summary(case, runs)
+        if min(cases[case]["ess"]) < 0.1 * particles:
+            warnings.warn(f"joint_scan: case {case}: the particles' ESS fell to {min(cases[case]['ess']):.0f} of "
+                          f"{particles}; the errors given are then rough (more particles)", stacklevel=2)
     factors = {}
     names = list(cases)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             factors[f"{a}/{b}"] = float(np.exp(cases[a]["log_z"] - cases[b]["log_z"]))
-    result = {"method": f"adaptive tempered SMC, {particles} particles, seeds {seeds}", "free": list(free),
-              "density_prior": density, "density_prior_source": density_source, "cases": cases,
-              "case_bayes_factors": factors, "seconds": time.perf_counter() - t_begin}
+    result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
+              "free": list(free), "density_prior": density, "density_prior_source": density_source,
+              "cases": cases, "case_bayes_factors": factors, "seconds": time.perf_counter() - t_begin}
     if path is not None:
         atomic_write(path, json.dumps({"settings": settings, "runs": done, "result": result}, indent=1))
+        rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.8g}" for c, v in cases.items()
+                                           for k in range(360)]
+        atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
     return result
+
+
+def joint_lines(result: dict) -> list[str]:
+    """The command line's report of a :func:`joint_scan` result."""
+    lines = [f"joint (alpha, transit parameters) posterior: {result['method']}, {result['seconds']:.0f} s"]
+    for case, c in result["cases"].items():
+        geo = "; ".join(f"{n}: {100 * g['probability']:.2f} +- {100 * g['error']:.2f} %"
+                        for n, g in c["geometries"].items())
+        err = f" +- {c['log_z_error']:.2f}" if c["log_z_error"] is not None else ""
+        lines.append(f"  case {case}: {geo}; favoured {c['favoured']} ({c['jeffreys']}); alpha peak "
+                     f"{c['alpha_peak']:.1f} deg, 68 % {c['alpha_68'][0]:.1f}-{c['alpha_68'][1]:.1f}; "
+                     f"log Z {c['log_z']:.2f}{err}; ESS {', '.join(f'{e:.0f}' for e in c['ess'])}")
+    for k, v in result["case_bayes_factors"].items():
+        lines.append(f"  Bayes factor {k}: {v:.3g}")
+    return lines

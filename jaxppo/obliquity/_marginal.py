@@ -265,12 +265,13 @@ def _digest(cfg: ScanConfig, settings: dict) -> str:
     return hashlib.sha256(payload).hexdigest()[:16]
 
 
-def _config(system, lightcurve, kw) -> ScanConfig:
+def _config(system, lightcurve, kw, who: str = "jaxppo.marginal_scan",
+            what: str = "the marginalised obliquity scan") -> ScanConfig:
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
-        refuse_with_config(kw, system, "jaxppo.marginal_scan")
-        require_scan_system(system.system, "the marginalised obliquity scan")
+        refuse_with_config(kw, system, who)
+        require_scan_system(system.system, what)
         return system
     cfg = config_from_arguments(system, lightcurve, **resolved(kw), block=60)
     check_alpha_grid(cfg.alpha)

@@ -5,10 +5,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxppo.inference._smc import tempered_smc
+from jaxppo.inference._smc import alpha_clusters, tempered_smc
 
 MU = jnp.array([0.5, -0.3])
 SD = jnp.array([0.3, 0.8])
+
+
+def _wrap(d):
+    return (d + 180.0) % 360.0 - 180.0
 
 
 def _log_gamma(w, a):
@@ -16,8 +20,7 @@ def _log_gamma(w, a):
     300 deg, width 3, half the height), times exp(50): the integral over w
     and alpha / 360 is exp(50) (2 + 0.5 x 3) sqrt(2 pi) / 360."""
     lw = jnp.sum(-0.5 * ((w - MU) / SD) ** 2 - jnp.log(SD * jnp.sqrt(2 * jnp.pi)))
-    d1 = (a - 147.0 + 180.0) % 360.0 - 180.0
-    d2 = (a - 300.0 + 180.0) % 360.0 - 180.0
+    d1, d2 = _wrap(a - 147.0), _wrap(a - 300.0)
     return lw + jnp.logaddexp(-0.5 * (d1 / 2.0) ** 2, jnp.log(0.5) - 0.5 * (d2 / 3.0) ** 2) + 50.0
 
 
@@ -26,15 +29,54 @@ def test_evidence_and_mode_masses_of_a_bimodal_target(seed):
     log_z = 50.0 + np.log(3.5 * np.sqrt(2.0 * np.pi) / 360.0)
     r = tempered_smc(_log_gamma, 2, n_particles=512, seed=seed)
     assert abs(r["log_z"] - log_z) < 0.3, (r["log_z"], log_z)
-    near = np.abs((r["alpha"] - 147.0 + 180.0) % 360.0 - 180.0) < 20.0
+    near = np.abs(_wrap(r["alpha"] - 147.0)) < 20.0
     mass = float(np.sum(r["weights"][near]))
     assert abs(mass - 2.0 / 3.5) < 0.08, mass
-    # the rest sits in the other mode, and w follows the Gaussian
-    far = np.abs((r["alpha"] - 300.0 + 180.0) % 360.0 - 180.0) < 20.0
+    far = np.abs(_wrap(r["alpha"] - 300.0)) < 20.0
     assert abs(float(np.sum(r["weights"][far])) + mass - 1.0) < 1e-9
     mean = r["weights"] @ r["w"]
     assert np.allclose(mean, np.asarray(MU), atol=0.15), mean
     assert r["ess"] > 100 and r["steps"] >= 2
+
+
+RIDGE_MU = jnp.array([3.0, -1.0])
+RIDGE_SD = jnp.array([0.3, 0.8])
+
+
+def _ridge(w, a):
+    """A PPO-like posterior: alpha tied to w[0] along a narrow ridge (alpha =
+    147 + 10 (w0 - 3) +- 0.5 deg) far from the reference's centre (mass 1),
+    plus a plateau N(w; 0, I) x U(alpha) of mass 0.5, both times exp(50): the
+    integral over w and alpha / 360 is 1.5 exp(50) / 360."""
+    lw = jnp.sum(-0.5 * ((w - RIDGE_MU) / RIDGE_SD) ** 2 - jnp.log(RIDGE_SD * jnp.sqrt(2 * jnp.pi)))
+    d = _wrap(a - 147.0 - 10.0 * (w[0] - RIDGE_MU[0]))
+    ridge = lw - 0.5 * (d / 0.5) ** 2 - jnp.log(0.5 * jnp.sqrt(2 * jnp.pi))
+    plateau = jnp.log(0.5 / 360.0) - 0.5 * jnp.sum(w**2) - jnp.log(2 * jnp.pi)
+    return jnp.logaddexp(ridge, plateau) + 50.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_ridge_from_a_rough_mode_gives_its_evidence_and_mass(seed):
+    # the mode handed over is rough (diagonal, too wide in alpha, 2 deg off):
+    # the kernels must follow the ridge themselves
+    mode = (1.0, np.array([3.0, -1.0, 149.0]), np.diag([0.5, 1.0, 4.0]))
+    r = tempered_smc(_ridge, 2, n_particles=512, seed=seed, modes=[mode], plateau=0.2, ref_scale=1.0)
+    log_z = 50.0 + np.log(1.5 / 360.0)
+    assert abs(r["log_z"] - log_z) < 0.25, (r["log_z"], log_z)  # seeds 0-2: -0.06, -0.13, -0.10
+    on = np.abs(_wrap(r["alpha"] - 147.0 - 10.0 * (r["w"][:, 0] - 3.0))) < 3.0
+    assert abs(float(np.sum(r["weights"][on])) - 1.0 / 1.5) < 0.06
+    # along the ridge alpha and w0 keep their slope of 10 deg per unit
+    wt = r["weights"] * on
+    wt /= wt.sum()
+    x, y = r["w"][:, 0], r["alpha"]
+    slope = np.sum(wt * (x - wt @ x) * (y - wt @ y)) / np.sum(wt * (x - wt @ x) ** 2)
+    assert abs(slope - 10.0) < 1.0, slope
+
+
+def test_alpha_clusters_on_the_circle():
+    lab = alpha_clusters(np.array([1.0, 2.0, 359.0, 100.0, 101.0, 200.0]))
+    assert lab[0] == lab[1] == lab[2] and len({lab[0], lab[3], lab[5]}) == 3 and lab[3] == lab[4]
+    assert np.all(alpha_clusters(np.linspace(0.0, 359.0, 300)) == 0)
 
 
 def test_bad_settings_are_named():
@@ -42,3 +84,9 @@ def test_bad_settings_are_named():
         tempered_smc(_log_gamma, 2, n_particles=4)
     with pytest.raises(ValueError, match="cess must be in"):
         tempered_smc(_log_gamma, 2, cess=1.5)
+    with pytest.raises(ValueError, match="n_moves must be an integer >= 1"):
+        tempered_smc(_log_gamma, 2, n_moves=0)
+    with pytest.raises(ValueError, match="modes must be"):
+        tempered_smc(_log_gamma, 2, modes=[(1.0, np.zeros(2), np.eye(2))])
+    with pytest.raises(ValueError, match="plateau must be"):
+        tempered_smc(_log_gamma, 2, plateau=-1.0)
