@@ -384,6 +384,11 @@ def joint_alpha(system: System, data: LightCurve, free, density, case: str, wind
 
 
 
+def _arc(d):
+    """|d| [deg] on the circle, in [0, 180]."""
+    return abs((d + 180.0) % 360.0 - 180.0)
+
+
 def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: float = 30.0, chunk: int = 16,
                 rounds: int = 4):
     """The modes of the joint posterior of (transit parameters, alpha) in
@@ -427,15 +432,27 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     info = {"profile_quiet": quiet, "starts": int(starts.size)}
     a_unit = 10.0  # alpha in units of 10 deg, so LM's identity damping treats w and alpha alike
 
+    lo, hi = jnp.asarray(post.lo + 1e-9), jnp.asarray(post.hi - 1e-9)
+
     def res(z, _):
-        return post.residuals(uj + Lj @ z[:-1], a_unit * z[-1])
+        # u kept inside the prior box by clipping (as mode_and_cov), and a
+        # weak pull (10 whitened widths) on the directions the data leave free
+        u = jnp.clip(uj + Lj @ z[:-1], lo, hi)
+        return jnp.concatenate([post.residuals(u, a_unit * z[-1]), 0.1 * z[:-1]])
 
     def solve(z0):
         sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), z0, max_steps=40,
                                  throw=False)
         return sol.value
 
+    def solve_at(zw0, a):
+        """LM over w alone at the fixed tilt a [deg]."""
+        sol = optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None),
+                                 optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), zw0, max_steps=40, throw=False)
+        return sol.value
+
     solve_b = jax.jit(jax.vmap(solve))
+    solve_at_b = jax.jit(jax.vmap(solve_at))
     logd_b = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
 
     def run(z0):
@@ -445,12 +462,26 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
         zz = np.concatenate([z0, np.repeat(z0[-1:], pad - n, axis=0)])
         z = np.concatenate([np.asarray(solve_b(jnp.asarray(zz[i:i + chunk]))) for i in range(0, pad, chunk)])[:n]
         z[:, -1] = np.mod(z[:, -1] * a_unit, 360.0) / a_unit
+        # the clipped u the residuals saw, back in w
+        u = np.clip(np.asarray(u_mode) + z[:, :-1] @ np.asarray(L).T, np.asarray(lo), np.asarray(hi))
+        z[:, :-1] = np.linalg.solve(np.asarray(L), (u - np.asarray(u_mode)).T).T
         ld = np.asarray(logd_b(jnp.asarray(z), jnp.asarray(a_unit * z[:, -1])), float)
         return z, np.where(np.isfinite(ld), ld, -np.inf)
 
+    def at_tilts(a):
+        """w at each tilt of a [deg] by 40 LM steps from w = 0, in chunks."""
+        n = a.size
+        pad = -(-n // chunk) * chunk
+        aa = np.concatenate([a, np.repeat(a[-1:], pad - n)])
+        return np.concatenate([np.asarray(solve_at_b(jnp.zeros((chunk, dim)), jnp.asarray(aa[i:i + chunk])))
+                               for i in range(0, pad, chunk)])[:n]
+
     modes, plateau_frac = [], float(np.mean(~loud))
     if starts.size:
-        z, logd = run(np.column_stack([np.zeros((starts.size, dim)), starts / a_unit]))
+        # joint fits from the conditional mode at each start's tilt (a joint
+        # fit from the no-PPO mode can slide along the alpha-t0 ridge to
+        # another optimum before w has moved to where the PPO needs it)
+        z, logd = run(np.column_stack([at_tilts(starts), starts / a_unit]))
         # the best distinct tilts go on
         for _ in range(rounds):
             order = np.argsort(logd)[::-1]
@@ -458,8 +489,10 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
             for k in order:
                 if len(best) == chunk or not np.isfinite(logd[k]):
                     break
-                if all(abs((z[k, -1] - z[j, -1]) * a_unit + 180.0) % 360.0 - 180.0 > 1.0 for j in best):
+                if all(_arc(a_unit * (z[k, -1] - z[j, -1])) > 1.0 for j in best):
                     best.append(k)
+            if not best:
+                break
             z2, ld2 = run(z[best])
             moved = np.max(np.abs(ld2 - logd[best]))
             z[best], logd[best] = z2, ld2
@@ -474,8 +507,7 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
         for k in order:
             if logd[k] < logd[order[0]] - keep:
                 break
-            if any(abs((z[k, -1] - z[j, -1]) * a_unit + 180.0) % 360.0 - 180.0 < 0.3 and abs(logd[k] - logd[j]) < 0.5
-                   for j in kept):
+            if any(_arc(a_unit * (z[k, -1] - z[j, -1])) < 0.3 and abs(logd[k] - logd[j]) < 0.5 for j in kept):
                 continue
             kept.append(k)
         jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
@@ -491,10 +523,10 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
             except np.linalg.LinAlgError:
                 continue
             log_mass = float(logd[k]) + float(np.sum(np.log(np.diag(chol)))) + 0.5 * (dim + 1) * np.log(2 * np.pi)
-            modes.append((log_mass, z[k] * scale, chol))
+            modes.append((log_mass, z[k] * scale, chol, float(logd[k])))
     # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
     plateau = (float(post.log_density(uj, a_quiet)) + 0.5 * dim * np.log(2 * np.pi)
                + np.log(360.0 * max(plateau_frac, 1e-3)))
-    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0])} for m in modes],
+    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0]), "log_density": m[3]} for m in modes],
                  "plateau_log_mass": float(plateau), "seconds": time.perf_counter() - t_begin})
-    return modes, plateau, info
+    return [m[:3] for m in modes], plateau, info

@@ -179,7 +179,7 @@ def _pooled_cov(z, wt, labels):
 
 def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: float = 1.5, cess: float = 0.5,
                  n_moves: int = 6, seed: int = 0, max_steps: int = 500, log_det_l: float = 0.0,
-                 modes=(), plateau: float = 1.0, progress=None) -> dict:
+                 modes=(), plateau: float = 1.0, final_rounds: int = 4, progress=None) -> dict:
     """Adaptive tempered SMC (module docstring) for a target on (w, alpha),
     w in R^dim, alpha in [0, 360) deg.
 
@@ -187,7 +187,8 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     jax function; vmapped and jitted here; -inf or NaN outside the support);
     ``ref_scale``: s of the reference N(0, s^2 I) in w; ``cess``: the
     conditional-ESS fraction kept per tempering step; ``n_moves``: rounds
-    of the two kernels per step; ``log_det_l``: log |L| of the whitening, added to log Z;
+    of the two kernels per step; ``final_rounds``: steps of moves after
+    beta reaches 1; ``log_det_l``: log |L| of the whitening, added to log Z;
     ``modes``: [(weight, mean [dim + 1], chol [dim + 1, dim + 1])], Gaussian
     components in (w, alpha) (e.g. the joint posterior's modes with their
     Laplace covariances, ``jaxppo.inference._posterior.joint_modes``), mixed
@@ -252,13 +253,14 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     logw = np.zeros(n)  # log weights at beta
     beta, log_z, betas, acc_hist = 0.0, 0.0, [0.0], []
     scale = 2.38 / np.sqrt(dim + 1)
-    final_rounds = 0
+    extra = 0
     for step in range(max_steps):
         if beta >= 1.0:
-            # after beta = 1: rounds of moves until the particles decorrelate
-            if final_rounds >= 1:
+            # after beta = 1: more rounds of moves, so the particles spread
+            # over the target beyond the reference's Gaussian modes
+            if extra >= final_rounds:
                 break
-            final_rounds += 1
+            extra += 1
         else:
             delta = lg - lq
             new = _next_beta(beta, delta, logw, cess)

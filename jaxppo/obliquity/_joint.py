@@ -233,7 +233,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
               "cases": cases, "case_bayes_factors": factors, "seconds": time.perf_counter() - t_begin}
     if path is not None:
         atomic_write(path, json.dumps({"settings": settings, "runs": done, "result": result}, indent=1))
-        rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.8g}" for c, v in cases.items()
+        rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
     return result
