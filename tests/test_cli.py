@@ -341,7 +341,7 @@ def test_activity_command(tmp_path, capsys):
     assert "--spot-chunk must be a chunk index or 'all'" in capsys.readouterr().err
 
 
-def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, capsys):
+def test_scan_marginalize_and_joint_options_call_their_workflows(tmp_path, monkeypatch, capsys):
     """--marginalize N runs jp.marginal_scan after the plain scan with the
     config's [fit] free and the fixed scan's result (the marginal scan itself
     is tested in tests/obliquity/test_marginal.py); a negative N is one error line."""
@@ -360,17 +360,36 @@ def test_scan_marginalize_option_calls_the_marginal_scan(tmp_path, monkeypatch, 
         seen.update(draws=draws, fixed=fixed.summary["config_digest"] == cfg.digest, free=free)
         return Fake()
 
+    import jaxppo.obliquity._joint as joint
+
+    case = {"geometries": {"g1": {"probability": 0.25, "error": 0.01}, "g2": {"probability": 0.75, "error": 0.01}},
+            "favoured": "g2", "jeffreys": "substantial", "alpha_peak": 147.5, "alpha_68": [146.0, 149.0],
+            "log_z": -10.0, "log_z_error": 0.1, "ess": [200.0, 210.0], "posterior": [1 / 360] * 360,
+            "particles": {"alpha": [147.0], "weight": [1.0]}}
+    fake_joint = {"method": "fake SMC", "seconds": 1.0, "cases": {"same": case, "opposite": case},
+                  "case_bayes_factors": {"same/opposite": 1.0}}
+
+    def fake_joint_scan(cfg, particles, out, free, restart, progress):
+        seen.update(particles=particles)
+        return fake_joint
+
     monkeypatch.setattr(marginal, "marginal_scan", fake)
+    monkeypatch.setattr(joint, "joint_scan", fake_joint_scan)
     assert main(["scan", "--out", str(tmp_path / "o"), "--quiet", "--alpha", "0", "360", "10",
-                 "--marginalize", "3"]) == 0
-    assert seen == {"draws": 3, "fixed": True, "free": None}
-    assert "marginal: fake" in capsys.readouterr().out
-    # summary.json carries the marginal block (issue 22: marginal.cases.<case>...)
+                 "--marginalize", "3", "--joint", "64"]) == 0
+    assert seen == {"draws": 3, "fixed": True, "free": None, "particles": 64}
+    printed = capsys.readouterr().out
+    assert "marginal: fake" in printed and "g2: 75.00 +- 1.00 %" in printed and "alpha peak 147.5" in printed
+    # summary.json carries the marginal block (issue 22: marginal.cases.<case>...) and the
+    # joint block (without the particles) beside it
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["marginal"] == Fake.summary and "probabilities" in summary
-    with pytest.raises(SystemExit) as exit_:
-        main(["scan", "--out", str(tmp_path / "o"), "--marginalize", "-2"])
-    assert exit_.value.code == 2 and "--marginalize" in capsys.readouterr().err
+    assert summary["joint"]["cases"]["same"]["geometries"]["g2"]["probability"] == 0.75
+    assert "particles" not in summary["joint"]["cases"]["same"]
+    for bad in (["--marginalize", "-2"], ["--joint", "8"], ["--joint", "x"]):
+        with pytest.raises(SystemExit) as exit_:
+            main(["scan", "--out", str(tmp_path / "o")] + bad)
+        assert exit_.value.code == 2 and bad[0] in capsys.readouterr().err
 
 
 def test_persistent_compilation_cache(tmp_path):

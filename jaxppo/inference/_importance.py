@@ -161,7 +161,8 @@ def importance_reliability(logw, groups: dict, min_ess: float = MIN_IMPORTANCE_E
     reason = None
     if bad:
         reason = (f"importance weights over {n} draws are unreliable ({'; '.join(bad)}): a few draws carry the "
-                  "average, so no probability, peak or rating is given")
+                  "average, so no probability, peak or rating is given (the joint sampler, jaxppo.joint_scan, carries "
+                  "such cases)")
     return {"reliable": not bad, "min_ess": float(min_ess), "khat_threshold": kmax if math.isfinite(kmax) else None,
             "draws": n, "groups": out,
             "reason": reason}

@@ -73,6 +73,7 @@ def _case_summary(case: str, runs: list[dict]) -> dict:
 
 
 def _check(particles, seeds, cess, n_moves):
+    """The sampler settings checked; (particles, seeds) as ints."""
     if isinstance(particles, bool) or int(particles) != particles or particles < 16:
         raise ValueError(f"particles must be an integer >= 16, got {particles!r}")
     try:
@@ -167,9 +168,19 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
 
     Examples
     --------
-    >>> import jaxppo as jp  # doctest: +SKIP
-    >>> res = jp.joint_scan(jp.load_config(), particles=256, out="joint_out")  # doctest: +SKIP
+    The bundled real Kepler-20 scan (about 2.5 minutes on 2 CPU cores):
+
+    >>> import jaxppo as jp
+    >>> res = jp.joint_scan(jp.load_config(), out="joint_out")  # doctest: +SKIP
     >>> res["cases"]["same"]["geometries"]  # doctest: +SKIP
+
+    Settings are checked before anything runs:
+
+    >>> try:
+    ...     jp.joint_scan(jp.load_config(), particles=8)
+    ... except ValueError as err:
+    ...     print(err)
+    particles must be an integer >= 16, got 8
     """
     import jax
 

@@ -115,9 +115,9 @@ class MarginalResult(DeprecatedSummaryAccess):
             geo, fx = c["geometries"], self.fixed.probabilities[case]
             imp = c["importance"]
             if not c["reliable"]:
-                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; draw more "
-                             f"(--marginalize N, now {self.summary['draws']}); jaxppo has no joint (alpha, theta) "
-                             "sampler yet (docs/marginal.md)")
+                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; sample alpha "
+                             "jointly with the transit parameters (jaxppo scan --joint N, jp.joint_scan; "
+                             f"docs/marginal.md) or draw more (--marginalize N, now {self.summary['draws']})")
                 continue
             for name, g in geo.items():
                 if isinstance(g, dict):
