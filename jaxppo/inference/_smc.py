@@ -17,11 +17,11 @@ leave pi_beta invariant, built from the particles before the move:
   minute later is the same PPO at a slightly different tilt), and only a
   move along that ridge is accepted at high signal-to-noise;
 * an **independence proposal from a Gaussian mixture** fitted to the
-  clusters (weight, mean and covariance of each, widened), which moves
-  particles between the narrow modes a PPO makes without walking over the
-  plateaus between them;
-* early on, **alpha drawn from a guide** (the fixed scan's -Delta chi^2 / 2
-  tempered by beta, mixed with uniform), w kept, with the Hastings ratio.
+  clusters (weight, mean and covariance of each, widened) and the
+  reference's modes, which moves particles between the narrow modes a PPO
+  makes without walking over the plateaus between them;
+* **alpha drawn afresh from U(0, 360)**, w kept, which spreads the particles
+  over the plateaus (where the likelihood does not depend on alpha).
 
 The log evidence log Z = log int gamma du dalpha / 360 (alpha uniform a
 priori) is the sum of the logs of the mean incremental weights, plus log |L|
@@ -187,7 +187,7 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     jax function; vmapped and jitted here; -inf or NaN outside the support);
     ``ref_scale``: s of the reference N(0, s^2 I) in w; ``cess``: the
     conditional-ESS fraction kept per tempering step; ``n_moves``: rounds
-    of the two kernels per step; ``final_rounds``: steps of moves after
+    of the three kernels per step; ``final_rounds``: steps of moves after
     beta reaches 1; ``log_det_l``: log |L| of the whitening, added to log Z;
     ``modes``: [(weight, mean [dim + 1], chol [dim + 1, dim + 1])], Gaussian
     components in (w, alpha) (e.g. the joint posterior's modes with their
@@ -200,7 +200,7 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     Returns {"w" [N, dim], "alpha" [N], "weights" [N] (normalised, at
     beta = 1), "log_gamma" [N] (the target at the particles), "log_z",
     "ess" (of the final weights), "steps", "betas", "acceptance" (per step:
-    random walk, mixture), "calls" (target evaluations),
+    random walk, mixture, uniform alpha), "calls" (target evaluations),
     "seconds"}."""
     if int(n_particles) != n_particles or n_particles < 16:
         raise ValueError(f"n_particles must be an integer >= 16, got {n_particles!r}")
@@ -289,7 +289,7 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
         comps = _mixture(w, a, wt, labels, dim, 1.3)
         if comps_ref:
             comps = [(0.5 * m, mu, ch) for m, mu, ch in comps] + [(0.5 * m, mu, ch) for m, mu, ch in comps_ref]
-        acc = np.zeros(2)
+        acc = np.zeros(3)
         for _ in range(n_moves):
             # joint random walk in (w, alpha)
             step_z = scale * rng.standard_normal((n, dim + 1)) @ chol.T
@@ -308,12 +308,20 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
             w, a = np.where(ok[:, None], w_new, w), np.where(ok, a_new, a)
             lg, lq = np.where(ok, lg_new, lg), np.where(ok, lq_new, lq)
             acc[1] += ok.mean() / n_moves
+            # alpha drawn afresh from U(0, 360), w kept (a symmetric
+            # independence proposal): spreads the particles over the
+            # plateaus, where the likelihood does not depend on alpha
+            a_new = rng.uniform(0.0, 360.0, n)
+            lg_new, lq_new = evaluate(w, a_new), log_q(w, a_new)
+            ok = np.log(rng.random(n)) < target(lg_new, lq_new) - target(lg, lq)
+            a, lg, lq = np.where(ok, a_new, a), np.where(ok, lg_new, lg), np.where(ok, lq_new, lq)
+            acc[2] += ok.mean() / n_moves
         # keep the random walk's acceptance near 0.25
         scale *= 1.25 if acc[0] > 0.35 else 0.8 if acc[0] < 0.15 else 1.0
         acc_hist.append(acc.tolist())
         if progress is not None:
             progress(f"step {step + 1}: beta {beta:.4g}, log Z {log_z:.3f}, clusters {labels.max() + 1}, "
-                     f"acceptance walk {acc[0]:.2f} mixture {acc[1]:.2f}")
+                     f"acceptance walk {acc[0]:.2f} mixture {acc[1]:.2f} uniform alpha {acc[2]:.2f}")
     else:
         raise RuntimeError(f"tempered SMC did not reach beta = 1 in {max_steps} steps (beta = {beta:.3g})")
     wt = np.exp(logw - np.logaddexp.reduce(logw))
@@ -326,7 +334,7 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
 
 
 def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, n_particles: int = 256,
-                   seed: int = 0, cess: float = 0.5, n_moves: int = 6, floor: float = 0.05, progress=None,
+                   seed: int = 0, cess: float = 0.5, n_moves: int = 6, floor: float = 0.2, progress=None,
                    found=None) -> dict:
     """The joint posterior of (transit parameters, alpha) of one hemisphere
     case by :func:`tempered_smc`: the transit parameters in the coordinates
@@ -336,8 +344,8 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
     sampled alpha (every frame where two disks could meet at some tilt by
     the union integral). The reference mixes the modes that
     :func:`jaxppo.inference._posterior.joint_modes` finds (Laplace) with the
-    no-PPO plateau, weighted by their Laplace masses with a floor of
-    ``floor`` each. ``found``: that function's result, to reuse over seeds.
+    no-PPO plateau, weighted by their Laplace masses, each at least
+    ``floor`` / (number of components). ``found``: that function's result, to reuse over seeds.
     Returns :func:`tempered_smc`'s dict with "u" [N, dim] (the transit
     coordinates), "modes" (the search's info) and "found" added."""
     from ._posterior import TransitPosterior, joint_modes, mode_and_cov
@@ -356,7 +364,7 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
 
     logm = np.array([plateau] + [m[0] for m in modes])
     wts = np.exp(logm - logm.max())
-    wts = np.maximum(wts / wts.sum(), floor)
+    wts = np.maximum(wts / wts.sum(), floor / logm.size)
     out = tempered_smc(log_gamma, chol.shape[0], n_particles=n_particles, seed=seed, cess=cess, n_moves=n_moves,
                        log_det_l=float(np.sum(np.log(np.diag(chol)))), progress=progress, plateau=float(wts[0]),
                        modes=[(float(wt), m[1], m[2]) for wt, m in zip(wts[1:], modes)])
