@@ -367,7 +367,7 @@ def test_scan_marginalize_and_joint_options_call_their_workflows(tmp_path, monke
             "log_z": -10.0, "log_z_error": 0.1, "ess": [200.0, 210.0], "posterior": [1 / 360] * 360,
             "particles": {"alpha": [147.0], "weight": [1.0]}}
     fake_joint = {"method": "fake SMC", "seconds": 1.0, "cases": {"same": case, "opposite": case},
-                  "case_bayes_factors": {"same/opposite": 1.0}}
+                  "case_bayes_factors": {"same/opposite": 1.0}, "case_log_bayes_factors": {"same/opposite": 0.0}}
 
     def fake_joint_scan(cfg, particles, out, free, restart, progress):
         seen.update(particles=particles)

@@ -180,14 +180,26 @@ class TransitPosterior:
             r = jnp.concatenate([r, ((jnp.exp(u[-1]) - self.density[0]) / self.density[1])[None]])
         return r
 
-    def exact_overlaps_anywhere(self, margin: float = 0.05):
+    def exact_overlaps_anywhere(self, margin: float = 0.05, us=()) -> bool:
         """Compute by the exact union integral every frame in which two
         disks could touch at some tilt, within ``margin`` [R*], at the start
-        (``jaxppo.model._overlap.may_touch`` of the untilted geometry:
-        the tilt turns an orbit about the star's centre); for sampling alpha
-        (``joint_alpha``)."""
-        x, y, r = self.system.positions(np.asarray(self.model.t_model), 0.0, "same", xp=np)
-        self.model = self.model.with_frames(union=np.nonzero(may_touch(x, y, r, margin))[0])
+        and at each coordinate vector of ``us`` (``jaxppo.model._overlap.
+        may_touch`` of the untilted geometry: the tilt turns an orbit about
+        the star's centre); for sampling alpha (``joint_alpha``,
+        ``joint_case_smc``). Returns whether the frames grew."""
+        import jax.numpy as jnp
+
+        t = np.asarray(self.model.t_model)
+        systems = [self.system] + [self.model.to_system(self.model.theta_from(self.model_q(jnp.asarray(u))))
+                                   for u in us]
+        need = np.zeros(t.size, bool)
+        for system in systems:
+            need |= may_touch(*system.positions(t, 0.0, "same", xp=np), margin)
+        idx = np.nonzero(need)[0]
+        if np.all(np.isin(idx, self.model.union_idx)):
+            return False
+        self.model = self.model.with_frames(union=idx)
+        return True
 
     def log_density(self, u, alpha=None):
         """log posterior in u (up to a constant): -chi^2 / 2, the rho* prior
@@ -420,9 +432,15 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
     grid = np.arange(0.0, 360.0, 0.5)
     prof = np.asarray(jax.jit(jax.vmap(lambda a: post.log_density(uj, a)))(jnp.asarray(grid)), float)
-    quiet = float(np.median(prof))
-    a_quiet = float(grid[np.argmin(np.abs(prof - quiet))])
-    loud = np.abs(prof - quiet) > 1e-6
+    # the no-PPO level: the log density at the posterior's own quiet tilt
+    # (a tilt without a PPO, ``post.model.alpha``), not a median over tilts
+    # (which is a PPO level when most tilts have one)
+    a_quiet = float(post.model.alpha)
+    quiet = float(post.log_density(uj))
+    if not np.isfinite(quiet):
+        raise ValueError(f"the transit posterior is not finite at its no-PPO mode (log density {quiet})")
+    prof = np.where(np.isfinite(prof), prof, -np.inf)
+    loud = ~(np.abs(prof - quiet) <= 1e-6)
     near = np.zeros(grid.size, bool)
     for k in np.nonzero(loud)[0]:
         near[(k + np.arange(-8, 9)) % grid.size] = True

@@ -355,6 +355,8 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
         u_mode, chol, _ = mode_and_cov(post)
         post.exact_overlaps_anywhere()
         modes, plateau, info = joint_modes(post, u_mode, chol)
+        # the frames where disks can meet at the modes' parameters too
+        post.exact_overlaps_anywhere(us=[u_mode + m[1][:-1] @ chol.T for m in modes])
         found = (post, u_mode, chol, modes, plateau, info)
     post, u_mode, chol, modes, plateau, info = found
     uj, lj = jnp.asarray(u_mode), jnp.asarray(chol)
@@ -365,9 +367,23 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
     logm = np.array([plateau] + [m[0] for m in modes])
     wts = np.exp(logm - logm.max())
     wts = np.maximum(wts / wts.sum(), floor / logm.size)
-    out = tempered_smc(log_gamma, chol.shape[0], n_particles=n_particles, seed=seed, cess=cess, n_moves=n_moves,
-                       log_det_l=float(np.sum(np.log(np.diag(chol)))), progress=progress, plateau=float(wts[0]),
-                       modes=[(float(wt), m[1], m[2]) for wt, m in zip(wts[1:], modes)])
+    for _ in range(3):
+        out = tempered_smc(log_gamma, chol.shape[0], n_particles=n_particles, seed=seed, cess=cess,
+                           n_moves=n_moves, log_det_l=float(np.sum(np.log(np.diag(chol)))), progress=progress,
+                           plateau=float(wts[0]), modes=[(float(wt), m[1], m[2]) for wt, m in zip(wts[1:], modes)])
+        # the exact overlap integral is fixed to the frames where disks can
+        # meet at the start and the modes; particles that moved further
+        # (e.g. a t0 many minutes off) widen them, and the case runs again
+        distinct = np.unique(out["w"], axis=0)
+        if distinct.shape[0] > 256:
+            distinct = distinct[np.random.default_rng(seed).choice(distinct.shape[0], 256, replace=False)]
+        if not post.exact_overlaps_anywhere(us=u_mode + distinct @ chol.T):
+            break
+        if progress is not None:
+            progress(f"the particles reach frames beyond those computed exactly: {post.model.union_idx.size} "
+                     "frames now; sampling again")
+    else:
+        raise RuntimeError("joint sampler: the particles kept reaching frames beyond those computed exactly")
     out["u"] = u_mode + out["w"] @ chol.T
     out["modes"] = info
     out["found"] = found

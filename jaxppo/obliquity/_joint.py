@@ -10,6 +10,7 @@ sampler"."""
 from __future__ import annotations
 
 import json
+import numbers
 import time
 import warnings
 from pathlib import Path
@@ -37,56 +38,69 @@ def prograde(alpha) -> np.ndarray:
 
 
 def _case_summary(case: str, runs: list[dict]) -> dict:
-    """Geometry probabilities (mean over seeds; error from the ESS and the
-    seeds' spread), the alpha peak and 68 % interval, log Z of one case."""
+    """Geometry probabilities (mean over seeds; error from the binomial
+    variance at each seed's effective particle count and the seeds' spread),
+    the alpha peak and the 68 % arc about it, log Z of one case."""
     names = geometry_names(case)
     pro = np.array([float(np.sum(r["weights"][prograde(r["alpha"])])) for r in runs])
-    ess = np.array([r["ess"] for r in runs])
+    # effective particles: the weights' ESS, and no more than the distinct
+    # particles (resampling copies particles; moves that are refused keep them)
+    n_eff = np.array([min(r["ess"], float(np.unique(r["alpha"]).size)) for r in runs])
     p = float(pro.mean())
-    # binomial error of each seed's mass from its ESS, and the seeds' spread
-    err = float(np.sqrt(np.mean(np.maximum(p * (1 - p), 0.25 / ess) / ess) / len(runs)
-                        + (pro.var(ddof=1) / len(runs) if len(runs) > 1 else 0.0)))
+    n_tot = float(n_eff.sum())
+    spread = float(pro.var(ddof=1) / len(runs)) if len(runs) > 1 else 0.0
+    err = float(np.sqrt(np.mean(p * (1 - p) / n_eff) / len(runs) + spread))
     a = np.concatenate([r["alpha"] for r in runs])
     wts = np.concatenate([r["weights"] for r in runs]) / len(runs)
-    hist, edges = np.histogram(a, bins=360, range=(0.0, 360.0), weights=wts)
-    peak = float(0.5 * (edges[np.argmax(hist)] + edges[np.argmax(hist) + 1]))
-    # the shortest arc about the peak holding 68 % of the mass
+    hist = np.histogram(a, bins=360, range=(0.0, 360.0), weights=wts)[0]
+    peak = float(np.argmax(hist) + 0.5)
+    # the arc about the peak, of the smallest radius, holding 68 % of the mass
     d = (a - peak + 180.0) % 360.0 - 180.0
     order = np.argsort(np.abs(d))
     inside = order[: int(np.searchsorted(np.cumsum(wts[order]), 0.6827)) + 1]
     log_z = np.array([r["log_z"] for r in runs])
-    k = p / (1 - p) if 0 < p < 1 else np.inf
-    rated = np.isfinite(k)
+    pos = [r["weights"] > 0 for r in runs]
+    has_pro = any(np.any(prograde(r["alpha"]) & m) for r, m in zip(runs, pos))
+    has_retro = any(np.any(~prograde(r["alpha"]) & m) for r, m in zip(runs, pos))
+    if has_pro and has_retro:
+        k = max(p, 1 - p) / min(p, 1 - p)
+        bayes, rating, bound = float(k), jeffreys(k), None
+    else:
+        # every particle in one geometry: the other's mass is below a 95 %
+        # upper bound from the effective particles (0 successes in n_tot)
+        p = 1.0 if has_pro else 0.0
+        bound = float(1.0 - 0.05 ** (1.0 / n_tot))
+        k = (1.0 - bound) / bound
+        bayes, rating = None, f"{jeffreys(k)} at least (the other geometry's mass < {bound:.2g}, 95 %)"
+        err = max(err, bound)
     return {"geometries": {names[0]: {"probability": p, "error": err},
                            names[1]: {"probability": 1 - p, "error": err}},
             "favoured": names[0] if p >= 0.5 else names[1],
-            "bayes_factor": float(max(k, 1 / k)) if rated else None,
-            "jeffreys": jeffreys(max(k, 1 / k)) if rated else "decisive (every particle in one geometry)",
-            "alpha_peak": peak, "alpha_68": [float(peak + d[inside].min()), float(peak + d[inside].max())],
+            "bayes_factor": bayes, "jeffreys": rating, "upper_bound_other": bound,
+            "alpha_peak": peak,
+            "alpha_68": [float((peak + d[inside].min()) % 360.0), float((peak + d[inside].max()) % 360.0)],
             "log_z": float(log_z.mean()),
             "log_z_error": float(log_z.std(ddof=1) / np.sqrt(len(runs))) if len(runs) > 1 else None,
-            "ess": ess.tolist(), "steps": [r["steps"] for r in runs], "calls": [r["calls"] for r in runs],
-            "seconds": [r["seconds"] for r in runs], "log_z_per_seed": log_z.tolist(),
-            "prograde_per_seed": pro.tolist(), "modes": runs[0].get("modes"),
-            "posterior": np.histogram(a, bins=360, range=(0.0, 360.0), weights=wts)[0].tolist(),
-            "particles": {"alpha": a.tolist(), "weight": wts.tolist()}}
+            "ess": [float(e) for e in n_eff], "steps": [r["steps"] for r in runs],
+            "calls": [r["calls"] for r in runs], "seconds": [r["seconds"] for r in runs],
+            "log_z_per_seed": log_z.tolist(), "prograde_per_seed": pro.tolist(), "modes": runs[0].get("modes"),
+            "posterior": hist.tolist(), "particles": {"alpha": a.tolist(), "weight": wts.tolist()}}
 
 
 def _check(particles, seeds, cess, n_moves):
     """The sampler settings checked; (particles, seeds) as ints."""
-    if isinstance(particles, bool) or int(particles) != particles or particles < 16:
+    if not isinstance(particles, numbers.Integral) or isinstance(particles, bool) or particles < 16:
         raise ValueError(f"particles must be an integer >= 16, got {particles!r}")
-    try:
-        seeds = [int(s) for s in seeds]
-    except (TypeError, ValueError):
-        raise ValueError(f"seeds must be a sequence of distinct integers, got {seeds!r}") from None
-    if not seeds or len(set(seeds)) != len(seeds):
-        raise ValueError(f"seeds must be a sequence of distinct integers, got {seeds!r}")
-    if not 0.0 < cess < 1.0:
-        raise ValueError(f"cess must be in (0, 1), got {cess!r}")
-    if isinstance(n_moves, bool) or int(n_moves) != n_moves or n_moves < 1:
+    ok = not isinstance(seeds, (str, bytes)) and hasattr(seeds, "__iter__")
+    seeds = list(seeds) if ok else []
+    if not seeds or not all(isinstance(s, numbers.Integral) and not isinstance(s, bool) and s >= 0 for s in seeds) \
+            or len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds must be a sequence of distinct integers >= 0, got {seeds if ok else repr(seeds)}")
+    if not isinstance(cess, numbers.Real) or isinstance(cess, bool) or not 0.0 < cess < 1.0:
+        raise ValueError(f"cess must be a number in (0, 1), got {cess!r}")
+    if not isinstance(n_moves, numbers.Integral) or isinstance(n_moves, bool) or n_moves < 1:
         raise ValueError(f"n_moves must be an integer >= 1, got {n_moves!r}")
-    return int(particles), seeds
+    return int(particles), [int(s) for s in seeds]
 
 
 def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), out=None, free=None,
@@ -154,7 +168,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         "favoured", "bayes_factor", "jeffreys", "alpha_peak" [deg],
         "alpha_68" [deg], "log_z", "log_z_error", "ess", "steps",
         "calls", "seconds", "modes", "posterior" (360 one-degree bins),
-        "particles"}}, "case_bayes_factors" {"a/b": Z_a / Z_b}, "method",
+        "particles"}}, "case_bayes_factors" {"a/b": Z_a / Z_b} (None beyond a
+        float), "case_log_bayes_factors" {"a/b": log Z_a - log Z_b}, "method",
         "free", "density_prior", "seconds"}; joint.json holds it under
         "result".
 
@@ -227,27 +242,49 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                              "log_z": r["log_z"], "max_log_gamma": float(np.max(r["log_gamma"])),
                              "ess": r["ess"], "steps": r["steps"], "calls": r["calls"], "seconds": r["seconds"]}
                 if path is not None:
-                    atomic_write(path, json.dumps({"settings": settings, "runs": done}))
+                    atomic_write(path, _strict_json({"settings": settings, "runs": done}))
             rec = done[key]
             runs.append({**rec, "alpha": np.asarray(rec["alpha"]), "weights": np.asarray(rec["weights"])})
         cases[case] = _case_summary(case, runs)
-        if min(cases[case]["ess"]) < 0.1 * particles:
-            warnings.warn(f"joint_scan: case {case}: the particles' ESS fell to {min(cases[case]['ess']):.0f} of "
-                          f"{particles}; the errors given are then rough (more particles)", stacklevel=2)
-    factors = {}
+        if min(cases[case]["ess"]) < 0.25 * particles:
+            warnings.warn(f"joint_scan: case {case}: only {min(cases[case]['ess']):.0f} of {particles} particles are "
+                          "effective (weights or copies); the errors given are rough: use more particles",
+                          stacklevel=2)
+        if len(seeds) < 2:
+            warnings.warn(f"joint_scan: case {case}: one seed; the errors leave out the spread between runs "
+                          "(seeds=(0, 1) gives it)", stacklevel=2)
+    factors, log_factors = {}, {}
     names = list(cases)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
-            factors[f"{a}/{b}"] = float(np.exp(cases[a]["log_z"] - cases[b]["log_z"]))
+            lk = cases[a]["log_z"] - cases[b]["log_z"]
+            log_factors[f"{a}/{b}"] = float(lk)
+            factors[f"{a}/{b}"] = float(np.exp(lk)) if abs(lk) < 700.0 else None  # None: beyond a float
     result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
-              "cases": cases, "case_bayes_factors": factors, "seconds": time.perf_counter() - t_begin}
+              "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
+              "seconds": time.perf_counter() - t_begin}
     if path is not None:
-        atomic_write(path, json.dumps({"settings": settings, "runs": done, "result": result}, indent=1))
+        atomic_write(path, _strict_json({"settings": settings, "runs": done, "result": result}, indent=1))
         rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
     return result
+
+
+def _strict_json(obj, indent=None) -> str:
+    """JSON with every non-finite float written as null (strict JSON)."""
+    def clean(v):
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, (float, np.floating)):
+            return float(v) if np.isfinite(v) else None
+        if isinstance(v, np.integer):
+            return int(v)
+        return v
+    return json.dumps(clean(obj), indent=indent, allow_nan=False)
 
 
 def joint_lines(result: dict) -> list[str]:
@@ -260,6 +297,6 @@ def joint_lines(result: dict) -> list[str]:
         lines.append(f"  case {case}: {geo}; favoured {c['favoured']} ({c['jeffreys']}); alpha peak "
                      f"{c['alpha_peak']:.1f} deg, 68 % {c['alpha_68'][0]:.1f}-{c['alpha_68'][1]:.1f}; "
                      f"log Z {c['log_z']:.2f}{err}; ESS {', '.join(f'{e:.0f}' for e in c['ess'])}")
-    for k, v in result["case_bayes_factors"].items():
-        lines.append(f"  Bayes factor {k}: {v:.3g}")
+    for k, v in result["case_log_bayes_factors"].items():
+        lines.append(f"  Bayes factor {k}: exp({v:.2f})" + (f" = {np.exp(v):.3g}" if abs(v) < 700 else ""))
     return lines

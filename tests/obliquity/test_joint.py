@@ -68,8 +68,13 @@ def test_bad_settings_are_named(injected):
     for kw, msg in [(dict(particles=8), "particles must be an integer >= 16"),
                     (dict(particles=True), "particles must be an integer >= 16"),
                     (dict(seeds=(1, 1)), "seeds must be a sequence of distinct integers"),
-                    (dict(seeds="ab"), "seeds must be a sequence of distinct integers"),
-                    (dict(cess=1.0), "cess must be in"), (dict(n_moves=0), "n_moves must be an integer >= 1")]:
+                    (dict(seeds="12"), "seeds must be a sequence of distinct integers"),
+                    (dict(seeds=(0.7, 1.2)), "seeds must be a sequence of distinct integers"),
+                    (dict(seeds=(-1, 0)), "seeds must be a sequence of distinct integers >= 0"),
+                    (dict(particles=None), "particles must be an integer >= 16"),
+                    (dict(particles=float("nan")), "particles must be an integer >= 16"),
+                    (dict(cess=1.0), "cess must be a number in"), (dict(cess="0.5"), "cess must be a number in"),
+                    (dict(n_moves=0), "n_moves must be an integer >= 1")]:
         with pytest.raises(ValueError, match=msg):
             jp.joint_scan(start, lc, progress=False, **kw)
     cfg = jp.load_config()
@@ -77,3 +82,22 @@ def test_bad_settings_are_named(injected):
         jp.joint_scan(cfg, lc)
     with pytest.raises(ValueError, match="jaxppo.joint_scan"):
         jp.joint_scan(cfg, margin=0.1)
+
+
+def test_case_summary_at_the_wrap_and_with_one_geometry_empty():
+    """The 68 % arc of a mode at 0.2 deg is given on [0, 360); when every
+    particle is in one geometry there is no finite Bayes factor, the other
+    geometry's mass gets a 95 % upper bound, and the error is at least that."""
+    from jaxppo.obliquity._joint import _case_summary
+
+    rng = np.random.default_rng(0)
+    runs = [{"alpha": np.mod(0.2 + rng.normal(0, 1.5, 400), 360.0), "weights": np.full(400, 1 / 400), "ess": 400.0,
+             "log_z": -10.0 + 0.01 * s, "steps": 3, "calls": 1, "seconds": 1.0} for s in range(2)]
+    c = _case_summary("same", runs)
+    lo, hi = c["alpha_68"]
+    assert 355.0 < lo < 360.0 and 0.0 < hi < 5.0, c["alpha_68"]
+    assert c["alpha_peak"] in (0.5, 359.5)
+    assert c["bayes_factor"] is None and 0 < c["upper_bound_other"] < 0.01
+    assert c["geometries"]["prograde, same hemisphere"]["probability"] == 1.0
+    assert c["geometries"]["prograde, same hemisphere"]["error"] >= c["upper_bound_other"]
+    assert "at least" in c["jeffreys"]
