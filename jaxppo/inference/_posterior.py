@@ -424,18 +424,38 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     Returns (modes: [(log Laplace mass, mean [dim + 1], chol [dim + 1,
     dim + 1])] (mean and chol in (w, alpha [deg])), plateau: log Laplace mass
     of the no-PPO mode spread over the tilts without a PPO, info dict)."""
-    import jax.numpy as jnp
-    import optimistix as optx
-
     t_begin = time.perf_counter()
     dim = L.shape[0]
-    uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
+    starts, loud, quiet = _starts(post, u_mode, step)
+    info = {"profile_quiet": quiet, "starts": int(starts.size)}
+    modes = []
+    if starts.size:
+        search = _ModeSearch(post, u_mode, L, chunk)
+        # joint fits from the conditional mode at each start's tilt (a joint
+        # fit from the no-PPO mode can slide along the alpha-t0 ridge to
+        # another optimum before w has moved to where the PPO needs it)
+        z, logd = search.run(np.column_stack([search.at_tilts(starts), starts / search.a_unit]))
+        z, logd = search.refine(z, logd, rounds)
+        modes = search.laplace(z, logd, keep)
+    # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
+    plateau = quiet + 0.5 * dim * np.log(2 * np.pi) + np.log(360.0 * max(float(np.mean(~loud)), 1e-3))
+    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0]), "log_density": m[3]} for m in modes],
+                 "plateau_log_mass": float(plateau), "seconds": time.perf_counter() - t_begin})
+    return [m[:3] for m in modes], plateau, info
+
+
+def _starts(post: TransitPosterior, u_mode, step: float):
+    """The tilts [deg] the mode search starts from (every ``step`` deg
+    within 4 deg of a tilt where a PPO changes the log density at the no-PPO
+    mode, and that profile's maxima 1 above its quiet level), the loud mask
+    on a 0.5-deg grid and the quiet level (the log density at the
+    posterior's own quiet tilt, not a median over tilts, which is a PPO
+    level when most tilts have one)."""
+    import jax.numpy as jnp
+
+    uj = jnp.asarray(u_mode)
     grid = np.arange(0.0, 360.0, 0.5)
     prof = np.asarray(jax.jit(jax.vmap(lambda a: post.log_density(uj, a)))(jnp.asarray(grid)), float)
-    # the no-PPO level: the log density at the posterior's own quiet tilt
-    # (a tilt without a PPO, ``post.model.alpha``), not a median over tilts
-    # (which is a PPO level when most tilts have one)
-    a_quiet = float(post.model.alpha)
     quiet = float(post.log_density(uj))
     if not np.isfinite(quiet):
         raise ValueError(f"the transit posterior is not finite at its no-PPO mode (log density {quiet})")
@@ -446,105 +466,119 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
         near[(k + np.arange(-8, 9)) % grid.size] = True
     starts = [a for a in np.arange(0.0, 360.0, step) if near[int(round(a / 0.5)) % grid.size]]
     peaks = (prof >= np.roll(prof, 1)) & (prof >= np.roll(prof, -1)) & (prof > quiet + 1.0)
-    starts = np.array(sorted(set(starts) | set(grid[peaks].tolist())), float)
-    info = {"profile_quiet": quiet, "starts": int(starts.size)}
+    return np.array(sorted(set(starts) | set(grid[peaks].tolist())), float), loud, quiet
+
+
+class _ModeSearch:
+    """Batched Levenberg-Marquardt (optimistix) in z = (w, alpha / 10 deg)
+    for ``joint_modes``: u = u_mode + L w kept inside the prior box by
+    clipping (as ``mode_and_cov``), a weak pull (10 whitened widths) on
+    directions the data leave free, 40 steps per call, ``chunk`` starts per
+    compiled call."""
+
     a_unit = 10.0  # alpha in units of 10 deg, so LM's identity damping treats w and alpha alike
 
-    lo, hi = jnp.asarray(post.lo + 1e-9), jnp.asarray(post.hi - 1e-9)
+    def __init__(self, post, u_mode, L, chunk):
+        import jax.numpy as jnp
+        import optimistix as optx
 
-    def res(z, _):
-        # u kept inside the prior box by clipping (as mode_and_cov), and a
-        # weak pull (10 whitened widths) on the directions the data leave free
-        u = jnp.clip(uj + Lj @ z[:-1], lo, hi)
-        return jnp.concatenate([post.residuals(u, a_unit * z[-1]), 0.1 * z[:-1]])
+        self.post, self.u_mode, self.L, self.chunk, self.dim = post, np.asarray(u_mode), np.asarray(L), chunk, L.shape[0]
+        uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
+        self.lo, self.hi = post.lo + 1e-9, post.hi - 1e-9
+        lo, hi, a_unit = jnp.asarray(self.lo), jnp.asarray(self.hi), self.a_unit
 
-    def solve(z0):
-        sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), z0, max_steps=40,
-                                 throw=False)
-        return sol.value
+        def res(z, _):
+            u = jnp.clip(uj + Lj @ z[:-1], lo, hi)
+            return jnp.concatenate([post.residuals(u, a_unit * z[-1]), 0.1 * z[:-1]])
 
-    def solve_at(zw0, a):
-        """LM over w alone at the fixed tilt a [deg]."""
-        sol = optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None),
-                                 optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8), zw0, max_steps=40, throw=False)
-        return sol.value
+        lm = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8)
 
-    solve_b = jax.jit(jax.vmap(solve))
-    solve_at_b = jax.jit(jax.vmap(solve_at))
-    logd_b = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
+        def solve(z0):
+            return optx.least_squares(res, lm, z0, max_steps=40, throw=False).value
 
-    def run(z0):
-        """40 LM steps from each row of z0, in chunks; (z, log density)."""
-        n = z0.shape[0]
-        pad = -(-n // chunk) * chunk
-        zz = np.concatenate([z0, np.repeat(z0[-1:], pad - n, axis=0)])
-        z = np.concatenate([np.asarray(solve_b(jnp.asarray(zz[i:i + chunk]))) for i in range(0, pad, chunk)])[:n]
-        z[:, -1] = np.mod(z[:, -1] * a_unit, 360.0) / a_unit
+        def solve_at(zw0, a):  # w alone at the fixed tilt a [deg]
+            return optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None), lm, zw0,
+                                      max_steps=40, throw=False).value
+
+        self.solve, self.solve_at = jax.jit(jax.vmap(solve)), jax.jit(jax.vmap(solve_at))
+        self.logd = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
+        self.jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
+
+    def _chunks(self, fn, *arrays):
+        import jax.numpy as jnp
+
+        n = arrays[0].shape[0]
+        pad = -(-n // self.chunk) * self.chunk
+        full = [np.concatenate([x, np.repeat(x[-1:], pad - n, axis=0)]) for x in arrays]
+        return np.concatenate([np.asarray(fn(*(jnp.asarray(x[i:i + self.chunk]) for x in full)))
+                               for i in range(0, pad, self.chunk)])[:n]
+
+    def at_tilts(self, a):
+        """w at each tilt of a [deg]: 40 LM steps from w = 0."""
+        return self._chunks(self.solve_at, np.zeros((a.size, self.dim)), a)
+
+    def run(self, z0):
+        """40 joint LM steps from each row of z0: (z, log density)."""
+        import jax.numpy as jnp
+
+        z = self._chunks(self.solve, z0)
+        z[:, -1] = np.mod(z[:, -1] * self.a_unit, 360.0) / self.a_unit
         # the clipped u the residuals saw, back in w
-        u = np.clip(np.asarray(u_mode) + z[:, :-1] @ np.asarray(L).T, np.asarray(lo), np.asarray(hi))
-        z[:, :-1] = np.linalg.solve(np.asarray(L), (u - np.asarray(u_mode)).T).T
-        ld = np.asarray(logd_b(jnp.asarray(z), jnp.asarray(a_unit * z[:, -1])), float)
+        u = np.clip(self.u_mode + z[:, :-1] @ self.L.T, self.lo, self.hi)
+        z[:, :-1] = np.linalg.solve(self.L, (u - self.u_mode).T).T
+        ld = np.asarray(self.logd(jnp.asarray(z), jnp.asarray(self.a_unit * z[:, -1])), float)
         return z, np.where(np.isfinite(ld), ld, -np.inf)
 
-    def at_tilts(a):
-        """w at each tilt of a [deg] by 40 LM steps from w = 0, in chunks."""
-        n = a.size
-        pad = -(-n // chunk) * chunk
-        aa = np.concatenate([a, np.repeat(a[-1:], pad - n)])
-        return np.concatenate([np.asarray(solve_at_b(jnp.zeros((chunk, dim)), jnp.asarray(aa[i:i + chunk])))
-                               for i in range(0, pad, chunk)])[:n]
-
-    modes, plateau_frac = [], float(np.mean(~loud))
-    if starts.size:
-        # joint fits from the conditional mode at each start's tilt (a joint
-        # fit from the no-PPO mode can slide along the alpha-t0 ridge to
-        # another optimum before w has moved to where the PPO needs it)
-        z, logd = run(np.column_stack([at_tilts(starts), starts / a_unit]))
-        # the best distinct tilts go on
+    def refine(self, z, logd, rounds):
+        """The best ``chunk`` solutions at distinct tilts (over 1 deg apart)
+        go on for up to ``rounds`` more runs, until their log density stops
+        moving (0.01)."""
         for _ in range(rounds):
-            order = np.argsort(logd)[::-1]
             best = []
-            for k in order:
-                if len(best) == chunk or not np.isfinite(logd[k]):
+            for k in np.argsort(logd)[::-1]:
+                if len(best) == self.chunk or not np.isfinite(logd[k]):
                     break
-                if all(_arc(a_unit * (z[k, -1] - z[j, -1])) > 1.0 for j in best):
+                if all(_arc(self.a_unit * (z[k, -1] - z[j, -1])) > 1.0 for j in best):
                     best.append(k)
             if not best:
                 break
-            z2, ld2 = run(z[best])
+            z2, ld2 = self.run(z[best])
             moved = np.max(np.abs(ld2 - logd[best]))
             z[best], logd[best] = z2, ld2
             if moved < 0.01:
                 break
-        # drop the plateau: where the PPO leaves the likelihood as at a quiet tilt
-        at_quiet = np.asarray(logd_b(jnp.asarray(z), jnp.full(z.shape[0], a_quiet)), float)
+        return z, logd
+
+    def laplace(self, z, logd, keep):
+        """The distinct modes among the solutions (the plateau, where the PPO
+        leaves the likelihood as at the quiet tilt, dropped; within 0.3 deg
+        and 0.5 in log density one mode; more than ``keep`` below the best
+        dropped) with their Laplace covariances in (w, alpha [deg]):
+        [(log mass, mean, chol, log density)]."""
+        import jax.numpy as jnp
+
+        a_quiet = float(self.post.model.alpha)
+        at_quiet = np.asarray(self.logd(jnp.asarray(z), jnp.full(z.shape[0], a_quiet)), float)
         ok = np.isfinite(logd) & (np.abs(logd - at_quiet) > 1e-6)
         z, logd = z[ok], logd[ok]
-        order = np.argsort(logd)[::-1]
         kept = []
-        for k in order:
-            if logd[k] < logd[order[0]] - keep:
+        for k in np.argsort(logd)[::-1]:
+            if logd[k] < logd.max() - keep:
                 break
-            if any(_arc(a_unit * (z[k, -1] - z[j, -1])) < 0.3 and abs(logd[k] - logd[j]) < 0.5 for j in kept):
-                continue
-            kept.append(k)
-        jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
-        scale = np.r_[np.ones(dim), a_unit]
+            if not any(_arc(self.a_unit * (z[k, -1] - z[j, -1])) < 0.3 and abs(logd[k] - logd[j]) < 0.5
+                       for j in kept):
+                kept.append(k)
+        scale = np.r_[np.ones(self.dim), self.a_unit]
+        modes = []
         for k in kept:
-            J = np.asarray(jac(jnp.asarray(z[k])), float)
+            J = np.asarray(self.jac(jnp.asarray(z[k])), float)
             # prior curvature: a unit width in w, 30 deg in alpha
-            info_z = J.T @ J + np.diag(np.r_[np.full(dim, 1e-2), (a_unit / 30.0) ** 2])
+            info_z = J.T @ J + np.diag(np.r_[np.full(self.dim, 1e-2), (self.a_unit / 30.0) ** 2])
             cov = np.diag(scale) @ np.linalg.inv(info_z) @ np.diag(scale)
-            cov = 0.5 * (cov + cov.T)
             try:
-                chol = np.linalg.cholesky(cov)
+                chol = np.linalg.cholesky(0.5 * (cov + cov.T))
             except np.linalg.LinAlgError:
                 continue
-            log_mass = float(logd[k]) + float(np.sum(np.log(np.diag(chol)))) + 0.5 * (dim + 1) * np.log(2 * np.pi)
+            log_mass = float(logd[k]) + float(np.sum(np.log(np.diag(chol)))) + 0.5 * (self.dim + 1) * np.log(2 * np.pi)
             modes.append((log_mass, z[k] * scale, chol, float(logd[k])))
-    # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
-    plateau = (float(post.log_density(uj, a_quiet)) + 0.5 * dim * np.log(2 * np.pi)
-               + np.log(360.0 * max(plateau_frac, 1e-3)))
-    info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0]), "log_density": m[3]} for m in modes],
-                 "plateau_log_mass": float(plateau), "seconds": time.perf_counter() - t_begin})
-    return [m[:3] for m in modes], plateau, info
+        return modes

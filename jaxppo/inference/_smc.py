@@ -210,46 +210,18 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
         raise ValueError(f"n_moves must be an integer >= 1, got {n_moves!r}")
     t_start = time.perf_counter()
     rng = np.random.default_rng(seed)
-    n, s2 = int(n_particles), float(ref_scale) ** 2
+    n = int(n_particles)
+    ref = _Reference(dim, ref_scale, modes, plateau)
     batch = jax.jit(jax.vmap(log_gamma))
-    comps_ref = [(float(m), np.asarray(mu, float), np.asarray(ch, float)) for m, mu, ch in modes]
-    if any(not (m > 0) or mu.shape != (dim + 1,) or ch.shape != (dim + 1, dim + 1) for m, mu, ch in comps_ref):
-        raise ValueError(f"modes must be (weight > 0, mean [{dim + 1}], chol [{dim + 1}, {dim + 1}]) triples")
-    if not plateau >= 0 or (plateau == 0 and not comps_ref):
-        raise ValueError(f"plateau must be >= 0 (> 0 without modes), got {plateau!r}")
-    total = plateau + sum(m for m, _, _ in comps_ref)
-    comps_ref = [(m / total, mu, ch) for m, mu, ch in comps_ref]
-    p_plateau = plateau / total
-
-    def log_q(w, a):
-        """log density of the reference (normalised over w and alpha in [0, 360))."""
-        lp = np.full(w.shape[0], -np.inf)
-        if p_plateau > 0:
-            lp = np.log(p_plateau) - 0.5 * np.sum(w**2, axis=1) / s2 - 0.5 * dim * np.log(2.0 * np.pi * s2) \
-                - np.log(360.0)
-        if comps_ref:
-            lp = np.logaddexp(lp, _mixture_logpdf(comps_ref, w, a))
-        return lp
-
-    def draw_q(m):
-        k = rng.binomial(m, p_plateau) if comps_ref else m
-        w0 = rng.standard_normal((k, dim)) * np.sqrt(s2)
-        a0 = rng.uniform(0.0, 360.0, k)
-        if k < m:
-            w1, a1 = _mixture_draw(comps_ref, m - k, rng)
-            w0, a0 = np.concatenate([w0, w1]), np.concatenate([a0, a1])
-        return w0, a0
-
-    calls = 0
+    calls = [0]
 
     def evaluate(w, a):
-        nonlocal calls
-        calls += w.shape[0]
+        calls[0] += w.shape[0]
         v = np.asarray(batch(jnp.asarray(w), jnp.asarray(a)), float)
         return np.where(np.isnan(v), -np.inf, v)
 
-    w, a = draw_q(n)
-    lg, lq = evaluate(w, a), log_q(w, a)
+    w, a = ref.draw(n, rng)
+    lg, lq = evaluate(w, a), ref.log_q(w, a)
     logw = np.zeros(n)  # log weights at beta
     beta, log_z, betas, acc_hist = 0.0, 0.0, [0.0], []
     scale = 2.38 / np.sqrt(dim + 1)
@@ -276,51 +248,12 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
             w, a, lg, lq = w[idx], a[idx], lg[idx], lq[idx]
             logw = np.zeros(n)
             wt = np.full(n, 1.0 / n)
-
-        def target(lg_, lq_):
-            return np.where(np.isfinite(lg_), beta * lg_ + (1.0 - beta) * lq_, -np.inf)
-
-        labels = alpha_clusters(a)
-        _, rel = _local(a, labels, wt)
-        cov = _pooled_cov(np.column_stack([w, rel]), wt, labels) + 1e-12 * np.eye(dim + 1)
-        chol = np.linalg.cholesky(cov)
-        # the particles' clusters, and the reference's modes (fixed
-        # components: an independence proposal may use any density)
-        comps = _mixture(w, a, wt, labels, dim, 1.3)
-        if comps_ref:
-            comps = [(0.5 * m, mu, ch) for m, mu, ch in comps] + [(0.5 * m, mu, ch) for m, mu, ch in comps_ref]
-        acc = np.zeros(3)
-        for _ in range(n_moves):
-            # joint random walk in (w, alpha)
-            step_z = scale * rng.standard_normal((n, dim + 1)) @ chol.T
-            w_new, a_new = w + step_z[:, :-1], np.mod(a + step_z[:, -1], 360.0)
-            lg_new, lq_new = evaluate(w_new, a_new), log_q(w_new, a_new)
-            ok = np.log(rng.random(n)) < target(lg_new, lq_new) - target(lg, lq)
-            w, a = np.where(ok[:, None], w_new, w), np.where(ok, a_new, a)
-            lg, lq = np.where(ok, lg_new, lg), np.where(ok, lq_new, lq)
-            acc[0] += ok.mean() / n_moves
-            # independence proposal from the clusters' mixture
-            w_new, a_new = _mixture_draw(comps, n, rng)
-            lg_new, lq_new = evaluate(w_new, a_new), log_q(w_new, a_new)
-            ratio = (target(lg_new, lq_new) - target(lg, lq) + _mixture_logpdf(comps, w, a)
-                     - _mixture_logpdf(comps, w_new, a_new))
-            ok = np.log(rng.random(n)) < ratio
-            w, a = np.where(ok[:, None], w_new, w), np.where(ok, a_new, a)
-            lg, lq = np.where(ok, lg_new, lg), np.where(ok, lq_new, lq)
-            acc[1] += ok.mean() / n_moves
-            # alpha drawn afresh from U(0, 360), w kept (a symmetric
-            # independence proposal): spreads the particles over the
-            # plateaus, where the likelihood does not depend on alpha
-            a_new = rng.uniform(0.0, 360.0, n)
-            lg_new, lq_new = evaluate(w, a_new), log_q(w, a_new)
-            ok = np.log(rng.random(n)) < target(lg_new, lq_new) - target(lg, lq)
-            a, lg, lq = np.where(ok, a_new, a), np.where(ok, lg_new, lg), np.where(ok, lq_new, lq)
-            acc[2] += ok.mean() / n_moves
+        (w, a, lg, lq), acc = _moves((w, a, lg, lq), wt, beta, ref, evaluate, n_moves, scale, rng)
         # keep the random walk's acceptance near 0.25
         scale *= 1.25 if acc[0] > 0.35 else 0.8 if acc[0] < 0.15 else 1.0
         acc_hist.append(acc.tolist())
         if progress is not None:
-            progress(f"step {step + 1}: beta {beta:.4g}, log Z {log_z:.3f}, clusters {labels.max() + 1}, "
+            progress(f"step {step + 1}: beta {beta:.4g}, log Z {log_z:.3f}, clusters {alpha_clusters(a).max() + 1}, "
                      f"acceptance walk {acc[0]:.2f} mixture {acc[1]:.2f} uniform alpha {acc[2]:.2f}")
     else:
         raise RuntimeError(f"tempered SMC did not reach beta = 1 in {max_steps} steps (beta = {beta:.3g})")
@@ -329,8 +262,95 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     # unit alpha prior (alpha ~ U(0, 360)) and per unit u = u_mode + L w
     return {"w": w, "alpha": a, "weights": wt, "log_gamma": lg,
             "log_z": log_z + float(log_det_l) - np.log(360.0), "ess": float(1.0 / np.sum(wt**2)),
-            "steps": len(betas) - 1, "betas": betas, "acceptance": acc_hist, "calls": int(calls),
+            "steps": len(betas) - 1, "betas": betas, "acceptance": acc_hist, "calls": int(calls[0]),
             "seconds": time.perf_counter() - t_start}
+
+
+class _Reference:
+    """The reference density of the bridge: a weighted mixture of Gaussian
+    modes in (w, alpha) (alpha wrapped) and the plateau N(0, s^2 I) x
+    U(0, 360) (``tempered_smc``'s ``modes`` and ``plateau``)."""
+
+    def __init__(self, dim, ref_scale, modes, plateau):
+        comps = [(float(m), np.asarray(mu, float), np.asarray(ch, float)) for m, mu, ch in modes]
+        if any(not (m > 0) or mu.shape != (dim + 1,) or ch.shape != (dim + 1, dim + 1) for m, mu, ch in comps):
+            raise ValueError(f"modes must be (weight > 0, mean [{dim + 1}], chol [{dim + 1}, {dim + 1}]) triples")
+        if not plateau >= 0 or (plateau == 0 and not comps):
+            raise ValueError(f"plateau must be >= 0 (> 0 without modes), got {plateau!r}")
+        total = plateau + sum(m for m, _, _ in comps)
+        self.comps = [(m / total, mu, ch) for m, mu, ch in comps]
+        self.p_plateau = plateau / total
+        self.dim, self.s2 = dim, float(ref_scale) ** 2
+
+    def log_q(self, w, a):
+        """log density of the reference (normalised over w and alpha in [0, 360))."""
+        lp = np.full(w.shape[0], -np.inf)
+        if self.p_plateau > 0:
+            lp = (np.log(self.p_plateau) - 0.5 * np.sum(w**2, axis=1) / self.s2
+                  - 0.5 * self.dim * np.log(2.0 * np.pi * self.s2) - np.log(360.0))
+        if self.comps:
+            lp = np.logaddexp(lp, _mixture_logpdf(self.comps, w, a))
+        return lp
+
+    def draw(self, m, rng):
+        """m draws (w [m, dim], alpha [m])."""
+        k = rng.binomial(m, self.p_plateau) if self.comps else m
+        w0 = rng.standard_normal((k, self.dim)) * np.sqrt(self.s2)
+        a0 = rng.uniform(0.0, 360.0, k)
+        if k < m:
+            w1, a1 = _mixture_draw(self.comps, m - k, rng)
+            w0, a0 = np.concatenate([w0, w1]), np.concatenate([a0, a1])
+        return w0, a0
+
+
+def _moves(state, wt, beta, ref, evaluate, n_moves, scale, rng):
+    """``n_moves`` rounds of the three Metropolis-Hastings kernels (module
+    docstring) at the bridge beta, each built from the particles before the
+    moves; returns the new (w, alpha, log gamma, log q) and the acceptance
+    rates."""
+    w, a, lg, lq = state
+    n, dim = w.shape
+
+    def target(lg_, lq_):
+        return np.where(np.isfinite(lg_), beta * lg_ + (1.0 - beta) * lq_, -np.inf)
+
+    def accept(ok, w_new, a_new, lg_new, lq_new):
+        return (np.where(ok[:, None], w_new, w), np.where(ok, a_new, a), np.where(ok, lg_new, lg),
+                np.where(ok, lq_new, lq))
+
+    labels = alpha_clusters(a)
+    _, rel = _local(a, labels, wt)
+    chol = np.linalg.cholesky(_pooled_cov(np.column_stack([w, rel]), wt, labels) + 1e-12 * np.eye(dim + 1))
+    # the particles' clusters, and the reference's modes (fixed components:
+    # an independence proposal may use any density)
+    comps = _mixture(w, a, wt, labels, dim, 1.3)
+    if ref.comps:
+        comps = [(0.5 * m, mu, ch) for m, mu, ch in comps] + [(0.5 * m, mu, ch) for m, mu, ch in ref.comps]
+    acc = np.zeros(3)
+    for _ in range(n_moves):
+        # joint random walk in (w, alpha)
+        step_z = scale * rng.standard_normal((n, dim + 1)) @ chol.T
+        w_new, a_new = w + step_z[:, :-1], np.mod(a + step_z[:, -1], 360.0)
+        lg_new, lq_new = evaluate(w_new, a_new), ref.log_q(w_new, a_new)
+        ok = np.log(rng.random(n)) < target(lg_new, lq_new) - target(lg, lq)
+        w, a, lg, lq = accept(ok, w_new, a_new, lg_new, lq_new)
+        acc[0] += ok.mean() / n_moves
+        # independence proposal from the clusters' and modes' mixture
+        w_new, a_new = _mixture_draw(comps, n, rng)
+        lg_new, lq_new = evaluate(w_new, a_new), ref.log_q(w_new, a_new)
+        ok = np.log(rng.random(n)) < (target(lg_new, lq_new) - target(lg, lq) + _mixture_logpdf(comps, w, a)
+                                      - _mixture_logpdf(comps, w_new, a_new))
+        w, a, lg, lq = accept(ok, w_new, a_new, lg_new, lq_new)
+        acc[1] += ok.mean() / n_moves
+        # alpha drawn afresh from U(0, 360), w kept (a symmetric independence
+        # proposal): spreads the particles over the plateaus, where the
+        # likelihood does not depend on alpha
+        a_new = rng.uniform(0.0, 360.0, n)
+        lg_new, lq_new = evaluate(w, a_new), ref.log_q(w, a_new)
+        ok = np.log(rng.random(n)) < target(lg_new, lq_new) - target(lg, lq)
+        w, a, lg, lq = accept(ok, w, a_new, lg_new, lq_new)
+        acc[2] += ok.mean() / n_moves
+    return (w, a, lg, lq), acc
 
 
 def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, n_particles: int = 256,

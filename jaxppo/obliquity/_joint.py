@@ -20,7 +20,7 @@ import numpy as np
 from ..inference._smc import joint_case_smc
 from ._config import ScanConfig
 from ._keywords import Default
-from ._marginal import _config, centre_epochs, default_free, density_prior, quiet_alpha
+from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
 from ._stats import geometry_names, jeffreys
 from ._windows import windows_and_events, windows_data
@@ -202,7 +202,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     if not jax.config.jax_enable_x64:
         raise ValueError("joint_scan needs float64: jax.config.update('jax_enable_x64', True) first")
     particles, seeds = _check(particles, seeds, cess, n_moves)
-    cfg = _config(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
+    cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits),
                   "jaxppo.joint_scan", "the joint obliquity sampler")
     t_begin = time.perf_counter()

@@ -61,7 +61,7 @@ from ..model._plan import one_disk_sum, overlap_flux
 from ..model._system import System, case_signs
 
 __all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "quiet_alpha", "density_prior",
-           "centre_epochs"]
+           "centre_epochs", "config_of"]
 
 PROGRESS = "marginal_progress.jsonl"
 DRAWS = "marginal_draws.json"
@@ -265,8 +265,12 @@ def _digest(cfg: ScanConfig, settings: dict) -> str:
     return hashlib.sha256(payload).hexdigest()[:16]
 
 
-def _config(system, lightcurve, kw, who: str = "jaxppo.marginal_scan",
-            what: str = "the marginalised obliquity scan") -> ScanConfig:
+def config_of(system, lightcurve, kw, who: str = "jaxppo.marginal_scan",
+              what: str = "the marginalised obliquity scan") -> ScanConfig:
+    """The ScanConfig of a workflow called with a config (``kw``, its scan
+    settings, refused as ``who`` does) or with a System and a light curve
+    (``kw`` builds the config); ``what`` names the workflow when the
+    system cannot be scanned."""
     if isinstance(system, ScanConfig):
         if lightcurve is not None:
             raise ValueError("lightcurve must not be given with a ScanConfig (the config names its data)")
@@ -464,7 +468,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     """
     from tqdm import tqdm
     t_begin = time.perf_counter()
-    cfg = _config(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
+    cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits))
     draws = _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains)
     sysm = cfg.system
