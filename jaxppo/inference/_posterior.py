@@ -183,15 +183,16 @@ class TransitPosterior:
     def exact_overlaps_anywhere(self, margin: float = 0.05, us=()) -> bool:
         """Compute by the exact union integral every frame in which two
         disks could touch at some tilt, within ``margin`` [R*], at the start
-        and at each coordinate vector of ``us`` (``jaxppo.model._overlap.
+        (without ``us``) or at each coordinate vector of ``us`` (``jaxppo.model._overlap.
         may_touch`` of the untilted geometry: the tilt turns an orbit about
         the star's centre); for sampling alpha (``joint_alpha``,
         ``joint_case_smc``). Returns whether the frames grew."""
         import jax.numpy as jnp
 
         t = np.asarray(self.model.t_model)
-        systems = [self.system] + [self.model.to_system(self.model.theta_from(self.model_q(jnp.asarray(u))))
-                                   for u in us]
+        systems = [self.model.to_system(self.model.theta_from(self.model_q(jnp.asarray(u)))) for u in us]
+        if not len(us):
+            systems = [self.system]
         need = np.zeros(t.size, bool)
         for system in systems:
             need |= may_touch(*system.positions(t, 0.0, "same", xp=np), margin)

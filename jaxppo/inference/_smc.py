@@ -397,7 +397,9 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
         distinct = np.unique(out["w"], axis=0)
         if distinct.shape[0] > 256:
             distinct = distinct[np.random.default_rng(seed).choice(distinct.shape[0], 256, replace=False)]
-        if not post.exact_overlaps_anywhere(us=u_mode + distinct @ chol.T):
+        # (contact at margin 0: the start's and modes' frames already carry
+        # a 0.05 R* margin, and a wider net here would rerun for nothing)
+        if not post.exact_overlaps_anywhere(margin=0.0, us=u_mode + distinct @ chol.T):
             break
         if progress is not None:
             progress(f"the particles reach frames beyond those computed exactly: {post.model.union_idx.size} "
