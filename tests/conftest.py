@@ -19,3 +19,17 @@ jax.config.update("jax_enable_x64", True)
 # tests/ mirrors the package (tests/core, tests/model, ...); their shared
 # helpers live in tests/helpers.py
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def pytest_configure(config):
+    """In the controlling process (not in an xdist worker): import arviz once,
+    so that its once-a-day warning stamp (~/.cache/arviz/daily_warning) is
+    written before the workers start; two workers importing it at the same
+    moment on a new day race on the stamp's atomic rename and one fails to
+    collect (seen in CI at midnight)."""
+    if hasattr(config, "workerinput"):
+        return
+    try:
+        import arviz  # noqa: F401
+    except Exception:  # arviz missing or broken: the tests that need it say so themselves
+        pass
