@@ -429,7 +429,7 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     dim = L.shape[0]
     starts, loud, quiet = _starts(post, u_mode, step)
     info = {"profile_quiet": quiet, "starts": int(starts.size)}
-    modes = []
+    modes, ridge = [], []
     if starts.size:
         search = _ModeSearch(post, u_mode, L, chunk)
         # joint fits from the conditional mode at each start's tilt (a joint
@@ -438,11 +438,13 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
         z, logd = search.run(np.column_stack([search.at_tilts(starts), starts / search.a_unit]))
         z, logd = search.refine(z, logd, rounds)
         modes = search.laplace(z, logd, keep)
+        ridge, nodes = search.ridge(modes, quiet, keep)
+        info["ridges"] = nodes  # [first tilt, last tilt, nodes] per ridge
     # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
     plateau = quiet + 0.5 * dim * np.log(2 * np.pi) + np.log(360.0 * max(float(np.mean(~loud)), 1e-3))
     info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0]), "log_density": m[3]} for m in modes],
                  "plateau_log_mass": float(plateau), "seconds": time.perf_counter() - t_begin})
-    return [m[:3] for m in modes], plateau, info
+    return [m[:3] for m in modes + ridge], plateau, info
 
 
 def _starts(post: TransitPosterior, u_mode, step: float):
@@ -497,11 +499,14 @@ class _ModeSearch:
         def solve(z0):
             return optx.least_squares(res, lm, z0, max_steps=40, throw=False).value
 
-        def solve_at(zw0, a):  # w alone at the fixed tilt a [deg]
+        def solve_at(zw0, a, steps):  # w alone at the fixed tilt a [deg]
             return optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None), lm, zw0,
-                                      max_steps=40, throw=False).value
+                                      max_steps=steps, throw=False).value
 
-        self.solve, self.solve_at = jax.jit(jax.vmap(solve)), jax.jit(jax.vmap(solve_at))
+        self.solve = jax.jit(jax.vmap(solve))
+        self.solve_at = jax.jit(jax.vmap(lambda zw0, a: solve_at(zw0, a, 40)))
+        # along a ridge, from the line through the last nodes: a few steps
+        self.follow = jax.jit(jax.vmap(lambda zw0, a: solve_at(zw0, a, 8)))
         self.logd = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
         self.jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
 
@@ -583,3 +588,89 @@ class _ModeSearch:
             log_mass = float(logd[k]) + float(np.sum(np.log(np.diag(chol)))) + 0.5 * (self.dim + 1) * np.log(2 * np.pi)
             modes.append((log_mass, z[k] * scale, chol, float(logd[k])))
         return modes
+
+    def ridge(self, modes, quiet, keep, max_nodes: int = 400):
+        """The ridge through each mode 1 above the plateau, traced by
+        continuation: the conditional mode w*(alpha) at fixed tilts stepping
+        away from the mode both ways (steps of half its alpha width, 0.05-1
+        deg; each call solves ``chunk`` tilts ahead from the line through
+        the last two nodes and keeps them while they stay on one branch),
+        until the PPO no longer lifts the conditional mode 0.5 above the
+        plateau or it falls 12 (or ``keep``) below the best mode. Along a PPO's
+        alpha-t0 ridge the posterior can be flat over tens of degrees and
+        curved in w (a mode's Gaussian covers its middle only: particles
+        piled up there, and calibration runs put the truth in the tails).
+        Each node becomes a Gaussian in (w, alpha [deg]): alpha within 0.6
+        step of the node, w about w* + (alpha - node) dw*/dalpha with the
+        conditional Laplace covariance, weighted by the posterior mass of
+        its slice. Returns [(log mass, mean, chol, log density)] as
+        ``laplace``, and the number of nodes per ridge."""
+        import jax.numpy as jnp
+
+        best = max([m[3] for m in modes], default=-np.inf)
+        # a tilt whose conditional mode is 12 below the best holds < 1e-5 of
+        # its mass per degree: the ridge ends there, or where the PPO no
+        # longer lifts it above the plateau
+        floor = max(quiet + 0.5, best - min(keep, 12.0))
+        traced, counts, comps = [], [], []  # traced: (alpha nodes, w nodes) per ridge
+        for log_mass, mean, chol, logd0 in sorted(modes, key=lambda m: -m[3]):
+            if logd0 < quiet + 1.0:
+                continue
+            a0, w0 = float(mean[-1]), np.asarray(mean[:-1])
+            if any(np.min(_arc(ra - a0)) < 1.0 and np.min(np.linalg.norm(rw - w0, axis=1)) < 3.0 for ra, rw in traced):
+                continue  # on a ridge already traced
+            sd = float(np.sqrt(np.sum(chol[-1] ** 2)))
+            step = float(np.clip(0.5 * sd, 0.05, 1.0))
+            # nodes: tilt -> (w*, log density); each call solves ``chunk``
+            # tilts ahead (spacing h) from the line through the last two
+            # nodes and keeps them while they stay on the branch; a call that
+            # keeps none solves again at a quarter of h, and the ridge ends
+            # where even h = step / 16 leaves it
+            nodes = {a0: (w0, logd0)}
+            ahead = np.arange(1, self.chunk + 1)
+            for d in (-1, 1):
+                a, h, slope = a0, step, np.zeros(self.dim)
+                while len(nodes) < max_nodes and abs(a - a0) < 180.0 and h >= step / 16:
+                    w_cur, ld_cur = nodes[a]
+                    tilts = a + d * h * ahead
+                    zw = self._chunks(self.follow, w_cur + np.outer(tilts - a, slope), tilts)
+                    u = np.clip(self.u_mode + zw @ self.L.T, self.lo, self.hi)
+                    zw = np.linalg.solve(self.L, (u - self.u_mode).T).T
+                    ld = np.asarray(self.logd(jnp.asarray(np.column_stack([zw, tilts / self.a_unit])),
+                                              jnp.asarray(tilts)), float)
+                    moved = 0
+                    for j in range(self.chunk):
+                        w_last, ld_last = nodes[a]
+                        expect = w_last + slope * (tilts[j] - a)
+                        if (not np.isfinite(ld[j]) or ld[j] < floor
+                                or abs(ld[j] - ld_last) > 3.0
+                                or np.linalg.norm(zw[j] - expect) > 1.0 + 0.5 * np.linalg.norm(expect - w_last)):
+                            break
+                        slope = (zw[j] - w_last) / (tilts[j] - a)
+                        a, moved = float(tilts[j]), moved + 1
+                        nodes[a] = (zw[j], float(ld[j]))
+                    h = h / 4 if not moved else min(step, 2 * h) if moved == self.chunk else h
+            ks = sorted(nodes)
+            alphas = np.array(ks, float)
+            ws = np.array([nodes[i][0] for i in ks])
+            lds = np.array([nodes[i][1] for i in ks])
+            traced.append((alphas, ws))
+            counts.append([float(np.mod(alphas[0], 360.0)), float(np.mod(alphas[-1], 360.0)), len(ks)])
+            slopes = np.gradient(ws, alphas, axis=0) if len(ks) > 1 else np.zeros_like(ws)
+            # each node stands for the slice of tilts nearer to it than to its neighbours
+            edges = np.r_[alphas[0] - 0.5 * step, 0.5 * (alphas[1:] + alphas[:-1]), alphas[-1] + 0.5 * step]
+            for a, w, g, ld_, width in zip(alphas, ws, slopes, lds, np.diff(edges)):
+                s = 0.6 * width
+                J = np.asarray(self.jac(jnp.asarray(np.r_[w, a / self.a_unit])), float)[:, :-1]
+                cov_w = np.linalg.inv(J.T @ J + 1e-2 * np.eye(self.dim))
+                gg = np.r_[g, 1.0]  # (w, alpha) = (w* + g x, node + x), x ~ N(0, s^2)
+                cov = s**2 * np.outer(gg, gg)
+                cov[:-1, :-1] += cov_w
+                try:
+                    ch = np.linalg.cholesky(0.5 * (cov + cov.T))
+                except np.linalg.LinAlgError:
+                    continue
+                # the posterior mass of the slice of width ``step`` about the node (conditional Laplace)
+                lm = ld_ + 0.5 * np.linalg.slogdet(2 * np.pi * cov_w)[1] + np.log(width)
+                comps.append((float(lm), np.r_[w, np.mod(a, 360.0)], ch, float(ld_)))
+        return comps, counts
