@@ -190,12 +190,22 @@ class TransitPosterior:
         import jax.numpy as jnp
 
         t = np.asarray(self.model.t_model)
-        systems = [self.model.to_system(self.model.theta_from(self.model_q(jnp.asarray(u)))) for u in us]
         if not len(us):
-            systems = [self.system]
-        need = np.zeros(t.size, bool)
-        for system in systems:
-            need |= may_touch(*system.positions(t, 0.0, "same", xp=np), margin)
+            need = may_touch(*self.system.positions(t, 0.0, "same", xp=np), margin)
+        else:
+            # the untilted positions at every u at once (jit, vmap), 32 at a time
+            if getattr(self, "_positions", None) is None or self._positions[0] is not self.model.t_model:
+                tj = jnp.asarray(t)
+                self._positions = (self.model.t_model, jax.jit(jax.vmap(
+                    lambda u: self.model.to_system(self.model.theta_from(self.model_q(u))).positions(tj, 0.0,
+                                                                                                     "same"))))
+            us = np.atleast_2d(np.asarray(us, float))
+            pad = -(-us.shape[0] // 32) * 32
+            us = np.concatenate([us, np.repeat(us[-1:], pad - us.shape[0], axis=0)])
+            need = np.zeros(t.size, bool)
+            for i in range(0, pad, 32):
+                x, y, r = (np.asarray(v) for v in self._positions[1](jnp.asarray(us[i:i + 32])))
+                need |= np.any(may_touch(x, y, r, margin), axis=0)
         idx = np.nonzero(need)[0]
         if np.all(np.isin(idx, self.model.union_idx)):
             return False

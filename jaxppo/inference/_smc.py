@@ -353,6 +353,18 @@ def _moves(state, wt, beta, ref, evaluate, n_moves, scale, rng):
     return (w, a, lg, lq), acc
 
 
+def reference_weights(plateau: float, modes, floor: float = 0.2):
+    """The reference's weights from log masses: the plateau's
+    (``plateau``) and each mode's ((log mass, mean, chol) of ``modes``, as
+    :func:`jaxppo.inference._posterior.joint_modes` gives them), normalised,
+    each at least ``floor`` / (number of components). Returns (plateau
+    weight, [(weight, mean, chol)])."""
+    logm = np.array([plateau] + [m[0] for m in modes])
+    wts = np.exp(logm - logm.max())
+    wts = np.maximum(wts / wts.sum(), floor / logm.size)
+    return float(wts[0]), [(float(wt), m[1], m[2]) for wt, m in zip(wts[1:], modes)]
+
+
 def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, n_particles: int = 256,
                    seed: int = 0, cess: float = 0.5, n_moves: int = 6, floor: float = 0.2, progress=None,
                    found=None) -> dict:
@@ -384,13 +396,11 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
     def log_gamma(w, alpha):
         return post.log_density(uj + lj @ w, alpha)
 
-    logm = np.array([plateau] + [m[0] for m in modes])
-    wts = np.exp(logm - logm.max())
-    wts = np.maximum(wts / wts.sum(), floor / logm.size)
+    plateau_wt, comps = reference_weights(plateau, modes, floor)
     for _ in range(3):
         out = tempered_smc(log_gamma, chol.shape[0], n_particles=n_particles, seed=seed, cess=cess,
                            n_moves=n_moves, log_det_l=float(np.sum(np.log(np.diag(chol)))), progress=progress,
-                           plateau=float(wts[0]), modes=[(float(wt), m[1], m[2]) for wt, m in zip(wts[1:], modes)])
+                           plateau=plateau_wt, modes=comps)
         # the exact overlap integral is fixed to the frames where disks can
         # meet at the start and the modes; particles that moved further
         # (e.g. a t0 many minutes off) widen them, and the case runs again

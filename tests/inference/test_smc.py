@@ -120,3 +120,62 @@ def test_bad_settings_are_named():
         tempered_smc(_log_gamma, 2, modes=[(1.0, np.zeros(2), np.eye(2))])
     with pytest.raises(ValueError, match="plateau must be"):
         tempered_smc(_log_gamma, 2, plateau=-1.0)
+
+
+class _CurvedRidge:
+    """A stand-in for the transit posterior (what ``joint_modes`` uses of
+    it) with a PPO-like ridge: where the "PPO" acts (alpha in [70, 130]
+    deg, smooth edges s(alpha)) u ~ N(m(alpha), 0.1^2 I) with m on a half
+    circle of radius 3 (30 widths) and log density up to 10 above the
+    plateau u ~ N(0, I) elsewhere, gently peaked at 100 deg (so that joint
+    fits all climb to one mode there). The marginal of alpha is
+    exp(-pen(alpha)) 2 pi sd(alpha)^2 in closed form."""
+
+    lo, hi = np.full(2, -np.inf), np.full(2, np.inf)
+
+    class model:  # noqa: N801 (the attribute joint_modes reads)
+        alpha = 0.0
+
+    @staticmethod
+    def parts(alpha, xp=jnp):
+        a = xp.mod(alpha, 360.0)
+        s = 1.0 / (1.0 + xp.exp(-(a - 70.0) / 1.5)) / (1.0 + xp.exp((a - 130.0) / 1.5))
+        th = np.pi * (a - 70.0) / 60.0
+        m = 3.0 * s[..., None] * xp.stack([xp.cos(th) - 1.0, xp.sin(th)], axis=-1)
+        sd = 1.0 - 0.9 * s
+        pen = 10.0 * (1.0 - s) + 0.5 * s * ((a - 100.0) / 25.0) ** 2
+        return m, sd, pen
+
+    def residuals(self, u, alpha=None):
+        m, sd, pen = self.parts(0.0 if alpha is None else alpha)
+        return jnp.concatenate([(u - m) / sd, jnp.sqrt(2.0 * pen)[None]])
+
+    def log_density(self, u, alpha=None):
+        return -0.5 * jnp.sum(self.residuals(u, alpha) ** 2)
+
+
+def test_a_curved_flat_ridge_is_covered_from_end_to_end():
+    """On a calibration injection the posterior of alpha was flat over 40 deg
+    along a ridge curved in the transit parameters; the mode search found
+    one mode in its middle, and the particles never reached its ends (the
+    truth, near one end, at rank 0.0). Traced node by node, the ridge's
+    ends are in the reference: the alpha marginal and log Z are right."""
+    from jaxppo.inference._posterior import joint_modes
+    from jaxppo.inference._smc import reference_weights
+
+    post = _CurvedRidge()
+    modes, plateau, info = joint_modes(post, np.zeros(2), np.eye(2))
+    assert info["ridges"] and info["ridges"][0][0] < 75 and info["ridges"][0][1] > 125, info["ridges"]
+    grid = np.arange(0.0, 360.0, 0.01)
+    _, sd, pen = post.parts(grid, np)
+    dens = np.exp(-pen) * 2 * np.pi * sd**2
+    log_z = np.log(np.sum(dens) * 0.01 / 360.0)
+    cdf = np.cumsum(dens) / np.sum(dens)
+    wt0, comps = reference_weights(plateau, modes)
+    for seed in (0, 1):
+        r = tempered_smc(lambda w, a: post.log_density(w, a), 2, n_particles=256, seed=seed, plateau=wt0,
+                         modes=comps)
+        assert abs(r["log_z"] - log_z) < 0.3, (r["log_z"], log_z)
+        for a in (80.0, 100.0, 120.0):
+            got = float(np.sum(r["weights"][r["alpha"] < a]))
+            assert abs(got - cdf[int(a / 0.01)]) < 0.08, (seed, a, got, cdf[int(a / 0.01)])
