@@ -387,8 +387,14 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
         u_mode, chol, _ = mode_and_cov(post)
         post.exact_overlaps_anywhere()
         modes, plateau, info = joint_modes(post, u_mode, chol)
-        # the frames where disks can meet at the modes' parameters too
-        post.exact_overlaps_anywhere(us=[u_mode + m[1][:-1] @ chol.T for m in modes])
+        # the frames where disks can meet at the modes' parameters, and at
+        # 4096 draws of the reference, which the particles start from and
+        # rarely leave (on real data, widened only to the particles of each
+        # run, the frames grew at every run: 660, 788, 836, ...)
+        plateau_wt, comps = reference_weights(plateau, modes, floor)
+        w, _ = _Reference(chol.shape[0], 1.5, comps, plateau_wt).draw(4096, np.random.default_rng(seed))
+        post.exact_overlaps_anywhere(us=np.vstack([[u_mode + m[1][:-1] @ chol.T for m in modes] or
+                                                   np.empty((0, u_mode.size)), u_mode + w @ chol.T]))
         found = (post, u_mode, chol, modes, plateau, info)
     post, u_mode, chol, modes, plateau, info = found
     uj, lj = jnp.asarray(u_mode), jnp.asarray(chol)
