@@ -45,6 +45,9 @@ GAP = 5.0
 different clusters (the moves' covariances are taken within clusters)."""
 
 
+REF_SCALE = 1.5  # the plateau's width in w (whitened units) in the reference
+
+
 def _systematic(weights: np.ndarray, rng) -> np.ndarray:
     n = weights.size
     cdf = np.cumsum(weights)
@@ -177,7 +180,7 @@ def _pooled_cov(z, wt, labels):
     return 0.5 * (cov + cov.T)
 
 
-def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: float = 1.5, cess: float = 0.5,
+def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: float = REF_SCALE, cess: float = 0.5,
                  n_moves: int = 6, seed: int = 0, max_steps: int = 500, log_det_l: float = 0.0,
                  modes=(), plateau: float = 1.0, final_rounds: int = 4, progress=None) -> dict:
     """Adaptive tempered SMC (module docstring) for a target on (w, alpha),
@@ -392,7 +395,7 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
         # rarely leave (on real data, widened only to the particles of each
         # run, the frames grew at every run: 660, 788, 836, ...)
         plateau_wt, comps = reference_weights(plateau, modes, floor)
-        w, _ = _Reference(chol.shape[0], 1.5, comps, plateau_wt).draw(4096, np.random.default_rng(seed))
+        w, _ = _Reference(chol.shape[0], REF_SCALE, comps, plateau_wt).draw(4096, np.random.default_rng(seed))
         post.exact_overlaps_anywhere(us=np.vstack([[u_mode + m[1][:-1] @ chol.T for m in modes] or
                                                    np.empty((0, u_mode.size)), u_mode + w @ chol.T]))
         found = (post, u_mode, chol, modes, plateau, info)
