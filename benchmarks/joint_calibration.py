@@ -25,7 +25,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import jaxppo as jp  # noqa: E402
-from jaxppo.inference._posterior import a_from_density, density_from_a  # noqa: E402
+from jaxppo.inference._coords import a_from_density, density_from_a  # noqa: E402
 from jaxppo.obliquity._config import config_from_arguments  # noqa: E402
 from jaxppo.obliquity._joint import joint_scan  # noqa: E402
 

@@ -17,81 +17,36 @@ from ..model._lightcurve import LightCurve
 from ..model._overlap import may_touch
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
+from ._coords import Coordinates, default_priors, start_q
 from ._model import Model
 from ._params import check_ttv_free
 
-__all__ = ["PLANET_PARAMS", "TransitPosterior", "a_from_density", "density_from_a", "check_density",
-           "default_density", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
+__all__ = ["PLANET_PARAMS", "TransitPosterior", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The planet parameters the transit posterior samples."""
 
 
-# ---- the transit posterior the draws come from ------------------------------
-#
-# NUTS over t0, P, p and b / (1 + p) of every planet and ONE stellar density
-# rho* for all planets: a/R* follows from Kepler's third law for a circular
-# orbit and M_p << M* (Seager & Mallen-Ornelas 2003, eq. 30),
-#     a / R* = (G rho* P^2 / (3 pi))^(1/3),
-# so the a/R* of all planets move together and a literature density bounds
-# them. Sampling a/R* of each planet with a flat prior lets long-cadence
-# transits (which barely separate a/R* from b) drift to grazing orbits.
-
-G_CGS = 6.67430e-8  # [cm^3 g^-1 s^-2] (CODATA 2018)
-DAY_S = 86400.0
-
-
-def a_from_density(rho, period, xp=np):
-    """a/R* [stellar radii] from the stellar density rho [g/cm^3] and the
-    period [d]: Kepler's third law, circular orbit, M_p << M*
-    (Seager & Mallen-Ornelas 2003, eq. 30)."""
-    return (G_CGS * rho * (period * DAY_S) ** 2 / (3.0 * xp.pi)) ** (1.0 / 3.0)
-
-
-def density_from_a(a, period) -> float:
-    """The stellar density [g/cm^3] that puts a planet of period [d] at a/R*
-    ``a`` (the inverse of ``a_from_density``)."""
-    return float(3.0 * np.pi * a**3 / (G_CGS * (period * DAY_S) ** 2))
-
-
-def check_density(density, where="stellar_density"):
-    """(mean, sd) [g/cm^3] of a stellar-density prior as floats; a
-    ValueError naming ``where`` unless both are finite and positive."""
-    try:
-        m, s = (float(v) for v in density)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where} must be (mean, sd) in g/cm^3, got {density!r}") from None
-    if not (np.isfinite(m) and np.isfinite(s) and m > 0 and s > 0):
-        raise ValueError(f"{where} must be (mean, sd) with mean > 0 and sd > 0 [g/cm^3], got {density!r}")
-    return m, s
-
-
-def default_density(system: System, tied) -> tuple[float, float, str]:
-    """With no literature value: the density the configuration's own a/R*
-    imply (geometric mean over the tied planets), 10 % wide."""
-    rho = np.exp(np.mean([np.log(density_from_a(float(system.planets[i].a), float(system.planets[i].period)))
-                          for i in tied]))
-    return float(rho), 0.1 * float(rho), "the configuration's a/R* (Kepler's third law), 10 % (no stellar_density given)"
-
-
 class TransitPosterior:
-    """The log-posterior of the transit parameters in coordinates u (one per
-    sampled quantity): t0 - t0_start [d], P - P_start [d], log p, v with
-    b / (1 + p) = |tanh v|, and log rho* when any a/R* is free. Priors: t0
-    uniform within +-0.05 d, P within +-0.1 %, p log-uniform in [1e-4, 0.5],
-    b / (1 + p) uniform in [0, 1), rho* Gaussian (mean, sd) truncated at 0.
-    b >= 0 loses nothing: the scan's cases enumerate the hemispheres of the
-    untilted planets (case "opposite" mirrors them) and alpha turns the
-    tilted one through 360 deg. v is signed and the model uses |tanh v|:
-    the density is symmetric in v, so a chain may stay on either side, and
-    a posterior piled up at b = 0 (planet c) is one smooth mode through
-    v = 0 (a logit map would stretch it into an exponential tail). The
-    likelihood is ``jaxppo.inference._model.Model``'s (the windows'
-    Gaussian chi^2) at the tilt ``alpha``."""
+    """The log-posterior of the transit parameters ``free`` (names from
+    ``PLANET_PARAMS``) at a tilt, in the coordinates u of
+    ``._coords.Coordinates`` (those of ``jaxppo.sample``): t0, P, p and the
+    folded impact parameter b / (1 + p) of each planet through the
+    bijections onto their default priors' supports (t0 within +-0.05 d and P
+    within +-0.1 % of the start, p log-uniform in [1e-4, 0.5], b / (1 + p)
+    uniform in [0, 1)), and, when any a/R* is free, ONE stellar density
+    rho* for all of them (log rho* last in u; a/R* from Kepler's third law)
+    with the Gaussian prior ``density`` = (mean, sd) [g/cm^3] truncated at
+    0. b >= 0 loses nothing: the scan's cases enumerate the hemispheres of
+    the untilted planets (case "opposite" mirrors them) and alpha turns the
+    tilted one through 360 deg. The likelihood is
+    ``jaxppo.inference._model.Model``'s (the windows' Gaussian chi^2) at the
+    tilt ``alpha``; ``log_density`` leaves out its normalisation
+    (-sum ln sigma - N ln(2 pi) / 2, the same at every tilt and case)."""
 
     def __init__(self, system, data, free, density, alpha, case):
         labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
-        slots = []
+        free = tuple(free)
         for name in free:
             owner, _, par = name.partition(".")
             if owner in labels:
@@ -99,85 +54,53 @@ class TransitPosterior:
             if owner not in labels or par not in PLANET_PARAMS:
                 raise ValueError(f"free: {name!r} is not a planet parameter the marginal scan samples; names look "
                                  f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS})")
-            slots.append((labels.index(owner), par))
-        if len(set(slots)) != len(slots):
+        if len(set(free)) != len(free):
             raise ValueError(f"free parameters repeat: {list(free)}")
-        self.system, self.free, self.slots = system, tuple(free), slots
-        self.tied = sorted({i for i, p in slots if p == "a"})
-        self.coords = [s for s in slots if s[1] != "a"] + ([("star", "density")] if self.tied else [])
-        self.density = density
+        self.system, self.free, self.density = system, free, density
         # a posterior spreads further than a fit moves: compute every frame
         # within 1 R* of the limb at the start
         self.model = Model(system, data, free, alpha, case, active_margin=1.0)
-        pl = system.planets
-        lo, hi, start = [], [], []
-        for (i, p) in self.coords:
-            if i == "star":
-                lo.append(np.log(1e-6)), hi.append(np.inf), start.append(np.log(density[0]))
-            elif p == "t0":
-                lo.append(-0.05), hi.append(0.05), start.append(0.0)
-            elif p == "period":
-                lo.append(-1e-3 * float(pl[i].period)), hi.append(1e-3 * float(pl[i].period)), start.append(0.0)
-            elif p == "radius":
-                lo.append(np.log(1e-4)), hi.append(np.log(0.5)), start.append(np.log(float(pl[i].radius)))
-            else:
-                x = abs(float(pl[i].a * np.cos(np.deg2rad(pl[i].inc)))) / (1.0 + float(pl[i].radius))
-                if not x < 1:
-                    raise ValueError(f"planet {labels[i]} does not transit at the start (b / (1 + p) = {x:.3g})")
-                lo.append(-np.inf), hi.append(np.inf), start.append(np.arctanh(min(x, 0.95)))
-        self.lo, self.hi, self.u_start = np.array(lo), np.array(hi), np.array(start)
+        self.slots = list(self.model.slots)
+        tie = density if any(p == "a" for _, p in self.slots) else None
+        self.coordinates = Coordinates(self.model, default_priors(self.model), fold=True, density=tie)
+        self.coords, self.tied = self.coordinates.coords, self.coordinates.tied
+        q = start_q(self.model, system, "the transit posterior")
+        # a grazing start: from b / (1 + p) = 0.95 at most, where the
+        # logistic map still has a slope
+        for k, (_, p) in enumerate(self.slots):
+            if p == "inc":
+                q[k] = min(abs(q[k]), 0.95)
+        self.u_start = self.coordinates.from_q(q)
         # rough prior widths in u (the Laplace matrix's prior curvature, so
         # that a parameter the data do not constrain keeps a finite width)
-        w = []
-        for (i, p), a, b in zip(self.coords, self.lo, self.hi):
-            w.append(density[1] / density[0] if i == "star" else 1.0 if p == "inc" else (b - a) / np.sqrt(12.0))
-        self.prior_sd = np.array(w)
+        self.prior_sd = self.coordinates.prior_widths(self.u_start)
 
     def physical(self, u):
-        """u -> the values of ``free`` (physical units: d, d, R*, deg, R*) and rho*."""
-        import jax.numpy as jnp
-
-        pl = self.system.planets
-        val = {s: u[k] for k, s in enumerate(self.coords)}
-        rho = jnp.exp(val[("star", "density")]) if self.tied else None
-
-        def get(i, p):
-            if (i, p) in val:
-                v = val[(i, p)]
-                return {"t0": float(pl[i].t0) + v, "period": float(pl[i].period) + v,
-                        "radius": jnp.exp(v), "inc": jnp.abs(jnp.tanh(v))}[p]
-            return float(getattr(pl[i], p))
-
-        out, x_of = [], []
-        for (i, p) in self.slots:
-            if p == "a":
-                out.append(a_from_density(rho, get(i, "period"), jnp))
-            elif p == "inc":
-                a = a_from_density(rho, get(i, "period"), jnp) if i in self.tied else float(pl[i].a)
-                b = get(i, "inc") * (1.0 + get(i, "radius"))
-                out.append(jnp.rad2deg(jnp.arccos(b / a)))
-            else:
-                out.append(get(i, p))
-        return jnp.stack([jnp.asarray(v, float) for v in out]), rho
+        """u -> (the values of ``free`` in physical units (d, d, R*, deg,
+        R*), rho* [g/cm^3] or None)."""
+        theta = self.model.theta_from(self.coordinates.to_q(u))
+        return self.model.physical(theta), (self.coordinates.density_of(u) if self.tied else None)
 
     def model_q(self, u):
         """u -> the Model's values (physical, but inc as b / (1 + p))."""
-        import jax.numpy as jnp
+        return self.coordinates.to_q(u)
 
-        phys, _ = self.physical(u)
-        val = {s: u[k] for k, s in enumerate(self.coords)}
-        return jnp.stack([jnp.abs(jnp.tanh(val[s])) if s[1] == "inc" else phys[k] for k, s in enumerate(self.slots)])
+    def data_residuals(self, u, alpha=None):
+        """The data's residuals at the tilt ``alpha`` [deg] when given, else
+        the Model's."""
+        theta = self.model.theta_from(self.model_q(u))
+        return self.model.residuals(theta) if alpha is None else self.model.residuals_at(theta, alpha)
 
     def residuals(self, u, alpha=None):
-        """Data residuals (at the tilt ``alpha`` [deg] when given, else the
-        Model's), and (rho* - mean) / sd appended (the Gaussian prior as one
-        more residual) when rho* is sampled."""
+        """``data_residuals``, and (rho* - mean) / sd appended (the Gaussian
+        prior as one more residual) when rho* is sampled: what least squares
+        (``mode_and_cov``, the joint mode search) minimise."""
         import jax.numpy as jnp
 
-        theta = self.model.theta_from(self.model_q(u))
-        r = self.model.residuals(theta) if alpha is None else self.model.residuals_at(theta, alpha)
+        r = self.data_residuals(u, alpha)
         if self.tied:
-            r = jnp.concatenate([r, ((jnp.exp(u[-1]) - self.density[0]) / self.density[1])[None]])
+            m, s = self.coordinates.density
+            r = jnp.concatenate([r, ((self.coordinates.density_of(u) - m) / s)[None]])
         return r
 
     def exact_overlaps_anywhere(self, margin: float = 0.05, us=()) -> bool:
@@ -213,25 +136,18 @@ class TransitPosterior:
         return True
 
     def log_density(self, u, alpha=None):
-        """log posterior in u (up to a constant): -chi^2 / 2, the rho* prior
-        and the Jacobians of the maps (exp for rho*, tanh for b / (1 + p);
-        log p is flat in u for a log-uniform prior)."""
+        """log posterior in u (up to the likelihood's normalisation): -chi^2
+        / 2 of the data plus ``Coordinates.log_prior`` (the priors, rho*'s
+        truncated Gaussian and log |det dq/du|)."""
         import jax.numpy as jnp
 
-        lp = -0.5 * jnp.sum(self.residuals(u, alpha) ** 2)
-        for k, (i, p) in enumerate(self.coords):
-            if i == "star":
-                lp = lp + u[k]
-            elif p == "inc":
-                lp = lp + jnp.log1p(-jnp.tanh(u[k]) ** 2)
-        inside = jnp.all((u > jnp.asarray(self.lo)) & (u < jnp.asarray(self.hi)))
-        return jnp.where(inside, lp, -jnp.inf)
+        return -0.5 * jnp.sum(self.data_residuals(u, alpha) ** 2) + self.coordinates.log_prior(u)
 
 
 def mode_and_cov(post: TransitPosterior, max_steps: int = 256, tol: float = 1e-9):
     """The mode of the transit posterior and the Laplace covariance there:
     optimistix Levenberg-Marquardt on the residuals (data and rho* prior)
-    from the start, u kept inside the box (lo, hi) by clipping, then the
+    from the start, then the
     covariance from the Jacobian with the prior widths as curvature. NUTS
     moves in w with u = u_mode + L w, L L^T = that covariance, so its mass
     matrix starts close to the identity.
@@ -253,10 +169,9 @@ def mode_and_cov(post: TransitPosterior, max_steps: int = 256, tol: float = 1e-9
     # is about one posterior width in every direction (t0 is known to
     # 1e-4 d, log p to 1e-2)
     c = jnp.asarray(np.sqrt(np.sum(J**2, axis=0) + 1.0 / post.prior_sd**2))
-    lo, hi = jnp.asarray(post.lo + 1e-9), jnp.asarray(post.hi - 1e-9)
 
     def to_u(z):
-        return jnp.clip(u0 + z / c, lo, hi)
+        return u0 + z / c
 
     sol = optx.least_squares(lambda z, _: post.residuals(to_u(z)), optx.LevenbergMarquardt(rtol=tol, atol=tol),
                              jnp.zeros_like(u0), max_steps=max_steps, throw=False)
@@ -484,8 +399,7 @@ def _starts(post: TransitPosterior, u_mode, step: float):
 
 class _ModeSearch:
     """Batched Levenberg-Marquardt (optimistix) in z = (w, alpha / 10 deg)
-    for ``joint_modes``: u = u_mode + L w kept inside the prior box by
-    clipping (as ``mode_and_cov``), a weak pull (10 whitened widths) on
+    for ``joint_modes``: u = u_mode + L w, a weak pull (10 whitened widths) on
     directions the data leave free, 40 steps per call, ``chunk`` starts per
     compiled call."""
 
@@ -497,11 +411,10 @@ class _ModeSearch:
 
         self.post, self.u_mode, self.L, self.chunk, self.dim = post, np.asarray(u_mode), np.asarray(L), chunk, L.shape[0]
         uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
-        self.lo, self.hi = post.lo + 1e-9, post.hi - 1e-9
-        lo, hi, a_unit = jnp.asarray(self.lo), jnp.asarray(self.hi), self.a_unit
+        a_unit = self.a_unit
 
         def res(z, _):
-            u = jnp.clip(uj + Lj @ z[:-1], lo, hi)
+            u = uj + Lj @ z[:-1]
             return jnp.concatenate([post.residuals(u, a_unit * z[-1]), 0.1 * z[:-1]])
 
         lm = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8)
@@ -539,9 +452,6 @@ class _ModeSearch:
 
         z = self._chunks(self.solve, z0)
         z[:, -1] = np.mod(z[:, -1] * self.a_unit, 360.0) / self.a_unit
-        # the clipped u the residuals saw, back in w
-        u = np.clip(self.u_mode + z[:, :-1] @ self.L.T, self.lo, self.hi)
-        z[:, :-1] = np.linalg.solve(self.L, (u - self.u_mode).T).T
         ld = np.asarray(self.logd(jnp.asarray(z), jnp.asarray(self.a_unit * z[:, -1])), float)
         return z, np.where(np.isfinite(ld), ld, -np.inf)
 
@@ -644,8 +554,6 @@ class _ModeSearch:
                     w_cur, ld_cur = nodes[a]
                     tilts = a + d * h * ahead
                     zw = self._chunks(self.follow, w_cur + np.outer(tilts - a, slope), tilts)
-                    u = np.clip(self.u_mode + zw @ self.L.T, self.lo, self.hi)
-                    zw = np.linalg.solve(self.L, (u - self.u_mode).T).T
                     ld = np.asarray(self.logd(jnp.asarray(np.column_stack([zw, tilts / self.a_unit])),
                                               jnp.asarray(tilts)), float)
                     moved = 0

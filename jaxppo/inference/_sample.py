@@ -1,35 +1,31 @@
 """MCMC with numpyro NUTS over the same model and free parameters as ``fit``.
 
-The priors are stated on the physical parameters (``_priors``), but NUTS
-moves in coordinates in which transit posteriors are close to Gaussian and
-of unit width, so that its dense mass matrix only has to learn what is left:
+The priors are stated on the physical parameters and NUTS moves in the
+coordinates of ``._coords`` (the one coordinate system of jaxppo's
+posteriors: each prior parameter through numpyro's bijection onto its
+prior's support, T14 in place of a where a and i are both free, the impact
+parameter folded), then
 
-1. per planet: each prior parameter (t0, P, p, b / (1 + p), limb darkening)
-   through numpyro's bijection onto its prior's support, and, when both a
-   and i are free, the total duration T14 [d] in place of a (a and i follow
-   from P, T14, b and p for a circular orbit, Winn 2010, eq. 14): transit
-   data constrain T14 and b nearly independently where a and i form a
-   curved ridge;
-2. then shifted by the posterior mode (found from the user's start) and
-   whitened by the Cholesky factor of the Laplace covariance there, so
-   that NUTS's dense mass matrix starts right (numpyro starts it at the
-   identity and regularises it towards 1e-3 x identity, far too wide for a
-   mid-time known to 1e-4 d), and warm-up starts at the mode instead of
-   fighting a metric taken on a slope.
+- shifted by the posterior mode (found from the user's start) and
+  whitened by the Cholesky factor of the Laplace covariance there, so
+  that NUTS's dense mass matrix starts right (numpyro starts it at the
+  identity and regularises it towards 1e-3 x identity, far too wide for a
+  mid-time known to 1e-4 d), and warm-up starts at the mode instead of
+  fighting a metric taken on a slope.
 
 The impact parameter is folded: the light curve depends on |cos i| only
 (docs/conventions.md), so i and 180 deg - i are two identical modes, and a
 chain that visits both reports an interval of i that straddles 90 deg
 around neither. NUTS moves a signed coordinate s = b / (1 + p) in (-1, 1)
-and the model takes |s| (the idea of ``_posterior.TransitPosterior``): the
-density is symmetric in s, so a posterior piled up at b = 0 is one smooth
-mode through s = 0, and every reported inclination is in [0, 90] deg.
-``fold_inc=False`` keeps the signed s (inc in (0, 180) deg, the two
-mirrored modes).
+and the model takes |s|: the density is symmetric in s, so a posterior
+piled up at b = 0 is one smooth mode through s = 0, and every reported
+inclination is in [0, 90] deg. ``fold_inc=False`` keeps the signed s
+(inc in (0, 180) deg, the two mirrored modes).
 
-The log-density in these coordinates is the likelihood plus the prior plus
-log |det d(prior parameters)/d(coordinates)|, so the posterior is the one
-the physical priors define.
+The log-density in these coordinates is the likelihood plus
+``Coordinates.log_prior`` (the prior plus log |det d(prior
+parameters)/d(coordinates)|), so the posterior is the one the physical
+priors define.
 """
 
 from __future__ import annotations
@@ -46,7 +42,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
-from ._params import is_moon, is_tc, planet_value, star_value
+from ._coords import Coordinates, default_priors, start_q
 from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -313,203 +309,6 @@ def arviz_major(az) -> int:
     return int(str(az.__version__).split(".")[0])
 
 
-def _priors(model: Model, user=None):
-    """Physical priors, one per free parameter (inclinations through
-    b / (1 + p)): the defaults around the starting system (see
-    ``sample``), replaced by ``user[name]`` where given (a numpyro
-    distribution on the parameter in its public units)."""
-    import numpyro.distributions as dist
-
-    user = dict(user or {})
-    unknown = sorted(set(user) - set(model.free))
-    if unknown:
-        raise ValueError(f"priors: {unknown} are not free parameters; free: {list(model.free)}")
-    for name, pr in user.items():
-        if not isinstance(pr, dist.Distribution) or pr.batch_shape or pr.event_shape:
-            raise ValueError(f"priors[{name!r}] must be a scalar numpyro distribution, got {pr!r}")
-        if name.endswith(".inc") and not is_moon(model.slots[model.free.index(name)][1]):
-            raise ValueError(f"priors[{name!r}]: a prior on the inclination is not supported (the default is uniform "
-                             "in the impact parameter b / (1 + p), |b| < 1 + p); put priors on the other parameters")
-    sigma = float(np.median(np.asarray(model.sigma)))
-    out = []
-    for name, (owner, par) in zip(model.free, model.slots):
-        if name in user:
-            out.append(user[name])
-        elif par in ("q1", "q2"):
-            out.append(dist.Uniform(0.0, 1.0))  # Kipping (2013): uniform q samples every physical profile
-        elif par == "jitter":
-            out.append(dist.LogUniform(1e-3 * sigma, 10.0 * sigma))
-        elif owner == "lc":  # offset and baseline coefficients: relative flux
-            out.append(dist.Uniform(-0.05, 0.05))
-        elif owner == "star" and par in ("mass", "radius"):  # N-body star: within a factor 2 of the start
-            v = float(star_value(model.system, par))
-            out.append(dist.LogUniform(0.5 * v, 2.0 * v))
-        elif owner == "star":
-            v = float(model.system.star.params[par])
-            out.append(dist.Uniform(v - 1.0, v + 1.0))
-        else:
-            out.append(_planet_prior(model.system.planets[owner], par))
-    return out
-
-
-def _planet_prior(pl, par):
-    """The default prior of a planet parameter (see ``sample``)."""
-    import numpyro.distributions as dist
-
-    if is_moon(par):
-        return _moon_prior(pl, pl.moons[par[1]], par[2])
-    if par == "mass":  # N-body: from a thousandth of an Earth mass to ten Jupiter masses
-        return dist.LogUniform(3e-9, 1e-2)
-    if par == "lnode":
-        v = float(pl.lnode)
-        return dist.Uniform(v - 90.0, v + 90.0)
-    if par == "t0" or is_tc(par):
-        t = float(planet_value(pl, par))
-        return dist.Uniform(t - 0.05, t + 0.05)
-    if par == "period":
-        p = float(pl.period)
-        return dist.Uniform(p * (1 - 1e-3), p * (1 + 1e-3))
-    if par == "a":
-        return dist.Uniform(1.0, 4.0 * float(pl.a))
-    if par == "radius":
-        return dist.LogUniform(1e-4, 0.5)
-    return dist.Uniform(-1.0, 1.0)  # inc through the impact parameter in units of (1 + p)
-
-
-def _moon_prior(pl, moon, element):
-    """The default prior of a moon's element (see ``sample``)."""
-    import numpyro.distributions as dist
-
-    v = float(getattr(moon, element))
-    if element == "period":
-        return dist.LogUniform(0.5 * v, 2.0 * v)
-    if element == "t0":
-        return dist.Uniform(v - 0.5 * float(moon.period), v + 0.5 * float(moon.period))
-    if element == "a":  # from touching the planet to 4 times the start
-        return dist.LogUniform(float(pl.radius) + float(moon.radius), 4.0 * v)
-    if element == "radius":
-        return dist.LogUniform(1e-4, 0.5)
-    if element == "mass_ratio":
-        return dist.LogUniform(1e-6, 1.0)
-    if element == "inc":
-        return dist.Uniform(0.0, 180.0)
-    return dist.Uniform(v - 180.0, v + 180.0)  # lnode
-
-
-class _Coords:
-    """Maps NUTS coordinates u to the prior parameters q (t0, P, a,
-    b / (1 + p), p, star coefficients in ``model.slots`` order) and back:
-    each q through numpyro's bijection onto its prior's support (a logistic
-    map for a bounded interval, so that a posterior that fills its prior,
-    like P from one transit, meets no wall), except a when the planet's
-    inclination is free too: then u places log T14 [d] between its values
-    at a = 4 a_start and a = 1 + p by the logistic function (so the prior
-    on a is kept on (1 + p, 4 a_start): orbits that graze the star at every
-    phase are left out). With ``fold`` the inclination's q is |s|, s the
-    signed b / (1 + p) of its map (module docstring)."""
-
-    def __init__(self, model: Model, priors, user=(), fold: bool = True):
-        from numpyro.distributions.transforms import biject_to
-
-        self.model = model
-        self.slots = model.slots
-        self.index = {s: k for k, s in enumerate(self.slots)}
-        self.user = {k for k, n in enumerate(model.free) if n in user}
-        # the T14 coordinate replaces a only under the default prior on a
-        # (its map covers the default's support); a user prior on a keeps
-        # plain coordinates for that planet
-        self.duration = {o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index
-                         and self.index[(o, par)] not in self.user}
-        self.plain = sorted({o for (o, par) in self.slots if par == "a" and (o, "inc") in self.index} - self.duration)
-        self.maps = [biject_to(pr.support) for pr in priors]
-        self.folded = [k for k, (_, par) in enumerate(self.slots) if par == "inc"] if fold else []
-        self.priors = list(priors)
-        self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
-                      if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}
-
-    @staticmethod
-    def _log_t14_range(p, b, period, a_max, xp):
-        """log T14 [d] at a = a_max and at a = 1 + p (T14 = P / 2): the
-        logistic map between them covers a in (1 + p, a_max) without walls."""
-        lo = xp.log(period / np.pi * xp.arcsin(xp.sqrt(((1.0 + p) ** 2 - b**2) / (a_max**2 - b**2))))
-        return lo, xp.log(0.5 * period)
-
-    def _is_duration(self, k) -> bool:
-        owner, par = self.slots[k]
-        return par == "a" and owner in self.duration
-
-    def _other(self, q, owner, par):
-        k = self.index.get((owner, par))
-        return q[k] if k is not None else float(getattr(self.model.system.planets[owner], par))
-
-    def to_q(self, u):
-        q = [None if self._is_duration(k) else self.maps[k](u[k]) for k in range(len(self.slots))]
-        for k in self.folded:
-            # |s| with the derivative -1 or +1 (jnp.abs has 0 at s = 0, which
-            # would put log |det dq/du| = -inf at a head-on start)
-            q[k] = jnp.where(q[k] < 0, -q[k], q[k])
-        for owner in self.duration:
-            ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
-            p, period = self._other(q, owner, "radius"), self._other(q, owner, "period")
-            b = q[kb] * (1.0 + p)
-            lo, hi = self._log_t14_range(p, b, period, self.a_max[ka], jnp)
-            x = jnp.pi * jnp.exp(lo + (hi - lo) * jax.nn.sigmoid(u[ka])) / period
-            # a sin i = sqrt((1 + p)^2 - b^2) / sin(pi T14 / P) (Winn 2010, eq. 14)
-            q[ka] = jnp.sqrt(((1.0 + p) ** 2 - b**2) / jnp.sin(x) ** 2 + b**2)
-        return jnp.stack(q)
-
-    def from_q(self, q) -> np.ndarray:
-        q = np.asarray(q, float).copy()
-        q[self.folded] = np.abs(q[self.folded])
-        u = np.array([0.0 if self._is_duration(k) else float(self.maps[k].inv(q[k])) for k in range(len(self.slots))])
-        for owner in self.duration:
-            ka, kb = self.index[(owner, "a")], self.index[(owner, "inc")]
-            p, period = self._other(q, owner, "radius"), self._other(q, owner, "period")
-            a, b = q[ka], q[kb] * (1.0 + p)
-            lo, hi = self._log_t14_range(p, b, period, self.a_max[ka], np)
-            s = (np.log(period / np.pi * np.arcsin(np.sqrt(((1.0 + p) ** 2 - b**2) / (a**2 - b**2)))) - lo) / (hi - lo)
-            u[ka] = np.log(s / (1.0 - s))
-        return u
-
-    def prior_widths(self, u0) -> np.ndarray:
-        """Rough prior standard deviations in u: a uniform prior mapped by
-        the logistic function has sd pi / sqrt(3); a user prior with a
-        finite variance, its sd divided by |dq/du| at the start (so that an
-        informative prior sets the Laplace widths)."""
-        out = np.full(len(self.slots), np.pi / np.sqrt(3.0))
-        for k in self.user:
-            try:
-                var = float(np.asarray(self.priors[k].variance))
-            except (NotImplementedError, AttributeError, TypeError):
-                continue
-            slope = abs(float(jax.grad(lambda x: self.maps[k](x))(float(u0[k]))))
-            if np.isfinite(var) and var > 0 and slope > 0:
-                out[k] = np.sqrt(var) / slope
-        return out
-
-
-def _start_q(model: Model, system: System) -> np.ndarray:
-    """The prior parameters q (``_Coords``) of ``system``: the inclination
-    as the signed b / (1 + p) (``_Coords`` folds it)."""
-    q = []
-    phys = np.asarray(model.physical(model.to_theta(system)), float)  # q1, q2, lc.* at the start
-    for k, (owner, par) in enumerate(model.slots):
-        if owner == "lc" or par in ("q1", "q2"):
-            q.append(phys[k])
-        elif owner == "star":
-            q.append(float(star_value(system, par)))
-        elif par == "inc":
-            pl = system.planets[owner]
-            b = float(pl.a * np.cos(np.deg2rad(pl.inc)))
-            if not abs(b) < 1.0 + float(pl.radius) or not float(pl.a) > 1.0 + float(pl.radius):
-                raise ValueError(f"sample: planet {pl.name or owner} does not transit at the start (impact parameter "
-                                 f"{b:.3g}, a {float(pl.a):.3g} R*, radius {float(pl.radius):.3g} R*)")
-            q.append(b / (1.0 + float(pl.radius)))
-        else:
-            q.append(float(planet_value(system.planets[owner], par)))
-    return np.asarray(q)
-
-
 def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), num_warmup: int = 1000,
            num_samples: int = 1000, seed: int = 0, num_chains: int = 4, alpha: float = 0.0, case: str = "same",
            progress_bar: bool = True, dense_mass: bool = True, priors: dict | None = None, optimise: bool = True,
@@ -630,7 +429,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
     _check_priors(model, system, priors)
     fold_inc = fold_inc and system.orbits == "kepler"  # N-body orbits keep the sign of cos i
-    q0, start = _start_q(model, system), None
+    q0, start = start_q(model, system), None
     for _ in range(3):
         result, q0 = _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
                                priors, fold_inc, system, optimise and start is None)
@@ -657,12 +456,12 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
 def _check_priors(model: Model, system: System, user) -> None:
     """User priors: known names, scalar distributions, a start inside each
     support; says when a planet leaves the T14 coordinates."""
-    priors = _priors(model, user)
-    q0 = _start_q(model, system)
+    priors = default_priors(model, user)
+    q0 = start_q(model, system)
     for name, pr, v in zip(model.free, priors, q0):
         if user and name in user and not bool(pr.support(jnp.asarray(v))):
             raise ValueError(f"priors[{name!r}]: the start {v:.10g} is outside the prior's support {pr.support}")
-    coords = _Coords(model, priors, user or ())
+    coords = Coordinates(model, priors, user or ())
     for owner in coords.plain:
         label = model.system.planets[owner].name or str(owner)
         warnings.warn(f"sample: a user prior on {label}.a: planet {label} is sampled in plain coordinates (a, b) "
@@ -675,8 +474,7 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
     the posterior mode near it when ``optimise``."""
     from numpyro.infer import MCMC, NUTS
 
-    priors = _priors(model, user)
-    coords = _Coords(model, priors, user or (), fold)
+    coords = Coordinates(model, default_priors(model, user), user or (), fold)
     k = len(model.free)
     u0 = coords.from_q(q0)
     log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
@@ -686,17 +484,9 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
         # the sum of squares is -2 ln L - sum ln(2 pi sigma^2) (fit's objective)
         return -0.5 * jnp.sum(model.residuals(model.theta_from(coords.to_q(u))) ** 2) + log_norm
 
-    def logprior_u(u):
-        q = coords.to_q(u)
-        # numpyro does not check supports unless asked: outside it is -inf
-        inside = jnp.all(jnp.stack([pr.support(q[i]) for i, pr in enumerate(priors)]))
-        lp = sum(pr.log_prob(q[i]) for i, pr in enumerate(priors))
-        lp = lp + jnp.linalg.slogdet(jax.jacfwd(coords.to_q)(u))[1]
-        return jnp.where(inside, lp, -jnp.inf)
-
     @jax.jit
     def potential_u(u):
-        v = -(loglike_u(u) + logprior_u(u))
+        v = -(loglike_u(u) + coords.log_prior(u))
         return jnp.where(jnp.isnan(v), jnp.inf, v)
 
     jacobian_u = jax.jit(jax.jacfwd(lambda u: model.residuals(model.theta_from(coords.to_q(u)))))
@@ -732,7 +522,7 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
     return result, np.asarray(coords.to_q(jnp.asarray(u0)))
 
 
-def _result(model: Model, system: System, coords: _Coords, mcmc, u, loglike_u, log_norm: float) -> SampleResult:
+def _result(model: Model, system: System, coords: Coordinates, mcmc, u, loglike_u, log_norm: float) -> SampleResult:
     """The SampleResult of the draws ``u`` [chain, draw, k] (NUTS's
     coordinates): physical values, the best draw, intervals, diagnostics
     and the sample statistics."""

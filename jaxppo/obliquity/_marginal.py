@@ -54,7 +54,8 @@ from ._scan import run_scan
 from ._windows import windows_and_events, windows_data
 from ..inference._importance import MIN_IMPORTANCE_ESS
 from ..inference._params import check_ttv_free
-from ..inference._posterior import PLANET_PARAMS, check_density, default_density, nuts_draws
+from ..inference._coords import check_density, default_density
+from ..inference._posterior import PLANET_PARAMS, nuts_draws
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux

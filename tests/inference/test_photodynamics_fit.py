@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
+from jaxppo.inference._coords import Coordinates, default_priors
 from jaxppo.inference._model import Model
 
 
@@ -97,6 +98,6 @@ def test_sample_keeps_the_sign_of_cos_i_of_nbody_planets(monkeypatch):
         jp.sample(kepler, lc, free=("c.inc",), num_warmup=3, num_samples=3, num_chains=1, progress_bar=False)
     (fold_nbody, model, q0), (fold_kepler, _, _) = seen
     assert fold_nbody is False and fold_kepler is True
-    coords = smp._Coords(model, smp._priors(model), (), fold_nbody)
+    coords = Coordinates(model, default_priors(model), (), fold_nbody)
     q = np.asarray(coords.to_q(coords.from_q(q0)))
     assert q[0] < 0 and q[0] == pytest.approx(q0[0], rel=1e-12)  # signed b: inc above 90

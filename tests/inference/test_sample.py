@@ -228,7 +228,8 @@ def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
     import numpyro.distributions as dist
 
     from jaxppo.inference._model import Model
-    from jaxppo.inference._sample import _check_priors, _Coords, _priors, _start_q
+    from jaxppo.inference._coords import Coordinates, default_priors, start_q
+    from jaxppo.inference._sample import _check_priors
 
     truth, lc = _one_planet()
     free = ("b.t0", "b.a", "b.inc", "b.radius")
@@ -244,9 +245,9 @@ def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
     user = {"b.a": dist.TruncatedNormal(20.0, 1.0, low=1.2)}
     with pytest.warns(UserWarning, match="plain coordinates"):
         _check_priors(model, truth, user)
-    coords = _Coords(model, _priors(model, user), user)
+    coords = Coordinates(model, default_priors(model, user), user)
     assert not coords.duration and coords.plain == [0]
-    q = _start_q(model, truth)
+    q = start_q(model, truth)
     assert np.allclose(np.asarray(coords.to_q(coords.from_q(q))), q, rtol=1e-12)
     # the prior's own density is what the potential adds for a (identity-free check: a
     # TruncatedNormal on a through numpyro's bijection onto (1.2, inf))
@@ -339,11 +340,11 @@ def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
     # fold_inc=False keeps the old, signed coordinate: the mirrored mode is sampled too
     # (checked cheaply: the coordinate map, not a run)
     from jaxppo.inference._model import Model
-    from jaxppo.inference._sample import _Coords, _priors, _start_q
+    from jaxppo.inference._coords import Coordinates, default_priors, start_q
 
     model = Model(start, lc, free)
-    q = _start_q(model, start.replace(planets=(start.planets[0].replace(inc=92.0),)))
+    q = start_q(model, start.replace(planets=(start.planets[0].replace(inc=92.0),)))
     for fold, sign in ((True, 1.0), (False, -1.0)):
-        coords = _Coords(model, _priors(model), (), fold)
+        coords = Coordinates(model, default_priors(model), (), fold)
         back = np.asarray(coords.to_q(coords.from_q(q)))
         assert np.sign(back[3]) == sign and abs(back[3]) == pytest.approx(abs(q[3]), rel=1e-12)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
-from jaxppo.inference._posterior import a_from_density, density_from_a
+from jaxppo.inference._coords import a_from_density, density_from_a
 
 ALPHA, CASE = 147.0, "opposite"
 

@@ -302,7 +302,7 @@ def test_kepler_third_law_against_the_earth():
     """a/R* from the stellar density: the Sun's mean density (M_sun / (4/3
     pi R_sun^3) = 1.4098 g/cm^3, IAU 2015 nominal values) and the sidereal
     year give 1 au / R_sun = 215.03 (Earth's mass changes it by 1e-6)."""
-    from jaxppo.inference._posterior import a_from_density, density_from_a
+    from jaxppo.inference._coords import a_from_density, density_from_a
 
     m_sun, r_sun, au = 1.98847e33, 6.957e10, 1.495978707e13  # [g], [cm], [cm]
     rho_sun = m_sun / (4.0 / 3.0 * np.pi * r_sun**3)
