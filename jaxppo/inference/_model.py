@@ -9,7 +9,6 @@ every Model of the same structure and frame counts shares one compilation.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 
 import equinox as eqx
@@ -37,12 +36,33 @@ ACTIVE_MARGIN = 0.25
 computed; the rest are exactly 1."""
 
 
-class Model:
+class Model(eqx.Module):
     """Maps an unconstrained vector theta to a System and a light curve.
 
-    The exposure of the data (if any) is modelled by averaging the flux over
-    ``nsub`` sub-exposures.
+    An immutable ``eqx.Module``: ``with_frames`` and ``widened`` return new
+    Models. The exposure of the data (if any) is modelled by averaging the
+    flux over ``nsub`` sub-exposures. The arrays the compiled model
+    functions take (``data``) are built with the Model.
     """
+
+    system: System
+    lc: LightCurve
+    alpha: float
+    jitter0: float
+    basis: np.ndarray
+    t_model: jax.Array
+    y: jax.Array
+    sigma: jax.Array
+    union_idx: np.ndarray
+    active_idx: np.ndarray
+    model_data: "ModelData"
+    requested: tuple = eqx.field(static=True)
+    free: tuple = eqx.field(static=True)
+    slots: tuple = eqx.field(static=True)
+    case: object = eqx.field(static=True)
+    union_floor: int = eqx.field(static=True)
+    nsub: int = eqx.field(static=True)
+    user_span: object = eqx.field(static=True)
 
     def __init__(self, system: System, lc: LightCurve, free, alpha: float = 0.0, case: str = "same", *,
                  active_margin: float = ACTIVE_MARGIN, union_floor: int = 0):
@@ -72,10 +92,11 @@ class Model:
             pad = 0.5 * float(np.max(np.asarray(lc.exposure))) + 1.0 if lc.exposure is not None else 1.0
             system = system.replace(span=(float(tl.min()) - pad, float(tl.max()) + pad))
         self.system, self.lc, self.requested = system, lc, free
-        self.alpha, self.case = alpha, case
+        self.alpha, self.case = alpha, (tuple(case) if isinstance(case, list) else case)
         self.union_floor = int(union_floor)  # see ModelData.build
         # ``free``: the names of the fitted values (baseline expanded)
-        self.free, self.slots, self.basis = expand_free(free, system, np.asarray(lc.time))
+        names, slots, self.basis = expand_free(free, system, np.asarray(lc.time))
+        self.free, self.slots = tuple(names), tuple(slots)
         self.jitter0 = jitter_start(lc.flux_err)
         t_model, self.nsub = lc.supersampled_times()
         self.t_model = jnp.asarray(t_model)
@@ -92,7 +113,7 @@ class Model:
         self.active_idx = self.active_frames_of(system, margin=active_margin)
         self.y = jnp.asarray(lc.flux)
         self.sigma = jnp.asarray(lc.flux_err)
-        self._data_cache = None
+        self.model_data = _build(self)
 
     def _positions(self, system: System, t=None):
         t = np.asarray(self.t_model if t is None else t)
@@ -113,11 +134,10 @@ class Model:
         """A copy (traced anew) whose union-integral frames also include
         ``union`` and whose computed frames also include ``active`` and every
         union frame (indices into the model times)."""
-        new = copy.copy(self)
-        new.union_idx = np.union1d(self.union_idx, np.asarray(union, np.int64))
-        new.active_idx = np.union1d(np.union1d(self.active_idx, np.asarray(active, np.int64)), new.union_idx)
-        new._data_cache = None
-        return new
+        union = np.union1d(self.union_idx, np.asarray(union, np.int64))
+        active = np.union1d(np.union1d(self.active_idx, np.asarray(active, np.int64)), union)
+        new = eqx.tree_at(lambda m: (m.union_idx, m.active_idx), self, (union, active))
+        return eqx.tree_at(lambda m: m.model_data, new, _build(new))
 
     def widened(self, systems) -> "Model | None":
         """A new Model (traced anew) whose union-integral frames also cover
@@ -238,17 +258,9 @@ class Model:
     # ---- model ----------------------------------------------------------------
     def data(self) -> "ModelData":
         """The arrays the compiled model functions take as traced inputs
-        (rebuilt when the frame sets change). Every Model with the same
+        (built with the Model's frame sets). Every Model with the same
         structure and frame counts reuses one compilation."""
-        key = (self.union_idx, self.active_idx)
-        cached = self._data_cache
-        if cached is None or cached[0][0] is not key[0] or cached[0][1] is not key[1]:
-            # concrete arrays even when first asked for inside a trace (a
-            # tracer kept here would leak into later calls)
-            with jax.ensure_compile_time_eval():
-                cached = (key, ModelData.build(self))
-            self._data_cache = cached
-        return cached[1]
+        return self.model_data
 
     def flux(self, theta) -> jnp.ndarray:
         """Model flux at the data times, with the offset / baseline trend."""
@@ -286,6 +298,13 @@ class Model:
     def jacobian(self, theta):
         """(d residuals / d theta, residuals), compiled once per structure."""
         return jacobian(theta, self.data())
+
+
+def _build(model: "Model") -> "ModelData":
+    """``ModelData.build`` as concrete arrays even inside a trace (a tracer
+    kept in the Model would leak into later calls)."""
+    with jax.ensure_compile_time_eval():
+        return ModelData.build(model)
 
 
 def _bucket(n: int) -> int:
