@@ -23,15 +23,15 @@ from .model._star import Spots as Spots
 from .model._star import Star as Star
 from .model._sweep import sweep as sweep
 from .model._transits import MultiTransit as MultiTransit
-from .model._system import Planet as Planet
+from .model._planet import Planet as Planet
 from .model._system import System as System
 from .model._moon import Moon as Moon
 from .model._transits import alpha_limits as alpha_limits
 from .model._transits import transit_times as transit_times
 from .model._transits import multi_transits as multi_transits
 from .model._transits import multi_transit_counts as multi_transit_counts
-from .model._system import hemisphere_cases as hemisphere_cases
-from .model._system import case_label as case_label
+from .model._cases import hemisphere_cases as hemisphere_cases
+from .model._cases import case_label as case_label
 
 from .model._raster import RasterSettings as RasterSettings
 from .model._phoenix import band_intensity as band_intensity

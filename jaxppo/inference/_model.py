@@ -18,7 +18,8 @@ import numpy as np
 
 from ..model._lightcurve import LightCurve
 from ..model._overlap import on_star, pairs_in_contact
-from ..model._system import Planet, System
+from ..model._planet import Planet
+from ..model._system import System
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
 
@@ -63,6 +64,14 @@ class Model(eqx.Module):
     union_floor: int = eqx.field(static=True)
     nsub: int = eqx.field(static=True)
     user_span: object = eqx.field(static=True)
+
+    # Compared and hashed by identity, as a plain object: a bound method
+    # (``jax.jit(model.residuals)``) is then hashable like any method, where
+    # equinox's field-wise hash would meet the arrays among the fields.
+    __hash__ = object.__hash__
+
+    def __eq__(self, other) -> bool:
+        return self is other
 
     def __init__(self, system: System, lc: LightCurve, free, alpha: float = 0.0, case: str = "same", *,
                  active_margin: float = ACTIVE_MARGIN, union_floor: int = 0):

@@ -8,7 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._star import Star
-from ..model._system import Planet, System
+from ..model._planet import Planet
+from ..model._system import System
 
 __all__ = ["to_jsonable", "from_jsonable", "system_to_dict", "system_from_dict"]
 

@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..model._system import Planet, System, require_keplerian
+from ..model._planet import Planet
+from ..model._system import System, require_keplerian
 from ..model._transits import planet_label
 from ..model._units import from_quantity
 from ._fit import FitResult, fit

@@ -8,7 +8,8 @@ import numpy as np
 from ._lightcurve import LightCurve
 from ._phoenix import kepler20_star
 from ._star import Star
-from ._system import Planet, System
+from ._planet import Planet
+from ._system import System
 from ._units import from_quantity
 from ._transits import multi_transits
 

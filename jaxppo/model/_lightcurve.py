@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._exposure import supersampled_times
-from ._system import from_quantity
+from ._units import from_quantity
 from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, kepler_exposure, lightkurve_columns,
                        plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days, TIME_ZERO)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)

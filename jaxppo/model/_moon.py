@@ -18,7 +18,8 @@ import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from ..core.geometry import orbit_position
-from ._system import Planet, from_quantity
+from ._planet import Planet
+from ._units import from_quantity
 
 __all__ = ["Moon", "hierarchical_positions", "group_offsets"]
 

@@ -359,7 +359,7 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
     Returns (planets with ``a`` set to the osculating Jacobi semi-major
     axis, star_mass, star_radius, epoch, dt, span); raises ValueError naming
     the keyword and value that is missing or out of range."""
-    from ._system import from_quantity
+    from ._units import from_quantity
 
     for name, value in (("epoch", epoch), ("star_mass", star_mass), ("star_radius", star_radius)):
         if value is None:

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._system import System, case_signs, require_keplerian
+from ._cases import case_signs
+from ._system import System, require_keplerian
 
 __all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]

@@ -18,7 +18,9 @@ import numpy as np
 
 from ._overlap import case_xy, contact_frames, on_star, untilted_geometry
 from ._plan import one_disk_sum, overlap_flux
-from ._system import CASES, System, case_signs, from_quantity, require_keplerian
+from ._cases import CASES, case_signs
+from ._system import System, require_keplerian
+from ._units import from_quantity
 
 __all__ = ["sweep", "SweepStats"]
 

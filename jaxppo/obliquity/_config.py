@@ -15,7 +15,9 @@ import numpy as np
 from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality_bitmask
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
-from ..model._system import CASES, Planet, System, require_keplerian, scan_cases
+from ..model._cases import CASES, scan_cases
+from ..model._planet import Planet
+from ..model._system import System, require_keplerian
 from ..model._units import from_quantity
 from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest, ttv_settings
 

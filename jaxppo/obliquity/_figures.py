@@ -26,7 +26,7 @@ import numpy as np
 
 from ..model._lightcurve import LightCurve
 from ..model._sweep import sweep
-from ..model._system import case_label, case_signs
+from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
 
 __all__ = ["scan_figures", "read_scan_csv"]

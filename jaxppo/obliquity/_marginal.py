@@ -59,7 +59,8 @@ from ..inference._posterior import PLANET_PARAMS, nuts_draws
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
-from ..model._system import System, case_signs
+from ..model._cases import case_signs
+from ..model._system import System
 
 __all__ = ["marginal_scan", "MarginalResult", "marginal_chi2", "default_free", "quiet_alpha", "density_prior",
            "centre_epochs", "config_of"]

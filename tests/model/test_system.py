@@ -388,7 +388,7 @@ def test_hemisphere_cases_of_three_planets():
     untilted planet relative to the tilted one; sweep (one-disk terms plus
     union frames, including an untilted pair that overlaps only in some
     cases) equals the exact union integral for each."""
-    from jaxppo.model._system import case_label, case_signs, hemisphere_cases
+    from jaxppo.model._cases import case_label, case_signs, hemisphere_cases
 
     star = jp.Star.quadratic(0.4, 0.25)
     # b (tilted, |b| = 0.2) and c, d with |b| = 0.3 and 0.35: each pair
@@ -483,7 +483,7 @@ def test_clear_refusals_of_odd_inputs():
     """Planet(period="3.7") and Planet(radius=True) were accepted,
     System(tilted="b") said "invalid literal for int()", a one-planet scan
     said "case 'opposite' is listed twice"."""
-    from jaxppo.model._system import scan_cases
+    from jaxppo.model._cases import scan_cases
 
     with pytest.raises(ValueError, match="period"):
         jp.Planet(period="3.7", t0=0.0, a=10.0, inc=89.0, radius=0.02)

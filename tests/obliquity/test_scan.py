@@ -619,7 +619,7 @@ def test_scan_refuses_float32(tmp_path):
 def test_case_labels_are_canonical():
     """'+' of a two-planet system is case 'same' (and '-' is 'opposite'):
     they were scanned twice under different geometry names."""
-    from jaxppo.model._system import scan_cases
+    from jaxppo.model._cases import scan_cases
 
     system = jp.kepler20_system()
     assert scan_cases(system, ["+"]) == ("same",)
