@@ -134,7 +134,7 @@ def plain_values(x, what: str, unit=None):
         if unit is not None:
             try:
                 x = x.to_value(unit)
-            except u.UnitConversionError as err:
+            except u.UnitConversionError:
                 raise ValueError(f"{what} has unit {x.unit}, which does not convert to {unit}") from None
         else:
             xunit, x = x.unit, x.value

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._pairs import pair_lines
 from ._tables import table5_text
 
 __all__ = ["scan_report", "probability_lines"]
@@ -49,7 +50,9 @@ def scan_report(summary: dict, cfg, out, seconds: float) -> str:
                      f"{sum(m.get('clipped', 0) for m in summary['multi_transits'])} outliers clipped; "
                      f"errors {det['flux_err']}")
     lines += probability_lines(summary)
+    lines += pair_lines(summary)
     text = "\n".join(lines) + "\n" + table5_text(summary["table5"], cfg.cases)
     verb = "results in" if res.get("finished_before") else "wrote"
     n_fig = len(summary.get("figures", [])) + bool((summary.get("ppo_or_spot") or {}).get("figure"))
-    return text + f"{verb} {out / 'scan.csv'}, scan.ecsv, summary.json, table5.csv/.md and {n_fig} figures\n"
+    pairs = ", pairs.csv" if summary.get("pairs") else ""
+    return text + f"{verb} {out / 'scan.csv'}{pairs}, scan.ecsv, summary.json, table5.csv/.md and {n_fig} figures\n"

@@ -34,13 +34,13 @@ import numpy as np
 
 from ._config import ScanConfig, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
+from ._pairs import PAIRS_HEADER, pair_reports
 from ._progress import atomic_write, read_progress, record_line
-from ._stats import geometry_probabilities
+from ._chi2 import analyse_case, grid_chi2
 from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
-from ..model._overlap import ppo_table, quiet_model
 from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
@@ -296,7 +296,7 @@ def _clear_outputs(out: Path) -> None:
             figures = [Path(f).name for f in json.loads(summ.read_text()).get("figures", [])]
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
-    names = ["summary.json", "scan.csv", "scan.ecsv", "table5.csv", "table5.md", "marginal.csv", "marginal.json",
+    names = ["summary.json", "scan.csv", "pairs.csv", "scan.ecsv", "table5.csv", "table5.md", "marginal.csv", "marginal.json",
              "marginal.png", "marginal_draws.json", "marginal_progress.jsonl", "ppo_or_spot.png"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
     for name in dict.fromkeys(names):
         p = out / name
@@ -374,8 +374,6 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
     fsynced) and entered into ``done``."""
     from tqdm import tqdm
 
-    tm, nsub = data.supersampled_times()
-    y, sig = data.flux, data.flux_err
     todo = [(c, a) for c in cfg.cases for a in cfg.alpha if (c, round(float(a), 9)) not in done]
     blocks = []
     for c in cfg.cases:
@@ -386,9 +384,7 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
                desc="scan", unit="alpha", disable=not progress, leave=False)
     with open(prog_path, "a") as fh:
         for case, alphas in blocks:
-            model = sweep(cfg.system, tm, alphas, cases=(case,))[0]
-            model = model.reshape(alphas.size, -1, nsub).mean(-1)
-            chi2 = np.sum(((y[None, :] - model) / sig[None, :]) ** 2, axis=1)
+            chi2 = grid_chi2(cfg.system, data, alphas, case)
             fh.write(record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}))
             fh.flush()
             os.fsync(fh.fileno())
@@ -398,45 +394,19 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
     bar.close()
 
 
-def _quiet_chi2(system, tm, nsub: int, y, sig, case) -> float:
-    """chi^2 of ``quiet_model`` (exposure-averaged) on the data y, sig."""
-    model = quiet_model(system, tm, case).reshape(-1, nsub).mean(-1)
-    return float(np.sum(((y - model) / sig) ** 2))
-
-
 def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float):
     """Per case: chi^2_0, Delta chi^2, the posterior, the geometry
-    probabilities and the PPO transits. Returns (csv rows, table rows,
-    summary per case, the no-PPO model's chi^2)."""
+    probabilities and the PPO transits (``analyse_case``). Returns (csv
+    rows, table rows, summary per case)."""
     sysm = cfg.system
     tm, nsub = data.supersampled_times()
-    y, sig = data.flux, data.flux_err
-    times_per_event = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
-    chi2_null = float(np.sum(((y - null) / sig) ** 2))
+    chi2_null = float(np.sum(((data.flux - null) / data.flux_err) ** 2))
     rows, summary_cases, table = [], {}, []
     for case in cfg.cases:
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
-        ppo = ppo_table(sysm, times_per_event, cfg.alpha, case)
-        quiet = ~ppo.any(1)
-        # Ground level: the median over alphas with no PPO in any frame; when
-        # the grid has none, the chi^2 of the model a quiet alpha computes:
-        # the tilted planet's own transit beside the untilted planets with
-        # their overlaps in this case (the sum of one-disk terms left out
-        # overlaps of two untilted planets: 2e6 off for such a triple)
-        chi2_0 = float(np.median(chi2[quiet])) if quiet.any() else _quiet_chi2(sysm, tm, nsub, y, sig, case)
-        dchi2 = chi2 - chi2_0
-        w = np.exp(-0.5 * (dchi2 - dchi2.min()))
-        post = w / (np.sum(w) * step)
-        geo = geometry_probabilities(cfg.alpha, dchi2, case)
-        transits = [[int(i + 1) for i in np.nonzero(ppo[ai])[0]] for ai in range(cfg.alpha.size)]
-        summary_cases[case] = {
-            "chi2_0": chi2_0, "chi2_null_model": chi2_null, "alphas_without_ppo": int(quiet.sum()),
-            "geometries": geo,
-            "min_delta_chi2": {"alpha": float(cfg.alpha[np.argmin(dchi2)]), "value": float(dchi2.min())},
-            "max_delta_chi2": {"alpha": float(cfg.alpha[np.argmax(dchi2)]), "value": float(dchi2.max())},
-            "ppo_transits": {f"{a:g}": tr for a, tr in zip(cfg.alpha, transits) if tr},
-        }
+        summ, dchi2, post = analyse_case(sysm, windows, data, cfg.alpha, chi2, case, step)
+        summary_cases[case] = {"chi2_0": summ.pop("chi2_0"), "chi2_null_model": chi2_null, **summ}
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
             table.append((case, float(a), float(c2), float(dc), float(p)))
@@ -471,6 +441,11 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, table, summary_cases = _analyse(cfg, done, windows, data, step)
     atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
+    pairs, pair_rows = pair_reports(cfg, windows, step)
+    if pairs:
+        atomic_write(out / "pairs.csv", PAIRS_HEADER + "\n" + "\n".join(pair_rows) + "\n")
+    elif (out / "pairs.csv").is_file():  # an earlier config's pairs
+        (out / "pairs.csv").unlink()
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     _write_ecsv(out / "scan.ecsv", table, cfg, digest, chi2_0, int(data.time.size), step)
     summary = dict(
@@ -484,6 +459,8 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
         data={"loaded": cfg.lightcurve.report_line(), "report": cfg.lightcurve.report},
         resumed={"alphas_done_before": n_before, "alphas_total": n_total, "finished_before": False},
     )
+    if pairs:
+        summary["pairs"] = pairs
     # Table 5 of the paper: the peaks and dips of Delta chi^2 (and cases 3/2 by Eq. 2)
     result = ScanResult(summary, table, tuple(windows))
     by_case = result.by_case()

@@ -118,7 +118,7 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
     import jaxppo.obliquity._scan as scan_mod
 
     calls = {"n": 0}
-    real = scan_mod.sweep
+    real = scan_mod.grid_chi2  # one call per block of alphas
 
     def flaky(*args, **kwargs):
         calls["n"] += 1
@@ -126,14 +126,14 @@ def test_interrupted_scan_resumes_without_recomputing(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(scan_mod, "sweep", flaky)
+    monkeypatch.setattr(scan_mod, "grid_chi2", flaky)
     with pytest.raises(KeyboardInterrupt):
         run_scan(cfg, tmp_path / "out", progress=False)
     lines = (tmp_path / "out" / "scan_progress.jsonl").read_text().splitlines()
     assert len(lines) == 1 + 3  # header + three finished blocks kept
     calls["n"] = 10
     res = run_scan(cfg, tmp_path / "out", progress=False)
-    assert calls["n"] == 10 + 12 - 3 + 1  # 12 blocks in all, 3 already done; +1: the null model
+    assert calls["n"] == 10 + 12 - 3  # 12 blocks in all, 3 already done
     a = (tmp_path / "ref" / "scan.csv").read_text()
     b = (tmp_path / "out" / "scan.csv").read_text()
     assert a == b and res.summary["chi2_0"] == full.summary["chi2_0"]
@@ -392,7 +392,7 @@ def _small(tmp_path, **kw):
 def _interrupt_after(monkeypatch, n_blocks):
     import jaxppo.obliquity._scan as scan_mod
 
-    real, calls = scan_mod.sweep, {"n": 0}
+    real, calls = scan_mod.grid_chi2, {"n": 0}  # one call per block of alphas
 
     def flaky(*args, **kwargs):
         calls["n"] += 1
@@ -400,8 +400,8 @@ def _interrupt_after(monkeypatch, n_blocks):
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(scan_mod, "sweep", flaky)
-    return lambda: monkeypatch.setattr(scan_mod, "sweep", real)
+    monkeypatch.setattr(scan_mod, "grid_chi2", flaky)
+    return lambda: monkeypatch.setattr(scan_mod, "grid_chi2", real)
 
 
 def test_torn_last_line_is_truncated_before_appending(tmp_path, monkeypatch):
@@ -457,16 +457,16 @@ def test_torn_header_is_not_a_different_configuration(tmp_path, monkeypatch):
     import jaxppo.obliquity._scan as scan_mod
 
     calls = {"n": 0}
-    real = scan_mod.sweep
+    real = scan_mod.grid_chi2
 
     def counting(*a, **k):
         calls["n"] += 1
         return real(*a, **k)
 
-    monkeypatch.setattr(scan_mod, "sweep", counting)
+    monkeypatch.setattr(scan_mod, "grid_chi2", counting)
     with pytest.warns(UserWarning, match="header line is damaged"):
         run_scan(cfg, tmp_path / "out", progress=False)
-    assert calls["n"] == 10 - 4 + 1  # the four good blocks kept (+1: the null model)
+    assert calls["n"] == 10 - 4  # the four good blocks kept
     assert (tmp_path / "ref" / "scan.csv").read_text() == (tmp_path / "out" / "scan.csv").read_text()
 
 
