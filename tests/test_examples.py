@@ -90,3 +90,12 @@ def test_ttv_doc_examples_run():
     table = namespace["table"]
     assert len(table) == 1 and abs(float(table["tc"][0]) - 3856.99) < 0.01
     assert namespace["b"].transit_epochs == (0, 1, 2)
+
+
+def test_scan_doc_three_planet_example_finds_the_ppo_in_its_pair():
+    """docs/scan.md's three-planet example: pair t+b's lowest Delta chi^2
+    at the injected 10 deg, pair t+d without a detection."""
+    _, namespace = _execute("scan.md")
+    pairs = namespace["result"].summary["pairs"]
+    assert pairs["t+b"]["cases"]["same"]["min_delta_chi2"]["alpha"] == 10.0
+    assert pairs["t+d"]["cases"]["same"]["min_delta_chi2"]["value"] > -10.0
