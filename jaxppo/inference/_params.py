@@ -35,7 +35,7 @@ from ..model._system import System
 from ..model._ttv import epochs_text
 
 __all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
-           "check_ttv_free", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
+           "check_ttv_free", "expand_tc", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The parameters of each planet a fit or a sampler may free."""
@@ -353,7 +353,7 @@ def _baseline_windows(time: np.ndarray) -> list[np.ndarray]:
     return np.split(np.arange(time.size), cuts)
 
 
-def _expand_tc(free, system: System) -> list:
+def expand_tc(free, system: System) -> list:
     """"b.tc" -> "b.tc[e]" for every listed epoch e of planet b."""
     out = []
     for n in free:
@@ -374,7 +374,7 @@ def expand_free(free, system: System, time: np.ndarray):
     slots."""
     names, slots, cols = [], [], []
     windows = None
-    for n in _expand_tc(free, system):
+    for n in expand_tc(free, system):
         owner, par = _split(n, system)
         if owner == "lc" and par in ("baseline", "baseline2"):
             windows = _baseline_windows(time) if windows is None else windows

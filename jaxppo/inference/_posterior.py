@@ -19,7 +19,7 @@ from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._coords import Coordinates, default_priors, start_q
 from ._model import Model
-from ._params import check_ttv_free
+from ._params import check_ttv_free, expand_tc
 
 __all__ = ["PLANET_PARAMS", "TransitPosterior", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
 
@@ -29,7 +29,8 @@ PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 
 class TransitPosterior:
     """The log-posterior of the transit parameters ``free`` (names from
-    ``PLANET_PARAMS``) at a tilt, in the coordinates u of
+    ``PLANET_PARAMS``, and listed transit times "b.tc[12]", "b.tc" for
+    every listed epoch, each uniform within +-0.05 d of its value) at a tilt, in the coordinates u of
     ``._coords.Coordinates`` (those of ``jaxppo.sample``): t0, P, p and the
     folded impact parameter b / (1 + p) of each planet through the
     bijections onto their default priors' supports (t0 within +-0.05 d and P
@@ -46,20 +47,21 @@ class TransitPosterior:
 
     def __init__(self, system, data, free, density, alpha, case):
         labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
-        free = tuple(free)
+        free = tuple(expand_tc(tuple(free), system))  # "b.tc": every listed epoch of b
         for name in free:
             owner, _, par = name.partition(".")
-            if owner in labels:
-                check_ttv_free(system, labels.index(owner), par, name)
-            if owner not in labels or par not in PLANET_PARAMS:
+            tc = check_ttv_free(system, labels.index(owner), par, name) if owner in labels else None
+            if owner not in labels or (par not in PLANET_PARAMS and tc is None):
                 raise ValueError(f"free: {name!r} is not a planet parameter the marginal scan samples; names look "
-                                 f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS})")
+                                 f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS}, and listed transit "
+                                 "times 'b.tc[12]' or 'b.tc')")
         if len(set(free)) != len(free):
             raise ValueError(f"free parameters repeat: {list(free)}")
-        self.system, self.free, self.density = system, free, density
+        self.system, self.density = system, density
         # a posterior spreads further than a fit moves: compute every frame
         # within 1 R* of the limb at the start
         self.model = Model(system, data, free, alpha, case, active_margin=1.0)
+        self.free = tuple(self.model.free)
         self.slots = list(self.model.slots)
         tie = density if any(p == "a" for _, p in self.slots) else None
         self.coordinates = Coordinates(self.model, default_priors(self.model), fold=True, density=tie)

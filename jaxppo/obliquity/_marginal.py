@@ -89,7 +89,14 @@ def _systems_from(system: System, samples: dict, names) -> list[System]:
         for name in names:
             owner, par = name.split(".", 1)
             idx = next(j for j, pl in enumerate(planets) if (pl.name or str(j)) == owner)
-            planets[idx] = planets[idx].replace(**{par: float(np.asarray(samples[name])[i])})
+            value = float(np.asarray(samples[name])[i])
+            slot = check_ttv_free(system, idx, par, name)
+            if slot is not None:  # a listed transit time: "b.tc[12]"
+                times = list(planets[idx].transit_times)
+                times[slot[1]] = value
+                planets[idx] = planets[idx].replace(transit_times=times)
+            else:
+                planets[idx] = planets[idx].replace(**{par: value})
         out.append(system.replace(planets=planets))
     return out
 
@@ -105,12 +112,14 @@ def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
     labels = {pl.name or str(i) for i, pl in enumerate(system.planets)}
     for name in names:
         owner, _, par = name.partition(".")
+        tc = None
         if owner in labels:
             idx = next(j for j, pl in enumerate(system.planets) if (pl.name or str(j)) == owner)
-            check_ttv_free(system, idx, par, f"samples: {name}")
-        if owner not in labels or par not in PLANET_PARAMS:
+            tc = check_ttv_free(system, idx, par, f"samples: {name}")
+        if owner not in labels or (par not in PLANET_PARAMS and tc is None):
             raise ValueError(f"samples: {name!r} is not a planet parameter; names look like 'b.t0' "
-                             f"(planets {sorted(labels)}, parameters {PLANET_PARAMS})")
+                             f"(planets {sorted(labels)}, parameters {PLANET_PARAMS}, and listed transit times "
+                             "'b.tc[12]')")
         if not np.all(np.isfinite(np.asarray(samples[name], float))):
             raise ValueError(f"samples: {name!r} holds non-finite values")
     return names, int(n[0])
@@ -252,13 +261,17 @@ def quiet_alpha(system: System, tm: np.ndarray, case) -> float:
 
 def centre_epochs(system: System, t_mid: float) -> System:
     """The same orbits with each planet's t0 moved by whole periods to the
-    transit nearest t_mid [d]; listed transit epochs are renumbered with
-    it (the listed times stay)."""
+    transit nearest t_mid [d]. A planet with listed transit times keeps its
+    t0 and epochs: its t0 cancels (the orbit is shifted by tc_n - t0 - n P)
+    and is never sampled, and its epochs keep the user's numbering, so that
+    a free "b.tc[12]" names the same transit."""
     planets = []
     for pl in system.planets:
+        if pl.transit_times is not None:
+            planets.append(pl)
+            continue
         n = int(np.round((t_mid - float(pl.t0)) / float(pl.period)))
-        epochs = None if pl.transit_epochs is None else tuple(e - n for e in pl.transit_epochs)
-        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period), transit_epochs=epochs))
+        planets.append(pl.replace(t0=float(pl.t0) + n * float(pl.period)))
     return system.replace(planets=planets)
 
 

@@ -487,3 +487,37 @@ def test_guard_withholds_a_peak_one_draw_carries(real, tmp_path, monkeypatch):
     t = m.table[m.table["case"] == "same"]
     assert t["importance_ess"][t["alpha"] == 130.0][0] < 6.0 and t["importance_ess"].max() == pytest.approx(30.0)
     assert "no posterior peak" in "\n".join(m.summary_lines())
+
+
+def test_free_transit_times_in_the_transit_posterior_and_the_draws():
+    """Issue 23: a listed transit time is a free parameter of the marginal
+    scan ("b.tc[1]", or "b.tc" for every listed epoch): the transit
+    posterior's mode moves a time listed 4 min late back to the one the
+    data were made with, and each draw's System carries its sampled time
+    (the chi^2 of the true time is the lower)."""
+    from jaxppo.inference._posterior import TransitPosterior, mode_and_cov
+    from jaxppo.obliquity._marginal import _check_samples, _systems_from, marginal_chi2
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    true_times = [0.0, 10.004, 19.998]
+    b = jp.Planet(10.0, 0.0, 20.0, 89.5, 0.1, name="b", transit_times=true_times, transit_epochs=[0, 1, 2])
+    c = jp.Planet(10.0, 0.02, 25.0, 89.6, 0.08, name="c")
+    truth = jp.System(star, [b, c], tilted="b")
+    t = np.concatenate([np.arange(m - 0.25, m + 0.25, 2.0 / 1440.0) for m in (0.0, 10.0, 20.0)])
+    lc = jp.simulate(truth, t, noise=2e-4, seed=4)
+    late = truth.replace(planets=(b.replace(transit_times=[0.0, 10.004 + 4.0 / 1440.0, 19.998]), c))
+    post = TransitPosterior(late, lc, ("b.tc[1]", "b.radius"), (1.5, 0.15), 0.0, "same")
+    assert post.free == ("b.tc[1]", "b.radius")
+    u, _, _ = mode_and_cov(post)
+    phys, _ = post.physical(u)
+    assert abs(float(phys[0]) - 10.004) < 0.5 / 1440.0, (float(phys[0]) - 10.004) * 1440.0
+    every = TransitPosterior(late, lc, ("b.tc",), (1.5, 0.15), 0.0, "same")
+    assert every.free == ("b.tc[0]", "b.tc[1]", "b.tc[2]")
+    samples = {"b.tc[1]": np.array([10.004, 10.004 + 4.0 / 1440.0])}
+    assert _check_samples(late, samples)[0] == ["b.tc[1]"]
+    systems = _systems_from(late, samples, list(samples))
+    assert [float(s.planets[0].transit_times[1]) for s in systems] == list(samples["b.tc[1]"])
+    chi2, _, _ = marginal_chi2(systems, lc.time, 1, lc.flux, lc.flux_err, np.array([0.0]), ("same",))
+    assert chi2[0, 0, 0] < chi2[1, 0, 0] - 100.0
+    with pytest.raises(ValueError, match="lists no epoch 7"):
+        TransitPosterior(late, lc, ("b.tc[7]",), (1.5, 0.15), 0.0, "same")

@@ -56,10 +56,10 @@ def test_bad_transit_time_keys(tmp_path, extra, match):
 
 
 def test_marginal_scan_keeps_transit_times_consistent():
-    """The marginal scan samples at a t0 moved to the middle of the data:
-    listed epochs are renumbered with it (same orbit), the default free
-    parameters leave out the t0 of a planet with transit times, and draws
-    of that t0 are refused."""
+    """The marginal scan samples at a t0 moved to the middle of the data
+    (same orbit); a planet with transit times keeps its t0 and epochs (its
+    t0 cancels; "b.tc[3]" keeps naming the same transit), the default free
+    parameters leave out its t0, and draws of that t0 are refused."""
     from jaxppo.obliquity._marginal import centre_epochs, _check_samples, default_free
 
     b = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=89.5, radius=0.1, name="b",
@@ -67,8 +67,8 @@ def test_marginal_scan_keeps_transit_times_consistent():
     c = jp.Planet(period=13.0, t0=-6.0, a=25.0, inc=89.6, radius=0.08, name="c")
     system = jp.System(jp.Star("quadratic", [0.4, 0.2]), [b, c])
     centred = centre_epochs(system, 31.0)
-    cb = centred.planets[0]
-    assert float(cb.t0) == 30.0 and cb.transit_epochs == (-3, -2, -1, 0, 1)
+    cb, cc = centred.planets
+    assert float(cb.t0) == 0.0 and cb.transit_epochs == (0, 1, 2, 3, 4) and float(cc.t0) == 33.0
     t = np.linspace(-2.0, 42.0, 4001)
     assert np.allclose(np.asarray(centred.flux(t)), np.asarray(system.flux(t)), rtol=0, atol=1e-12)
     assert "b.t0" not in default_free(system) and "c.t0" in default_free(system) and "b.period" in default_free(system)
