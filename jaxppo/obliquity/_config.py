@@ -132,14 +132,21 @@ class ScanConfig:
         the config, the data, the jaxppo version (a release that changes the
         numerics must not resume an older release's progress) and the
         exposure supersampling."""
+        return self.digest_without()
+
+    def digest_without(self, *scan_keys: str) -> str:
+        """``digest`` leaving out the ``[scan]`` keys ``scan_keys`` too (the
+        joint sampler, which never uses the alpha grid or its blocks, leaves
+        them out: another grid must not discard its particles)."""
         from .._version import __version__
 
         nsub = self.lightcurve.supersampled_times()[1] if self.lightcurve.time.size else 1
         # what only the marginalised scan uses stays out: changing the number
         # of draws must not discard the plain scan's progress
         raw = {k: v for k, v in self.raw.items() if k not in ("fit", "ttv")}
+        drop = ("marginalize",) + tuple(scan_keys)
         if isinstance(raw.get("scan"), dict):
-            raw["scan"] = {k: v for k, v in raw["scan"].items() if k != "marginalize"}
+            raw["scan"] = {k: v for k, v in raw["scan"].items() if k not in drop}
         raw.update(ttv_digest(self.system))  # transit times from a file: their values count
         payload = json.dumps({"config": raw, "jaxppo": __version__, "supersampling": nsub},
                              sort_keys=True, default=str).encode()

@@ -214,7 +214,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     sysm = centre_epochs(cfg.system, 0.5 * (float(tm.min()) + float(tm.max())))
     free = default_free(sysm) if free is None else tuple(free)
     density, density_source = density_prior(cfg, sysm, free, None, stellar_density)
-    settings = {"particles": particles, "free": list(free), "density": density, "config": cfg.digest,
+    settings = {"particles": particles, "free": list(free), "density": density,
+                "config": cfg.digest_without("alpha", "block"),
                 "cess": float(cess), "n_moves": int(n_moves)}
     path = Path(out) / JOINT if out is not None else None
     done = {}

@@ -59,6 +59,10 @@ def test_the_injected_tilt_and_geometry_from_an_offset_start(injected, tmp_path)
     again = jp.joint_scan(start, lc, particles=128, seeds=(0,), out=tmp_path, progress=False, **kw)
     assert again["cases"][CASE]["alpha_peak"] == c["alpha_peak"]
     assert again["cases"][CASE]["seconds"] == c["seconds"] and again["seconds"] < 30.0
+    # the alpha grid (the fixed scan's) is not the joint sampler's: another grid resumes too
+    other = jp.joint_scan(start, lc, particles=128, seeds=(0,), out=tmp_path, progress=False,
+                          alpha=np.arange(0.0, 360.0, 2.0), **kw)
+    assert other["cases"][CASE]["seconds"] == c["seconds"]
     with pytest.raises(ValueError, match="holds a joint run of other settings"):
         jp.joint_scan(start, lc, particles=64, seeds=(0,), out=tmp_path, progress=False, **kw)
 
