@@ -14,7 +14,9 @@ transit posterior of the marginal scan and the joint sampler
   depends on |cos i| only, so one smooth mode through b = 0);
 - when a and i of a planet are both free (and a keeps its default prior),
   u places log T14 in place of a (Winn 2010, eq. 14), where the data
-  constrain T14 and b nearly independently;
+  constrain T14 and b nearly independently; its map covers a in
+  (1 + p, a_max), so a's uniform prior is taken on that range (orbits
+  that graze the star at every phase are left out);
 - with a stellar density prior (``density``), every free a/R* follows
   from one coordinate log rho* by Kepler's third law (``a_from_density``);
 - the log-density in u is the log-likelihood plus the priors' log-density
@@ -303,8 +305,9 @@ class Coordinates:
 
     def log_prior(self, u):
         """log prior density in u: the priors' log-densities at q (and the
-        truncated Gaussian of rho*), plus log |det dq/du|; -inf outside a
-        prior's support."""
+        truncated Gaussian of rho*; a T14 coordinate's a uniform on
+        (1 + p, a_max)), plus log |det dq/du|; -inf outside a prior's
+        support."""
         import numpyro.distributions as dist
 
         v = self._values(u)
@@ -314,6 +317,12 @@ class Coordinates:
         # numpyro does not check supports unless asked: outside it is -inf
         inside = jnp.all(jnp.stack([pr.support(v[j]) for j, pr in enumerate(pri)]))
         lp = sum(pr.log_prob(v[j]) for j, pr in enumerate(pri))
+        q = self.to_q(u)
+        for owner in self.duration:
+            # the T14 map covers a in (1 + p, a_max): a's Uniform(1, a_max)
+            # renormalised on that range, so the prior in u integrates to one
+            ka = self.index[(owner, "a")]
+            lp = lp - jnp.log1p(-self._other(q, owner, "radius") / (self.a_max[ka] - 1.0))
         lp = lp + jnp.linalg.slogdet(jax.jacfwd(self._values)(u))[1]
         return jnp.where(inside, lp, -jnp.inf)
 

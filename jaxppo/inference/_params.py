@@ -134,14 +134,14 @@ def check_ttv_free(system: System, idx: int, par: str, name: str):
     label = pl.name or str(idx)
     if par.startswith("tc"):
         m = re.fullmatch(r"tc\[\s*(-?\d+)\s*\]", par)
+        if pl.transit_times is None and (m is not None or par == "tc"):
+            raise ValueError(f"free parameter {name!r}: planet {label!r} has no transit_times; give it "
+                             "Planet(..., transit_times=, transit_epochs=) (e.g. its predicted times from "
+                             "system.transit_times, or use jaxppo.measure_transit_times)")
         if m is None:
             raise ValueError(f"free parameter {name!r}: a transit time is named like '{label}.tc[12]' (the listed "
                              f"epoch in brackets), or '{label}.tc' for every listed epoch")
         epoch = int(m.group(1))
-        if pl.transit_times is None:
-            raise ValueError(f"free parameter {name!r}: planet {label!r} has no transit_times; give it "
-                             "Planet(..., transit_times=, transit_epochs=) (e.g. its predicted times from "
-                             "system.transit_times, or use jaxppo.measure_transit_times)")
         if epoch not in pl.transit_epochs:
             raise ValueError(f"free parameter {name!r}: planet {label!r} lists no epoch {epoch} (its transit_epochs "
                              f"are {epochs_text(pl.transit_epochs)})")

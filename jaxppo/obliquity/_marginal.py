@@ -101,6 +101,21 @@ def _systems_from(system: System, samples: dict, names) -> list[System]:
     return out
 
 
+def sampled_system(system: System, sampler: dict) -> System:
+    """The system the draws were sampled about: NUTS samples at each
+    planet's t0 moved to the middle of the data (``centre_epochs``; the
+    sampler records them as ``t0_epochs``), so a draw with a free period
+    but a fixed t0 is that period about the moved t0 (about the config's t0
+    it would put each transit n dP off); draws given by the caller are
+    about ``system`` itself."""
+    moved = sampler.get("t0_epochs")
+    if not moved:
+        return system
+    planets = [pl.replace(t0=float(moved.get(pl.name or str(i), pl.t0))) if pl.transit_times is None else pl
+               for i, pl in enumerate(system.planets)]
+    return system.replace(planets=planets)
+
+
 def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
     if not isinstance(samples, dict) or not samples:
         raise ValueError(f"samples must be a non-empty dict name -> array of draws, got {type(samples).__name__}")
@@ -110,12 +125,19 @@ def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
     if any(s != n for s in lengths.values()) or len(n) != 1 or n[0] < 1:
         raise ValueError(f"samples: every entry must be a 1D array of the same length >= 1, got shapes {lengths}")
     labels = {pl.name or str(i) for i, pl in enumerate(system.planets)}
+    seen = {}
     for name in names:
         owner, _, par = name.partition(".")
         tc = None
         if owner in labels:
             idx = next(j for j, pl in enumerate(system.planets) if (pl.name or str(j)) == owner)
+            if par == "tc" and system.planets[idx].transit_times is not None:
+                raise ValueError(f"samples: {name!r}: draws name one listed transit time each, like '{owner}.tc[12]'")
             tc = check_ttv_free(system, idx, par, f"samples: {name}")
+            key = (idx, tc if tc is not None else par)
+            if key in seen:
+                raise ValueError(f"samples: {seen[key]!r} and {name!r} name the same parameter")
+            seen[key] = name
         if owner not in labels or (par not in PLANET_PARAMS and tc is None):
             raise ValueError(f"samples: {name!r} is not a planet parameter; names look like 'b.t0' "
                              f"(planets {sorted(labels)}, parameters {PLANET_PARAMS}, and listed transit times "
@@ -641,7 +663,7 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     samples, sampler = _draws(cfg, data, tm, draws_path, o, timing)
     if not prog_path.exists():
         atomic_write(prog_path, json.dumps({"config_digest": o.digest, "source": cfg.source, "format": 2}) + "\n")
-    systems = _systems_from(cfg.system, samples, list(samples))
+    systems = _systems_from(sampled_system(cfg.system, sampler), samples, list(samples))
     dchi2, chi2, c0, chi2_null, chi2_ref = _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path,
                                                         o, timing)
 

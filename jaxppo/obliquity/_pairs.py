@@ -18,7 +18,7 @@ from ..model._cases import case_signs
 from ._chi2 import analyse_case, grid_chi2
 from ._windows import windows_data
 
-__all__ = ["pair_reports", "pair_lines", "PAIRS_HEADER"]
+__all__ = ["pair_reports", "pair_lines", "partners_of", "PAIRS_HEADER"]
 
 PAIRS_HEADER = "pair,case,alpha,chi2,delta_chi2,posterior"
 """The columns of pairs.csv (one row per pair, case and alpha)."""
@@ -26,6 +26,18 @@ PAIRS_HEADER = "pair,case,alpha,chi2,delta_chi2,posterior"
 
 def _labels(system) -> list[str]:
     return [pl.name or str(i) for i, pl in enumerate(system.planets)]
+
+
+def _partners(system, windows) -> list[str]:
+    labels = _labels(system)
+    tilted = labels[system.tilted]
+    return [p for p in labels if p != tilted and any(p in w.event.planets for w in windows)]
+
+
+def partners_of(system, windows) -> int:
+    """How many planets share a window of ``windows`` with the tilted planet
+    (the scan reports pairs when more than one does)."""
+    return len(_partners(system, windows))
 
 
 def pair_reports(cfg, windows, step: float):
@@ -37,7 +49,7 @@ def pair_reports(cfg, windows, step: float):
     system = cfg.system
     labels = _labels(system)
     tilted = labels[system.tilted]
-    partners = [p for p in labels if p != tilted and any(p in w.event.planets for w in windows)]
+    partners = _partners(system, windows)
     if len(partners) < 2:
         return {}, []
     pairs, rows = {}, []

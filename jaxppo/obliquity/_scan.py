@@ -34,7 +34,7 @@ import numpy as np
 
 from ._config import ScanConfig, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
-from ._pairs import PAIRS_HEADER, pair_reports
+from ._pairs import PAIRS_HEADER, pair_reports, partners_of
 from ._progress import atomic_write, read_progress, record_line
 from ._chi2 import analyse_case, grid_chi2
 from ._summary import DeprecatedSummaryAccess
@@ -331,10 +331,13 @@ def _finished_result(out: Path, cfg: ScanConfig, digest: str):
     expect = [(c, float(a)) for c in cfg.cases for a in cfg.alpha]
     if [(str(c), float(a)) for c, a in zip(table["case"], table["alpha"])] != [(c, float(f"{a:.10g}")) for c, a in expect]:
         return None
+    windows = tuple(windows_and_events(cfg)[0])
+    if partners_of(cfg.system, windows) > 1 and not ("pairs" in summary and (out / "pairs.csv").is_file()):
+        return None  # finished before the scan reported pairs (or pairs.csv removed): analyse again
     n = len(expect)
     summary["resumed"] = {"alphas_done_before": n, "alphas_total": n, "finished_before": True}
     summary["progress_notes"] = []
-    return ScanResult(summary, table, tuple(windows_and_events(cfg)[0]))
+    return ScanResult(summary, table, windows)
 
 
 def _require_x64(what: str) -> None:

@@ -102,3 +102,21 @@ def test_model_is_an_immutable_module(two_planets):
     # no two disks touch in those frames: the union integral gives the one-disk sums
     np.testing.assert_allclose(np.asarray(jax.jit(wider.residuals)(theta)), np.asarray(model.residuals(theta)),
                                rtol=0, atol=1e-9)
+
+
+def test_the_t14_coordinate_prior_integrates_to_one(two_planets):
+    """a and inc free: u places log T14 in place of a, whose map covers a
+    in (1 + p, 4 a_start); the prior there integrates to one over that
+    coordinate at a fixed impact parameter (it lacked p / (4 a - 1) before,
+    which also tilted p's prior; found in review)."""
+    truth, lc = two_planets
+    model = Model(truth, lc, ("b.a", "b.inc", "b.radius"))
+    coords = Coordinates(model, default_priors(model))
+    assert coords.duration == {0}
+    alone = Model(truth, lc, ("b.inc", "b.radius"))
+    inc_p = Coordinates(alone, default_priors(alone))
+    u0 = coords.from_q(start_q(model, truth))
+    lp = jax.jit(lambda x: coords.log_prior(jnp.asarray([x, u0[1], u0[2]])))
+    over_a, _ = quad(lambda x: float(jnp.exp(lp(x))), -60.0, 60.0, limit=400, points=[0.0])
+    rest = float(jnp.exp(inc_p.log_prior(jnp.asarray(u0[1:]))))
+    assert over_a / rest == pytest.approx(1.0, abs=1e-7)

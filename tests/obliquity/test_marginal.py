@@ -521,3 +521,45 @@ def test_free_transit_times_in_the_transit_posterior_and_the_draws():
     assert chi2[0, 0, 0] < chi2[1, 0, 0] - 100.0
     with pytest.raises(ValueError, match="lists no epoch 7"):
         TransitPosterior(late, lc, ("b.tc[7]",), (1.5, 0.15), 0.0, "same")
+
+
+def test_free_period_with_fixed_t0_scans_the_orbits_it_sampled(tmp_path):
+    """NUTS samples P about each t0 moved to the middle of the data; the
+    draws' systems kept the config's t0 (100 periods before the data) with
+    the sampled P, so every transit sat n dP off (chi^2 of the no-PPO model
+    40 times the number of points): they are now built about the t0 the
+    sampler used (review of issue 22/23's change)."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(10.0, -1000.0, 20.0, 89.5, 0.1, name="b")
+    c = jp.Planet(10.0, -999.98, 25.0, float(np.degrees(np.arccos(-0.5 / 25))), 0.08, name="c")
+    truth = jp.System(star, [b, c], tilted="b")
+    t = np.concatenate([np.arange(m - 0.25, m + 0.25, 2.0 / 1440.0) for m in (0.0, 10.0, 20.0)])
+    lc = jp.simulate(truth, t, noise=2e-4, seed=4)
+    res = jp.marginal_scan(truth, lc, draws=8, num_warmup=50, chains=2, free=["b.period", "b.radius"],
+                           alpha=np.arange(0.0, 360.0, 30.0), cases=("same",), detrend="none", min_ess=1,
+                           progress=False, figures=False, out=tmp_path)
+    n = res.summary["points"] if "points" in res.summary else t.size
+    assert res.summary["chi2_null"]["max"] < 1.5 * n, (res.summary["chi2_null"], n)
+
+
+def test_transit_time_names_in_draws_are_checked():
+    """Two columns of draws for one listed time ("b.tc[1]", "b.tc[ 1]")
+    were both accepted and one silently dropped; "b.tc" for a planet
+    without transit times said to write what was written (review)."""
+    from jaxppo.obliquity._marginal import _check_samples
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(10.0, 0.0, 20.0, 89.5, 0.1, name="b", transit_times=[0.0, 10.0], transit_epochs=[0, 1])
+    c = jp.Planet(10.0, 0.02, 25.0, 89.6, 0.08, name="c")
+    system = jp.System(star, [b, c], tilted="b")
+    with pytest.raises(ValueError, match=r"'b.tc\[1\]' and 'b.tc\[ 1\]' name the same parameter"):
+        _check_samples(system, {"b.tc[1]": np.zeros(2) + 10.0, "b.tc[ 1]": np.zeros(2) + 10.004})
+    with pytest.raises(ValueError, match=r"one listed transit time each, like 'b.tc\[12\]'"):
+        _check_samples(system, {"b.tc": np.zeros(2)})
+    with pytest.raises(ValueError, match="planet 'c' has no transit_times"):
+        _check_samples(system, {"c.tc": np.zeros(2)})
+    from jaxppo.inference._posterior import TransitPosterior
+
+    lc = jp.simulate(system, np.linspace(-0.2, 0.2, 50), noise=1e-4)
+    with pytest.raises(ValueError, match="planet 'c' has no transit_times"):
+        TransitPosterior(system, lc, ("c.tc",), (1.5, 0.15), 0.0, "same")

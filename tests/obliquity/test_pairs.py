@@ -99,3 +99,16 @@ def test_two_planets_have_no_pairs_block(tmp_path):
     lc = jp.simulate(two, t, noise=1e-4, seed=9)
     res = jp.scan(two, lc, alpha=np.arange(0.0, 360.0, 30.0), cases=("same",), detrend="none", out=tmp_path)
     assert "pairs" not in res.summary and not (tmp_path / "pairs.csv").exists()
+
+
+def test_a_finished_scan_without_its_pairs_is_analysed_again(scanned):
+    """A folder finished before the scan reported pairs (or whose pairs.csv
+    was removed) came back as finished, without the pairs: it is analysed
+    again from the stored chi^2 (no block recomputed)."""
+    s, lc, alpha, res, out = scanned
+    (out / "pairs.csv").unlink()
+    again = jp.scan(s, lc, alpha=alpha, cases=("same", "opposite"), detrend="none", out=out)
+    assert not again.summary["resumed"]["finished_before"] and again.summary["resumed"]["alphas_done_before"] == 72
+    assert (out / "pairs.csv").is_file() and again.summary["pairs"] == res.summary["pairs"]
+    assert jp.scan(s, lc, alpha=alpha, cases=("same", "opposite"), detrend="none",
+                   out=out).summary["resumed"]["finished_before"]
