@@ -326,7 +326,10 @@ def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
     pl = truth.planets[0]
     start = truth.replace(planets=(pl.replace(t0=3.0 / 1440.0, a=10.6 * 1.05, radius=0.03 * 1.05, inc=88.0),))
     free = ("b.t0", "b.period", "b.a", "b.inc", "b.radius")
-    res = jp.sample(start, lc, free=free, num_warmup=500, num_samples=300, num_chains=4, seed=0, progress_bar=False)
+    # 600 draws per chain: with 300 the R-hat of a, inc and radius (one slow
+    # direction) ranged 1.02-1.08 over seeds 0-2, on this and the previous
+    # code alike; with 600, 1.03 at seed 0
+    res = jp.sample(start, lc, free=free, num_warmup=500, num_samples=600, num_chains=4, seed=0, progress_bar=False)
     inc = res.samples["b.inc"]
     assert np.all(inc <= 90.0), inc.max()
     assert res.start["optimised"] and res.start["converged"], res.start

@@ -150,11 +150,12 @@ def _pair_case(seed=0):
     return linear, lc, tb, tc
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0])
 def test_two_planets_transiting_together_are_not_swapped(seed):
     """b's epoch 3 and c's epoch 2 share their points: searched one at a
     time, each took the other's dip (53 and 21 minutes off, success, no
-    warning). The joint grid finds both within 3 sigma."""
+    warning, in 6 of 6 seeds: one seed here keeps the suite's time). The
+    joint grid finds both within 3 sigma."""
     linear, lc, tb, tc = _pair_case(seed)
     table = jp.measure_transit_times(linear, lc)
     got = {(p, int(e)): (float(t), float(s)) for p, e, t, s in zip(table["planet"], table["epoch"], table["tc"],
