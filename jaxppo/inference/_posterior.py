@@ -21,10 +21,26 @@ from ._coords import Coordinates, default_priors, start_q
 from ._model import Model
 from ._params import check_ttv_free, expand_tc
 
-__all__ = ["PLANET_PARAMS", "TransitPosterior", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
+__all__ = ["PLANET_PARAMS", "posterior_slot", "TransitPosterior", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The planet parameters the transit posterior samples."""
+
+
+def posterior_slot(system: System, name: str, what: str):
+    """(planet index, par) of a name the transit posterior samples: one of
+    ``PLANET_PARAMS`` ("b.t0") or a listed transit time ("b.tc[12]", par
+    ("tc", k), k its position in ``transit_times``). A ValueError starting
+    with ``what`` for any other name."""
+    labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
+    owner, _, par = name.partition(".")
+    if owner in labels:
+        idx = labels.index(owner)
+        tc = check_ttv_free(system, idx, par, name if what == "free" else f"{what}: {name}")
+        if tc is not None or par in PLANET_PARAMS:
+            return idx, tc if tc is not None else par
+    raise ValueError(f"{what}: {name!r} is not a planet parameter the marginal scan samples; names look like "
+                     f"'b.t0' (planets {labels}, parameters {PLANET_PARAMS}, and listed transit times 'b.tc[12]')")
 
 
 class TransitPosterior:
@@ -46,15 +62,9 @@ class TransitPosterior:
     (-sum ln sigma - N ln(2 pi) / 2, the same at every tilt and case)."""
 
     def __init__(self, system, data, free, density, alpha, case):
-        labels = [pl.name or str(i) for i, pl in enumerate(system.planets)]
         free = tuple(expand_tc(tuple(free), system))  # "b.tc": every listed epoch of b
         for name in free:
-            owner, _, par = name.partition(".")
-            tc = check_ttv_free(system, labels.index(owner), par, name) if owner in labels else None
-            if owner not in labels or (par not in PLANET_PARAMS and tc is None):
-                raise ValueError(f"free: {name!r} is not a planet parameter the marginal scan samples; names look "
-                                 f"like 'b.t0' (planets {labels}, parameters {PLANET_PARAMS}, and listed transit "
-                                 "times 'b.tc[12]' or 'b.tc')")
+            posterior_slot(system, name, "free")
         if len(set(free)) != len(free):
             raise ValueError(f"free parameters repeat: {list(free)}")
         self.system, self.density = system, density

@@ -53,9 +53,8 @@ from ._progress import atomic_write, read_progress, record_line
 from ._scan import run_scan
 from ._windows import windows_and_events, windows_data
 from ..inference._importance import MIN_IMPORTANCE_ESS
-from ..inference._params import check_ttv_free
 from ..inference._coords import check_density, default_density
-from ..inference._posterior import PLANET_PARAMS, nuts_draws
+from ..inference._posterior import PLANET_PARAMS, nuts_draws, posterior_slot
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
@@ -83,20 +82,18 @@ def default_free(system: System) -> tuple[str, ...]:
 def _systems_from(system: System, samples: dict, names) -> list[System]:
     """One System per draw: the given system with the sampled parameters."""
     n = len(np.asarray(samples[names[0]]))
+    slots = [posterior_slot(system, name, "samples") for name in names]
+    values = [np.asarray(samples[name], float) for name in names]
     out = []
     for i in range(n):
         planets = list(system.planets)
-        for name in names:
-            owner, par = name.split(".", 1)
-            idx = next(j for j, pl in enumerate(planets) if (pl.name or str(j)) == owner)
-            value = float(np.asarray(samples[name])[i])
-            slot = check_ttv_free(system, idx, par, name)
-            if slot is not None:  # a listed transit time: "b.tc[12]"
+        for (idx, par), v in zip(slots, values):
+            if isinstance(par, tuple):  # a listed transit time: "b.tc[12]"
                 times = list(planets[idx].transit_times)
-                times[slot[1]] = value
+                times[par[1]] = float(v[i])
                 planets[idx] = planets[idx].replace(transit_times=times)
             else:
-                planets[idx] = planets[idx].replace(**{par: value})
+                planets[idx] = planets[idx].replace(**{par: float(v[i])})
         out.append(system.replace(planets=planets))
     return out
 
@@ -124,24 +121,16 @@ def _check_samples(system: System, samples: dict) -> tuple[list[str], int]:
     n = lengths[names[0]]
     if any(s != n for s in lengths.values()) or len(n) != 1 or n[0] < 1:
         raise ValueError(f"samples: every entry must be a 1D array of the same length >= 1, got shapes {lengths}")
-    labels = {pl.name or str(i) for i, pl in enumerate(system.planets)}
     seen = {}
     for name in names:
         owner, _, par = name.partition(".")
-        tc = None
-        if owner in labels:
-            idx = next(j for j, pl in enumerate(system.planets) if (pl.name or str(j)) == owner)
-            if par == "tc" and system.planets[idx].transit_times is not None:
-                raise ValueError(f"samples: {name!r}: draws name one listed transit time each, like '{owner}.tc[12]'")
-            tc = check_ttv_free(system, idx, par, f"samples: {name}")
-            key = (idx, tc if tc is not None else par)
-            if key in seen:
-                raise ValueError(f"samples: {seen[key]!r} and {name!r} name the same parameter")
-            seen[key] = name
-        if owner not in labels or (par not in PLANET_PARAMS and tc is None):
-            raise ValueError(f"samples: {name!r} is not a planet parameter; names look like 'b.t0' "
-                             f"(planets {sorted(labels)}, parameters {PLANET_PARAMS}, and listed transit times "
-                             "'b.tc[12]')")
+        tc_listed = [pl.transit_times is not None for i, pl in enumerate(system.planets) if (pl.name or str(i)) == owner]
+        if par == "tc" and any(tc_listed):
+            raise ValueError(f"samples: {name!r}: draws name one listed transit time each, like '{owner}.tc[12]'")
+        key = posterior_slot(system, name, "samples")
+        if key in seen:
+            raise ValueError(f"samples: {seen[key]!r} and {name!r} name the same parameter")
+        seen[key] = name
         if not np.all(np.isfinite(np.asarray(samples[name], float))):
             raise ValueError(f"samples: {name!r} holds non-finite values")
     return names, int(n[0])
@@ -503,7 +492,6 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     >>> again.summary["seconds"]["draws_computed"]  # resumed: nothing recomputed
     0
     """
-    from tqdm import tqdm
     t_begin = time.perf_counter()
     cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits))
