@@ -18,10 +18,11 @@ from ..model._overlap import may_touch
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._coords import Coordinates, default_priors, start_q
+from ._mapped import mapped
 from ._model import Model
 from ._params import check_ttv_free, expand_tc
 
-__all__ = ["PLANET_PARAMS", "posterior_slot", "TransitPosterior", "mode_and_cov", "nuts_draws", "alpha_windows", "joint_alpha"]
+__all__ = ["PLANET_PARAMS", "posterior_slot", "TransitPosterior", "mode_and_cov", "nuts_draws"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
 """The planet parameters the transit posterior samples."""
@@ -120,8 +121,7 @@ class TransitPosterior:
         disks could touch at some tilt, within ``margin`` [R*], at the start
         (without ``us``) or at each coordinate vector of ``us`` (``jaxppo.model._overlap.
         may_touch`` of the untilted geometry: the tilt turns an orbit about
-        the star's centre); for sampling alpha (``joint_alpha``,
-        ``joint_case_smc``). Returns whether the frames grew."""
+        the star's centre); for sampling alpha (``joint_case_smc``). Returns whether the frames grew."""
         import jax.numpy as jnp
 
         t = np.asarray(self.model.t_model)
@@ -256,90 +256,12 @@ def nuts_draws(system: System, data: LightCurve, free, density, alpha: float, ca
     return samples, info
 
 
-def alpha_windows(alpha, posterior, floor: float = 1e-3):
-    """The modes of a grid posterior p(alpha) [1/deg] on a uniform circular
-    grid: each run of grid points above ``floor`` x the maximum, split at
-    the local minima inside it. Returns [(lo, hi, alpha_peak, mass)] with
-    lo, hi [deg] half a grid step outside the run (hi may exceed 360), mass
-    the posterior mass of the run (sums to ~1)."""
-    alpha, post = np.asarray(alpha, float), np.asarray(posterior, float)
-    n, step = alpha.size, float(alpha[1] - alpha[0])
-    above = post > floor * post.max()
-    # local minima split a run into modes
-    prev, nxt = np.roll(post, 1), np.roll(post, -1)
-    cut = above & (post <= prev) & (post <= nxt) & ~((post == prev) & (post == nxt))
-    start = int(np.argmin(above)) if not above.all() else int(np.argmin(post))
-    out, run = [], []
-    for k in range(n + 1):
-        i = (start + k) % n
-        if k < n and above[i] and not (cut[i] and run):
-            run.append(i)
-            continue
-        if run:
-            idx = np.array(run)
-            lo = alpha[idx[0]] - 0.5 * step
-            peak = alpha[idx[np.argmax(post[idx])]]
-            hi = lo + idx.size * step
-            out.append((float(lo), float(hi), float(peak if peak >= lo else peak + 360.0),
-                        float(post[idx].sum() * step)))
-        run = [i] if (k < n and above[i]) else []
-    return out
-
-
-def joint_alpha(system: System, data: LightCurve, free, density, case: str, windows, draws: int = 200,
-                num_warmup: int = 200, seed: int = 0, chains: int = 2, progress: bool = False):
-    """alpha sampled jointly with the transit parameters (numpyro NUTS):
-    one run per alpha window (a mode of the grid marginal, from
-    ``alpha_windows``), alpha uniform in the window and chains started
-    at its grid peak, the transit parameters in the coordinates of
-    ``nuts_draws`` (whitened at the no-PPO mode). The alpha posterior is
-    multi-modal with narrow modes separated by plateaus of zero PPO signal
-    the chains cannot cross in finite time, so the modes are sampled one at
-    a time and combined with the grid's marginal mass of each window as
-    weights: within a window the shape is the joint sampler's own, between
-    windows the weights are the importance average's (parallel tempering
-    would estimate them too, at several times the cost).
-
-    Returns a list per window: {"lo", "hi", "mass", "alpha" [draws, deg],
-    "r_hat", "ess", "divergences"}."""
-    import jax.numpy as jnp
-    from numpyro.infer import MCMC, NUTS
-
-    post = TransitPosterior(system, data, free, density, 0.0, case)
-    u_mode, L, _ = mode_and_cov(post)
-    post.exact_overlaps_anywhere()
-    uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
-    out = []
-    for wi, (lo, hi, peak, mass) in enumerate(windows):
-        def potential(z, lo=lo, hi=hi):
-            a = lo + (hi - lo) * jax.nn.sigmoid(z[-1])
-            v = -(post.log_density(uj + Lj @ z[:-1], a) + jax.nn.log_sigmoid(z[-1]) + jax.nn.log_sigmoid(-z[-1]))
-            return jnp.where(jnp.isnan(v), jnp.inf, v)
-
-        s0 = float(np.log((peak - lo) / (hi - peak)))
-        per = -(-draws // chains)
-        mc = MCMC(NUTS(potential_fn=jax.jit(potential), adapt_mass_matrix=False), num_warmup=num_warmup,
-                  num_samples=per, num_chains=chains, chain_method="vectorized", progress_bar=progress)
-        init = 0.3 * np.random.default_rng(seed + wi).standard_normal((chains, L.shape[0] + 1))
-        init[:, -1] = s0 + 0.1 * init[:, -1]
-        mc.run(jax.random.PRNGKey(seed + wi), init_params=jnp.asarray(init), extra_fields=("diverging",))
-        z = np.asarray(mc.get_samples(group_by_chain=True))[..., -1]
-        a = (lo + (hi - lo) / (1.0 + np.exp(-z))) % 360.0
-        diag = rank_diagnostics(np.unwrap(np.deg2rad(a), axis=1))
-        out.append({"lo": lo, "hi": hi, "peak": peak, "mass": mass, "alpha": a.T.reshape(-1)[:draws],
-                    "r_hat": diag["r_hat"], "ess": diag["ess_bulk"],
-                    "divergences": int(np.sum(np.asarray(mc.get_extra_fields()["diverging"])))})
-    return out
-
-
-
-
 def _arc(d):
     """|d| [deg] on the circle, in [0, 180]."""
     return abs((d + 180.0) % 360.0 - 180.0)
 
 
-def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: float = 30.0, chunk: int = 16,
+def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: float = 30.0, best: int = 16,
                 rounds: int = 4):
     """The modes of the joint posterior of (transit parameters, alpha) in
     the coordinates (w, alpha) of the joint sampler (u = u_mode + L w, alpha
@@ -347,12 +269,15 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
 
     The profile of the log posterior over alpha at w = 0 (every 0.5 deg)
     shows the tilts where a PPO changes the likelihood; Levenberg-Marquardt
-    (optimistix, batched over ``chunk`` starts at a time, 40 steps) moves (w,
+    (optimistix, one start after another, 40 steps) moves (w,
     alpha) jointly from a start every ``step`` deg over those tilts (widened
     by 4 deg) and from each local maximum of the profile 1 above its quiet
     level: the PPO ties alpha to the planets' t0, so a mode lies along a
     ridge the profile at fixed w does not see (on a high-SNR injection 26
-    whitened widths from the no-PPO mode). The best ``chunk`` solutions at
+    whitened widths from the no-PPO mode); starts whose conditional mode
+    lies on the no-PPO plateau (the PPO leaves the likelihood as at the
+    quiet tilt, so it does not depend on alpha there) are not fitted
+    jointly. The best ``best`` solutions at
     distinct tilts go on for up to ``rounds`` more rounds of 40 steps.
     Solutions where the PPO does not change the likelihood are the no-PPO
     mode (the plateau) and are dropped; solutions within 0.3 deg and 0.5 in
@@ -368,15 +293,23 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     info = {"profile_quiet": quiet, "starts": int(starts.size)}
     modes, ridge = [], []
     if starts.size:
-        search = _ModeSearch(post, u_mode, L, chunk)
+        search = _ModeSearch(post, u_mode, L, best)
         # joint fits from the conditional mode at each start's tilt (a joint
         # fit from the no-PPO mode can slide along the alpha-t0 ridge to
         # another optimum before w has moved to where the PPO needs it)
-        z, logd = search.run(np.column_stack([search.at_tilts(starts), starts / search.a_unit]))
-        z, logd = search.refine(z, logd, rounds)
-        modes = search.laplace(z, logd, keep)
-        ridge, nodes = search.ridge(modes, quiet, keep)
-        info["ridges"] = nodes  # [first tilt, last tilt, nodes] per ridge
+        z0 = np.column_stack([search.at_tilts(starts), starts / search.a_unit])
+        # a start whose conditional mode the PPO leaves as at the quiet tilt
+        # lies on the plateau, where the log density does not depend on
+        # alpha: a joint fit from there cannot move, and ``laplace`` would
+        # drop it
+        z0 = z0[~search.on_plateau(z0)]
+        info["joint_starts"] = int(z0.shape[0])
+        if z0.shape[0]:
+            z, logd = search.run(z0)
+            z, logd = search.refine(z, logd, rounds)
+            modes = search.laplace(z, logd, keep)
+            ridge, nodes = search.ridge(modes, quiet, keep)
+            info["ridges"] = nodes  # [first tilt, last tilt, nodes] per ridge
     # the no-PPO mode over the quiet tilts: w ~ N(0, I) in the whitening
     plateau = quiet + 0.5 * dim * np.log(2 * np.pi) + np.log(360.0 * max(float(np.mean(~loud)), 1e-3))
     info.update({"modes": [{"alpha": float(m[1][-1]), "log_mass": float(m[0]), "log_density": m[3]} for m in modes],
@@ -395,7 +328,7 @@ def _starts(post: TransitPosterior, u_mode, step: float):
 
     uj = jnp.asarray(u_mode)
     grid = np.arange(0.0, 360.0, 0.5)
-    prof = np.asarray(jax.jit(jax.vmap(lambda a: post.log_density(uj, a)))(jnp.asarray(grid)), float)
+    prof = np.asarray(mapped(lambda a: post.log_density(uj, a), 8)(jnp.asarray(grid)), float)
     quiet = float(post.log_density(uj))
     if not np.isfinite(quiet):
         raise ValueError(f"the transit posterior is not finite at its no-PPO mode (log density {quiet})")
@@ -412,16 +345,19 @@ def _starts(post: TransitPosterior, u_mode, step: float):
 class _ModeSearch:
     """Batched Levenberg-Marquardt (optimistix) in z = (w, alpha / 10 deg)
     for ``joint_modes``: u = u_mode + L w, a weak pull (10 whitened widths) on
-    directions the data leave free, 40 steps per call, ``chunk`` starts per
-    compiled call."""
+    directions the data leave free, 40 steps per solve; the solves of a
+    call run one after another (``mapped``: each stops when it converges),
+    ``chunk`` per compiled call."""
 
     a_unit = 10.0  # alpha in units of 10 deg, so LM's identity damping treats w and alpha alike
+    chunk = 4  # solves per compiled call (a padded call repeats its last row: kept short)
+    ahead = 8  # tilts solved ahead per step along a ridge
 
-    def __init__(self, post, u_mode, L, chunk):
+    def __init__(self, post, u_mode, L, best):
         import jax.numpy as jnp
         import optimistix as optx
 
-        self.post, self.u_mode, self.L, self.chunk, self.dim = post, np.asarray(u_mode), np.asarray(L), chunk, L.shape[0]
+        self.post, self.u_mode, self.L, self.best, self.dim = post, np.asarray(u_mode), np.asarray(L), best, L.shape[0]
         uj, Lj = jnp.asarray(u_mode), jnp.asarray(L)
         a_unit = self.a_unit
 
@@ -438,14 +374,17 @@ class _ModeSearch:
             return optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None), lm, zw0,
                                       max_steps=steps, throw=False).value
 
-        self.solve = jax.jit(jax.vmap(solve))
-        self.solve_at = jax.jit(jax.vmap(lambda zw0, a: solve_at(zw0, a, 40)))
+        # one solve after another (``mapped``): each stops when it converges
+        self.solve = mapped(solve)
+        self.solve_at = mapped(lambda zw0, a: solve_at(zw0, a, 40))
         # along a ridge, from the line through the last nodes: a few steps
-        self.follow = jax.jit(jax.vmap(lambda zw0, a: solve_at(zw0, a, 8)))
-        self.logd = jax.jit(jax.vmap(lambda v, a: post.log_density(uj + Lj @ v[:-1], a)))
+        self.follow = mapped(lambda zw0, a: solve_at(zw0, a, 8))
+        self.logd = mapped(lambda v, a: post.log_density(uj + Lj @ v[:-1], a), 8)
         self.jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
 
     def _chunks(self, fn, *arrays):
+        """``fn`` over the rows of ``arrays`` in calls of ``self.chunk``
+        rows (one compilation; the last call padded with its last row)."""
         import jax.numpy as jnp
 
         n = arrays[0].shape[0]
@@ -453,6 +392,14 @@ class _ModeSearch:
         full = [np.concatenate([x, np.repeat(x[-1:], pad - n, axis=0)]) for x in arrays]
         return np.concatenate([np.asarray(fn(*(jnp.asarray(x[i:i + self.chunk]) for x in full)))
                                for i in range(0, pad, self.chunk)])[:n]
+
+    def on_plateau(self, z):
+        """Whether the log density at each row of z equals that at the quiet
+        tilt (within 1e-6): no PPO changes the likelihood there."""
+        a_quiet = np.full(z.shape[0], float(self.post.model.alpha))
+        at = self._chunks(self.logd, z, self.a_unit * z[:, -1])
+        at_quiet = self._chunks(self.logd, z, a_quiet)
+        return np.isfinite(at) & (np.abs(at - at_quiet) <= 1e-6)
 
     def at_tilts(self, a):
         """w at each tilt of a [deg]: 40 LM steps from w = 0."""
@@ -468,13 +415,13 @@ class _ModeSearch:
         return z, np.where(np.isfinite(ld), ld, -np.inf)
 
     def refine(self, z, logd, rounds):
-        """The best ``chunk`` solutions at distinct tilts (over 1 deg apart)
+        """The ``best`` solutions at distinct tilts (over 1 deg apart)
         go on for up to ``rounds`` more runs, until their log density stops
         moving (0.01)."""
         for _ in range(rounds):
             best = []
             for k in np.argsort(logd)[::-1]:
-                if len(best) == self.chunk or not np.isfinite(logd[k]):
+                if len(best) == self.best or not np.isfinite(logd[k]):
                     break
                 if all(_arc(self.a_unit * (z[k, -1] - z[j, -1])) > 1.0 for j in best):
                     best.append(k)
@@ -495,9 +442,7 @@ class _ModeSearch:
         [(log mass, mean, chol, log density)]."""
         import jax.numpy as jnp
 
-        a_quiet = float(self.post.model.alpha)
-        at_quiet = np.asarray(self.logd(jnp.asarray(z), jnp.full(z.shape[0], a_quiet)), float)
-        ok = np.isfinite(logd) & (np.abs(logd - at_quiet) > 1e-6)
+        ok = np.isfinite(logd) & ~self.on_plateau(z)
         z, logd = z[ok], logd[ok]
         kept = []
         for k in np.argsort(logd)[::-1]:
@@ -525,7 +470,7 @@ class _ModeSearch:
         """The ridge through each mode 1 above the plateau, traced by
         continuation: the conditional mode w*(alpha) at fixed tilts stepping
         away from the mode both ways (steps of half its alpha width, 0.05-1
-        deg; each call solves ``chunk`` tilts ahead from the line through
+        deg; each step solves ``ahead`` tilts ahead from the line through
         the last two nodes and keeps them while they stay on one branch),
         until the PPO no longer lifts the conditional mode 0.5 above the
         plateau or it falls 12 (or ``keep``) below the best mode. Along a PPO's
@@ -553,13 +498,13 @@ class _ModeSearch:
                 continue  # on a ridge already traced
             sd = float(np.sqrt(np.sum(chol[-1] ** 2)))
             step = float(np.clip(0.5 * sd, 0.05, 1.0))
-            # nodes: tilt -> (w*, log density); each call solves ``chunk``
+            # nodes: tilt -> (w*, log density); each step solves ``ahead``
             # tilts ahead (spacing h) from the line through the last two
             # nodes and keeps them while they stay on the branch; a call that
             # keeps none solves again at a quarter of h, and the ridge ends
             # where even h = step / 16 leaves it
             nodes = {a0: (w0, logd0)}
-            ahead = np.arange(1, self.chunk + 1)
+            ahead = np.arange(1, self.ahead + 1)
             for d in (-1, 1):
                 a, h, slope = a0, step, np.zeros(self.dim)
                 while len(nodes) < max_nodes and abs(a - a0) < 180.0 and h >= step / 16:
@@ -569,7 +514,7 @@ class _ModeSearch:
                     ld = np.asarray(self.logd(jnp.asarray(np.column_stack([zw, tilts / self.a_unit])),
                                               jnp.asarray(tilts)), float)
                     moved = 0
-                    for j in range(self.chunk):
+                    for j in range(self.ahead):
                         w_last, ld_last = nodes[a]
                         expect = w_last + slope * (tilts[j] - a)
                         if (not np.isfinite(ld[j]) or ld[j] < floor
@@ -579,7 +524,7 @@ class _ModeSearch:
                         slope = (zw[j] - w_last) / (tilts[j] - a)
                         a, moved = float(tilts[j]), moved + 1
                         nodes[a] = (zw[j], float(ld[j]))
-                    h = h / 4 if not moved else min(step, 2 * h) if moved == self.chunk else h
+                    h = h / 4 if not moved else min(step, 2 * h) if moved == self.ahead else h
             ks = sorted(nodes)
             alphas = np.array(ks, float)
             ws = np.array([nodes[i][0] for i in ks])

@@ -34,9 +34,10 @@ from __future__ import annotations
 
 import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
+
+from ._mapped import mapped
 
 __all__ = ["tempered_smc", "alpha_clusters"]
 
@@ -215,7 +216,7 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     rng = np.random.default_rng(seed)
     n = int(n_particles)
     ref = _Reference(dim, ref_scale, modes, plateau)
-    batch = jax.jit(jax.vmap(log_gamma))
+    batch = mapped(log_gamma, 8)  # faster than vmap on CPU (``_mapped``)
     calls = [0]
 
     def evaluate(w, a):
