@@ -8,8 +8,11 @@ log density took 2.45 ms per point vmapped over 128 points and 1.47-1.65
 ms mapped (both cores); 16 Levenberg-Marquardt solves of 40 steps 6.1 s
 vmapped and 2.7 s mapped, since a vmapped solve runs every point for as
 many steps as the slowest one needs and the batch's arrays leave the
-caches. ``batch_size`` points go through vmap together (``jax.lax.map``'s
-own option)."""
+caches. One point at a time also lets a ``jax.lax.cond`` inside branch
+(the model's union integral runs only in blocks of frames where disks
+meet, ``jaxppo.inference._model.union_frames``): under vmap a cond computes
+both branches. ``batch_size`` points go through vmap together
+(``jax.lax.map``'s own option)."""
 
 import jax
 

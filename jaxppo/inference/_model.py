@@ -449,16 +449,52 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
 
 
 def _flux(theta, d: ModelData) -> jnp.ndarray:
-    from ..model._terms import exact_frames, separate_frames
+    from ..model._terms import separate_frames
 
     sysm = system_at(theta, d.system, d.slots, d.eccentric)
     x, y, r = sysm.positions(d.t, d.alpha, d.case)
     fa = separate_frames(sysm.star, x, y, r, 24)
     if d.union.size:
         u = d.union
-        fa = fa.at[u].set(exact_frames(sysm.star, x[u], y[u], r[u], 24))
+        fa = fa.at[u].set(union_frames(sysm.star, x[u], y[u], r[u], fa[u]))
     f = jnp.ones((d.n_model,), fa.dtype).at[d.act].set(fa)
     return f.reshape(-1, d.nsub).mean(-1)
+
+
+UNION_BLOCK = 16  # union-integral frames per block of ``union_frames``
+
+
+def union_frames(star, x, y, r, separate) -> jnp.ndarray:
+    """The flux of frames ([frame, disk] x, y, r [R*]) where two disks may
+    meet: the exact union integral in each block of ``UNION_BLOCK``
+    consecutive frames where some pair of disks on the star overlaps, and
+    ``separate`` (the one-disk sum of those frames, which the union integral
+    equals where no disks overlap) in the others. The blocks run one after
+    another (``jax.lax.map``) with ``jax.lax.cond``, so at a tilt or
+    parameters where the planets do not meet in a block its union integral
+    is not computed; under ``jax.vmap`` the cond computes both and selects
+    (the same values)."""
+    from ..model._terms import exact_frames
+
+    n, k = x.shape
+    pad = -n % UNION_BLOCK
+    if pad:
+        x, y, r, separate = (jnp.concatenate([v, jnp.repeat(v[-1:], pad, axis=0)]) for v in (x, y, r, separate))
+    nb = (n + pad) // UNION_BLOCK
+    xb, yb, rb = (v.reshape(nb, UNION_BLOCK, k) for v in (x, y, r))
+    sb = separate.reshape(nb, UNION_BLOCK)
+
+    def block(args):
+        xs, ys, rs, ss = args
+        on = (rs > 0) & (jnp.hypot(xs, ys) < 1.0 + rs)
+        touch = jnp.zeros((), bool)
+        for i in range(k):
+            for j in range(i + 1, k):
+                dij = jnp.hypot(xs[:, i] - xs[:, j], ys[:, i] - ys[:, j])
+                touch = touch | jnp.any(on[:, i] & on[:, j] & (dij < rs[:, i] + rs[:, j]))
+        return jax.lax.cond(touch, lambda: exact_frames(star, xs, ys, rs, 24), lambda: ss)
+
+    return jax.lax.map(block, (xb, yb, rb, sb)).reshape(-1)[:n]
 
 
 def _trend(theta, d: ModelData) -> jnp.ndarray:

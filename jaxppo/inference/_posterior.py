@@ -328,7 +328,7 @@ def _starts(post: TransitPosterior, u_mode, step: float):
 
     uj = jnp.asarray(u_mode)
     grid = np.arange(0.0, 360.0, 0.5)
-    prof = np.asarray(mapped(lambda a: post.log_density(uj, a), 8)(jnp.asarray(grid)), float)
+    prof = np.asarray(mapped(lambda a: post.log_density(uj, a))(jnp.asarray(grid)), float)
     quiet = float(post.log_density(uj))
     if not np.isfinite(quiet):
         raise ValueError(f"the transit posterior is not finite at its no-PPO mode (log density {quiet})")
@@ -379,7 +379,7 @@ class _ModeSearch:
         self.solve_at = mapped(lambda zw0, a: solve_at(zw0, a, 40))
         # along a ridge, from the line through the last nodes: a few steps
         self.follow = mapped(lambda zw0, a: solve_at(zw0, a, 8))
-        self.logd = mapped(lambda v, a: post.log_density(uj + Lj @ v[:-1], a), 8)
+        self.logd = mapped(lambda v, a: post.log_density(uj + Lj @ v[:-1], a))
         self.jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
 
     def _chunks(self, fn, *arrays):
