@@ -290,7 +290,7 @@ def joint_modes(post: TransitPosterior, u_mode, L, step: float = 4.0, keep: floa
     t_begin = time.perf_counter()
     dim = L.shape[0]
     starts, loud, quiet = _starts(post, u_mode, step)
-    info = {"profile_quiet": quiet, "starts": int(starts.size)}
+    info = {"profile_quiet": quiet, "starts": int(starts.size), "joint_starts": 0, "ridges": []}
     modes, ridge = [], []
     if starts.size:
         search = _ModeSearch(post, u_mode, L, best)
