@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -75,8 +76,6 @@ def _enable_x64() -> None:
     scan's CPU time is mostly compilation). The cache lives in
     $JAXPPO_CACHE_DIR, else $XDG_CACHE_HOME/jaxppo/jax, else
     ~/.cache/jaxppo/jax; JAXPPO_CACHE=0 switches it off (docs/cli.md)."""
-    import os
-
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -114,7 +113,9 @@ def _scan_products(result, cfg, out):
     from jaxppo.activity import ppo_or_spot
     from jaxppo.obliquity._scan import draw_figures, figures_current, with_summary
 
-    if not figures_current(result, out):
+    from jaxppo.model._processes import share
+
+    if not share(figures_current(result, out)):  # process 0's files decide (several JAX processes)
         result = draw_figures(result, cfg, out)
     if "ppo_or_spot" not in result.summary:
         try:
@@ -137,6 +138,11 @@ def cmd_scan(args) -> int:
         alpha_grid(args.alpha, "--alpha")  # named after the option, before any loading
     out = _out_folder(args.out)
     cfg = load_config(args.config, alpha=args.alpha)
+    draws = args.marginalize if args.marginalize is not None else cfg.marginalize
+    if draws or args.joint:
+        from jaxppo.model._processes import require_one_process
+
+        require_one_process("jaxppo scan --marginalize / --joint")
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -148,7 +154,6 @@ def cmd_scan(args) -> int:
     from jaxppo.obliquity._report import scan_report
 
     print(scan_report(result.summary, cfg, out, seconds), end="")
-    draws = args.marginalize if args.marginalize is not None else cfg.marginalize
     if draws:
         from jaxppo.obliquity._marginal import marginal_scan
 
@@ -616,6 +621,11 @@ def main(argv=None) -> int:
         sub.error(f"unrecognized arguments: {' '.join(extra)}")
     name = f"jaxppo {args.command}"
     try:
+        from jaxppo.model._processes import is_writer, start_from_environment
+
+        # several JAX processes (JAXPPO_DISTRIBUTED, docs/scale.md; the scan only): one report, from process 0
+        if start_from_environment(name, args.command == "scan") and not is_writer():
+            sys.stdout = open(os.devnull, "w")
         return args.func(args)
     except ValueError as err:
         print(f"{name}: error: {_one_line(err)}", file=sys.stderr)

@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._exposure import exposure_mean, supersampled_times
+from ..model._processes import is_writer
 
 __all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model"]
 
@@ -331,6 +332,7 @@ def plot_ppo_or_spot(panels, path):
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    if is_writer():  # process 0 of several JAX processes
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return path

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..inference._smc import joint_case_smc
+from ..model._processes import require_one_process
 from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
@@ -199,6 +200,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     """
     import jax
 
+    require_one_process("joint_scan")
     if not jax.config.jax_enable_x64:
         raise ValueError("joint_scan needs float64: jax.config.update('jax_enable_x64', True) first")
     particles, seeds = _check(particles, seeds, cess, n_moves)

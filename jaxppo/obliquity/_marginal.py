@@ -58,6 +58,7 @@ from ..inference._posterior import PLANET_PARAMS, nuts_draws, posterior_slot
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
+from ..model._processes import require_one_process
 from ..model._cases import case_signs
 from ..model._system import System
 
@@ -492,6 +493,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     >>> again.summary["seconds"]["draws_computed"]  # resumed: nothing recomputed
     0
     """
+    require_one_process("marginal_scan")
     t_begin = time.perf_counter()
     cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits))

@@ -10,12 +10,17 @@ import json
 import os
 from pathlib import Path
 
+from ..model._processes import is_writer
+
 __all__ = ["atomic_write", "record_line", "read_progress"]
 
 
 def atomic_write(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a fsynced temporary file and a rename:
-    the file is either the old one or the whole new one."""
+    the file is either the old one or the whole new one. Under several JAX
+    processes only process 0 writes (``jaxppo.model._processes``)."""
+    if not is_writer():
+        return
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "w") as fh:
         fh.write(text)

@@ -41,6 +41,7 @@ from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
+from ..model._processes import barrier, is_writer, process_info, share
 from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
@@ -280,9 +281,10 @@ def _write_ecsv(path: Path, table: np.ndarray, cfg, digest: str, chi2_0: dict, p
         "tilted_planet": cfg.system.planets[cfg.system.tilted].name,
         "exposure_days": cfg.lightcurve.exposure,
     })
-    tmp = path.with_name(path.name + ".tmp")
-    t.write(tmp, format="ascii.ecsv", overwrite=True)
-    os.replace(tmp, path)
+    if is_writer():
+        tmp = path.with_name(path.name + ".tmp")
+        t.write(tmp, format="ascii.ecsv", overwrite=True)
+        os.replace(tmp, path)
 
 
 def _clear_outputs(out: Path) -> None:
@@ -374,7 +376,8 @@ def _open_progress(cfg: ScanConfig, out: Path, digest: str, restart: bool):
 def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurve, done: dict, progress: bool) -> None:
     """chi^2 of every (case, alpha) not yet in ``done``, in blocks of
     ``cfg.block`` alphas, each block appended to the progress file (flushed,
-    fsynced) and entered into ``done``."""
+    fsynced; by process 0 of several JAX processes, all of which compute
+    every block together) and entered into ``done``."""
     from tqdm import tqdm
 
     todo = [(c, a) for c in cfg.cases for a in cfg.alpha if (c, round(float(a), 9)) not in done]
@@ -385,15 +388,21 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
             blocks.append((c, alphas[i:i + cfg.block]))
     bar = tqdm(total=len(cfg.cases) * cfg.alpha.size, initial=len(cfg.cases) * cfg.alpha.size - len(todo),
                desc="scan", unit="alpha", disable=not progress, leave=False)
-    with open(prog_path, "a") as fh:
+    fh = open(prog_path, "a") if is_writer() else None
+    try:
         for case, alphas in blocks:
             chi2 = grid_chi2(cfg.system, data, alphas, case)
-            fh.write(record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}))
-            fh.flush()
-            os.fsync(fh.fileno())
+            if fh is not None:
+                fh.write(record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(),
+                                      "chi2": chi2.tolist()}))
+                fh.flush()
+                os.fsync(fh.fileno())
             for a, c2 in zip(alphas, chi2):
                 done[(case, round(float(a), 9))] = float(c2)
             bar.update(alphas.size)
+    finally:
+        if fh is not None:
+            fh.close()
     bar.close()
 
 
@@ -425,18 +434,17 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     _require_x64("the obliquity scan")
     require_scan_system(cfg.system)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if is_writer():
+        out.mkdir(parents=True, exist_ok=True)
     t_begin = time.perf_counter()
     digest = cfg.digest
-    done, notes = _open_progress(cfg, out, digest, restart)
+    done, notes, stored = _read_state(cfg, out, digest, restart)
     for note in notes:
         warnings.warn(note, stacklevel=2)
     n_total = len(cfg.cases) * cfg.alpha.size
     n_before = sum((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
-    if n_before == n_total and not notes:
-        stored = _finished_result(out, cfg, digest)
-        if stored is not None:
-            return stored
+    if stored is not None:
+        return stored
 
     windows, skipped = windows_and_events(cfg)
     data = windows_data(windows, cfg.lightcurve.exposure)
@@ -447,7 +455,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     pairs, pair_rows = pair_reports(cfg, windows, step)
     if pairs:
         atomic_write(out / "pairs.csv", PAIRS_HEADER + "\n" + "\n".join(pair_rows) + "\n")
-    elif (out / "pairs.csv").is_file():  # an earlier config's pairs
+    elif is_writer() and (out / "pairs.csv").is_file():  # an earlier config's pairs
         (out / "pairs.csv").unlink()
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     _write_ecsv(out / "scan.ecsv", table, cfg, digest, chi2_0, int(data.time.size), step)
@@ -461,6 +469,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
         tilted=cfg.system.planets[cfg.system.tilted].name, progress_notes=notes, seconds=None,
         data={"loaded": cfg.lightcurve.report_line(), "report": cfg.lightcurve.report},
         resumed={"alphas_done_before": n_before, "alphas_total": n_total, "finished_before": False},
+        **process_info(),
     )
     if pairs:
         summary["pairs"] = pairs
@@ -471,7 +480,31 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     summary["table5_files"] = write_table5(out, by_case, summary, cfg.cases)
     summary["seconds"] = time.perf_counter() - t_begin
     write_summary(out, result)
+    barrier("jaxppo scan written")  # every process returns once process 0 has written the folder
     return result
+
+
+def _read_state(cfg: ScanConfig, out: Path, digest: str, restart: bool):
+    """(done, notes, stored result or None) of the folder ``out``: read (and
+    its progress header written) by process 0 alone and shared with the
+    other JAX processes, so that all of them compute the same blocks."""
+    if is_writer():
+        done, notes = _open_progress(cfg, out, digest, restart)
+        complete = all((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
+        stored = _finished_result(out, cfg, digest) if complete and not notes else None
+        state = {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes,
+                 "stored": None if stored is None else {"summary": stored.summary, "table": stored.table.tolist()}}
+    else:
+        state = None
+    state = share(state)  # process 0's (a no-op with one process)
+    if not is_writer():
+        done = {(c, a): v for c, a, v in state["done"]}
+        notes = state["notes"]
+        got = state["stored"]
+        stored = None if got is None else ScanResult(
+            got["summary"], np.array([tuple(r) for r in got["table"]], dtype=_TABLE_DTYPE),
+            tuple(windows_and_events(cfg)[0]))
+    return done, notes, stored
 
 
 def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same", "opposite")), out=None,

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model._processes import is_writer
+
 __all__ = [
     "THRESHOLD", "peaks_and_dips", "table5_rows", "table5_csv", "table5_markdown", "table5_text", "write_table5",
     "paper_case",
@@ -261,8 +263,9 @@ def write_table5(out, table: dict, summary: dict | None = None, cases=None, thre
     paths = []
     for name, text in (("table5.csv", table5_csv(rows)), ("table5.md", table5_markdown(rows, cases))):
         p = out / name
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(text)
-        tmp.replace(p)
+        if is_writer():  # process 0 of several JAX processes
+            tmp = p.with_name(p.name + ".tmp")
+            tmp.write_text(text)
+            tmp.replace(p)
         paths.append(str(p.resolve()))
     return paths

@@ -1,0 +1,105 @@
+"""Several JAX processes (``jax.distributed.initialize``: one per host or per
+GPU, one global device mesh): which process writes files, and the state
+that every process must share so that all of them run the same compiled
+collectives.
+
+The kernels already place their frames over every process's devices and
+gather the results (``._plan.to_host``), so each process holds the same
+numbers. Files are another matter: every process writing the same folder
+races (one process's rename removes the other's temporary file), and a
+process that resumes from a file another process is rewriting computes a
+different set of blocks and waits forever in a collective the others never
+enter. So process 0 alone reads and writes a run's folder; what it read
+(the finished blocks of a resumed run) reaches the other processes through
+``share``; ``barrier`` holds every process until process 0 has written.
+With one process every function here is a no-op.
+"""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+
+__all__ = ["is_writer", "share", "barrier", "process_info", "require_one_process", "start_from_environment"]
+
+
+def is_writer() -> bool:
+    """True in the process that reads and writes files: process 0 (the only
+    one without ``jax.distributed``)."""
+    return jax.process_index() == 0
+
+
+def process_info() -> dict:
+    """{"devices": the global device count, "processes": the process count}:
+    what a run's summary records about where it ran."""
+    return {"devices": int(jax.device_count()), "processes": int(jax.process_count())}
+
+
+def share(obj):
+    """Process 0's ``obj`` (anything ``json`` writes and reads back
+    unchanged: dicts with string keys, lists, strings, numbers, None) in
+    every process; the other processes' ``obj`` is ignored. Floats travel
+    as their shortest repr, so they arrive bit for bit."""
+    if jax.process_count() == 1:
+        return obj
+    from jax.experimental import multihost_utils
+
+    data = np.frombuffer(json.dumps(obj).encode(), dtype=np.uint8) if is_writer() else np.zeros(0, np.uint8)
+    n = int(multihost_utils.broadcast_one_to_all(np.int32(data.size)))
+    buf = np.zeros(n, np.uint8)
+    if is_writer():
+        buf[:] = data
+    buf = np.asarray(multihost_utils.broadcast_one_to_all(buf), dtype=np.uint8)
+    return json.loads(buf.tobytes().decode())
+
+
+def barrier(name: str) -> None:
+    """Wait until every process reaches the barrier ``name`` (a no-op with
+    one process)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+
+
+def require_one_process(what: str) -> None:
+    """Refuse ``what`` under several JAX processes, saying why: it would run
+    in every process independently and write the same files."""
+    if jax.process_count() > 1:
+        raise ValueError(
+            f"{what} runs in one JAX process only (this is process {jax.process_index()} of "
+            f"{jax.process_count()}): run it without jax.distributed (docs/scale.md, 'Several processes')")
+
+
+def start_from_environment(what: str = "this run", allowed: bool = True) -> bool:
+    """Join several JAX processes as the environment says, before any JAX
+    computation; True when it did (``what`` names the run in errors; where
+    not ``allowed``, a set JAXPPO_DISTRIBUTED is refused). JAXPPO_DISTRIBUTED=auto:
+    ``jax.distributed.initialize()`` finds the processes itself (SLURM,
+    Open MPI); JAXPPO_DISTRIBUTED=N: process JAXPPO_PROCESS_ID of N meets
+    the others at JAX_COORDINATOR_ADDRESS (host:port of process 0); unset
+    or empty: one process, nothing done. CPU collectives use gloo."""
+    import os
+
+    how = os.environ.get("JAXPPO_DISTRIBUTED", "").strip()
+    if not how:
+        return False
+    if not allowed:
+        raise ValueError(f"JAXPPO_DISTRIBUTED={how!r}: {what} runs in one process only; unset JAXPPO_DISTRIBUTED")
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    if how == "auto":
+        jax.distributed.initialize()
+        return True
+    address, pid_text = os.environ.get("JAX_COORDINATOR_ADDRESS"), os.environ.get("JAXPPO_PROCESS_ID", "")
+    try:
+        n, pid = int(how), int(pid_text)
+    except ValueError:
+        raise ValueError(f"JAXPPO_DISTRIBUTED={how!r}, JAXPPO_PROCESS_ID={pid_text!r}: give 'auto', or a number of "
+                         "processes N >= 1 with JAXPPO_PROCESS_ID in 0..N-1 and JAX_COORDINATOR_ADDRESS=host:port") from None
+    if n < 1 or not 0 <= pid < n or not address:
+        raise ValueError(f"JAXPPO_DISTRIBUTED={n}, JAXPPO_PROCESS_ID={pid}, JAX_COORDINATOR_ADDRESS={address!r}: "
+                         "need N >= 1, 0 <= id < N and the coordinator's host:port")
+    jax.distributed.initialize(num_processes=n, process_id=pid)
+    return True
