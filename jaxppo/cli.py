@@ -168,13 +168,13 @@ def cmd_scan(args) -> int:
         from jaxppo.obliquity._joint import joint_lines, joint_scan
         from jaxppo.obliquity._scan import with_summary
 
-        j = joint_scan(cfg, particles=args.joint, out=out, free=cfg.fit_free, restart=args.restart,
+        j = joint_scan(cfg, particles=args.joint, out=out, free=cfg.fit_free, restart=args.restart, fixed=result,
                        progress=not args.quiet)
         print("\n".join(joint_lines(j)))
         keep = {**j, "cases": {c: {k: v for k, v in d.items() if k not in ("particles", "posterior")}
                                for c, d in j["cases"].items()}}
         with_summary(out, result, joint=keep)  # joint.json's result without the particles
-        print(f"wrote {out / 'joint.csv'}, joint.json (and the joint block of summary.json)")
+        print(f"wrote {out / 'joint.csv'}, joint.json, joint.png (and the joint block of summary.json)")
     return 0
 
 

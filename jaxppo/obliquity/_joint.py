@@ -106,7 +106,7 @@ def _check(particles, seeds, cess, n_moves):
 
 def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), out=None, free=None,
                stellar_density=None, restart: bool = False, progress: bool = True, cess: float = 0.5,
-               n_moves: int = 4, alpha=Default(np.arange(0.0, 360.0, 1.0)), cases=Default(("same", "opposite")),
+               n_moves: int = 4, fixed=None, figures: bool = True, alpha=Default(np.arange(0.0, 360.0, 1.0)), cases=Default(("same", "opposite")),
                margin: float = Default(0.05), detrend=Default(2), baseline: float = Default(0.3),
                clip=Default(5.0), multi_transits=Default(None)) -> dict:
     """Sample the tilt alpha jointly with the transit parameters, per case.
@@ -157,6 +157,12 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         The conditional-ESS fraction kept per tempering step (0, 1).
     n_moves : int, optional
         Rounds of the Metropolis kernels per step (>= 1).
+    fixed : ScanResult or None, optional
+        The fixed-parameter scan of the same config, for the figure (else it
+        is computed when the figure is drawn).
+    figures : bool, optional
+        With ``out``, draw joint.png: per case the joint posterior of alpha
+        against the fixed-parameter scan's (default True).
     alpha, cases, margin, detrend, baseline, clip, multi_transits : optional
         As ``jaxppo.scan``; only with a System (a ScanConfig's own settings
         are used). ``alpha`` sets nothing here but the check of the
@@ -171,8 +177,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         "calls", "seconds", "modes", "posterior" (360 one-degree bins),
         "particles"}}, "case_bayes_factors" {"a/b": Z_a / Z_b} (None beyond a
         float), "case_log_bayes_factors" {"a/b": log Z_a - log Z_b}, "method",
-        "free", "density_prior", "seconds"}; joint.json holds it under
-        "result".
+        "free", "density_prior", "seconds", and with the figure "figures"
+        (its path)}; joint.json holds it under "result".
 
     Raises
     ------
@@ -180,7 +186,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         For a bad ``particles``, ``seeds``, ``cess``, ``n_moves``,
         ``stellar_density`` or scan setting; when the data hold no
         multi-transit of the tilted planet; when ``out`` holds a joint run
-        of other settings (use ``restart=True``).
+        of other settings (use ``restart=True``); when ``fixed`` is a scan
+        of another configuration.
 
     Examples
     --------
@@ -207,6 +214,9 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits),
                   "jaxppo.joint_scan", "the joint obliquity sampler")
+    if fixed is not None and fixed.config_digest != cfg.digest:
+        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, "
+                         f"this one {cfg.digest})")
     t_begin = time.perf_counter()
     windows, _ = windows_and_events(cfg)
     if not windows:
@@ -267,12 +277,27 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
               "seconds": time.perf_counter() - t_begin}
+    if path is not None and figures:
+        result["figures"] = [str(_figure(cfg, out, result, fixed).resolve())]
     if path is not None:
         atomic_write(path, _strict_json({"settings": settings, "runs": done, "result": result}, indent=1))
         rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
     return result
+
+
+def _figure(cfg: ScanConfig, out, result: dict, fixed) -> Path:
+    """joint.png, against the fixed scan (computed here when not given)."""
+    import tempfile
+
+    from ._joint_figure import plot_joint
+    from ._scan import run_scan
+
+    if fixed is None:
+        with tempfile.TemporaryDirectory(prefix="jaxppo_fixed_") as tmp:
+            fixed = run_scan(cfg, tmp, progress=False)
+    return plot_joint(out, result, fixed)
 
 
 def _strict_json(obj, indent=None) -> str:

@@ -448,7 +448,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
 
     windows, skipped = windows_and_events(cfg)
     data = windows_data(windows, cfg.lightcurve.exposure)
-    _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress)
+    _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress and is_writer())
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, table, summary_cases = _analyse(cfg, done, windows, data, step)
     atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")

@@ -55,6 +55,9 @@ def test_the_injected_tilt_and_geometry_from_an_offset_start(injected, tmp_path)
     assert rec["result"]["cases"][CASE]["alpha_peak"] == c["alpha_peak"]
     rows = np.genfromtxt(tmp_path / "joint.csv", delimiter=",", names=True, dtype=None, encoding=None)
     assert rows.size == 360 and abs(float(np.sum(rows["posterior"])) - 1.0) < 1e-9
+    # joint.png: the joint posterior against the fixed scan of the same config
+    assert r["figures"] == [str((tmp_path / "joint.png").resolve())]
+    assert (tmp_path / "joint.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # a rerun resumes: nothing sampled again, the same numbers
     again = jp.joint_scan(start, lc, particles=128, seeds=(0,), out=tmp_path, progress=False, **kw)
     assert again["cases"][CASE]["alpha_peak"] == c["alpha_peak"]
@@ -78,6 +81,8 @@ def test_bad_settings_are_named(injected):
                     (dict(particles=None), "particles must be an integer >= 16"),
                     (dict(particles=float("nan")), "particles must be an integer >= 16"),
                     (dict(cess=1.0), "cess must be a number in"), (dict(cess="0.5"), "cess must be a number in"),
+                    (dict(fixed=jp.scan(start, lc, cases=(CASE,), detrend="none", alpha=np.arange(0.0, 360.0, 30.0))),
+                     "fixed: a scan of another configuration"),
                     (dict(n_moves=0), "n_moves must be an integer >= 1")]:
         with pytest.raises(ValueError, match=msg):
             jp.joint_scan(start, lc, progress=False, **kw)
