@@ -154,11 +154,34 @@ class Model(eqx.Module):
         touching, and whose computed frames cover every frame where they put
         a disk within 0.05 R* of the star; None when the current frames
         cover them already."""
-        needed = np.unique(np.concatenate([self.union_idx] + [self.union_frames_of(s) for s in systems]))
-        active = np.unique(np.concatenate([self.active_idx] + [self.active_frames_of(s, margin=0.05) for s in systems]))
-        if np.all(np.isin(needed, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
+        needed = np.concatenate([self.union_frames_of(s) for s in systems] or [np.zeros(0, np.int64)])
+        active = np.concatenate([self.active_frames_of(s, margin=0.05) for s in systems] or [np.zeros(0, np.int64)])
+        return self._widened_to(needed, active)
+
+    def widened_at(self, thetas, batch: int = 32) -> "Model | None":
+        """``widened`` for many parameter vectors ``thetas`` [n, k] at once:
+        their positions in one compiled, vmapped call per ``batch``."""
+        thetas = np.atleast_2d(np.asarray(thetas, float))
+        if thetas.shape[0] == 0:
             return None
-        return self.with_frames(needed, active)
+        t = self.t_model
+        pos = jax.jit(jax.vmap(lambda th: self.to_system(th).positions(t, self.alpha, self.case)))
+        n = thetas.shape[0]
+        pad = -(-n // batch) * batch
+        thetas = np.concatenate([thetas, np.repeat(thetas[-1:], pad - n, axis=0)])
+        union, active = np.zeros(t.shape[0], bool), np.zeros(t.shape[0], bool)
+        for i in range(0, pad, batch):
+            x, y, r = (np.asarray(v) for v in pos(jnp.asarray(thetas[i:i + batch])))
+            union |= pairs_in_contact(x, y, r, UNION_MARGIN).any(0)
+            active |= on_star(x, y, r, 0.05).any(-1).any(0)
+        return self._widened_to(np.nonzero(union)[0], np.nonzero(active)[0])
+
+    def _widened_to(self, union, active) -> "Model | None":
+        """``with_frames(union, active)``, or None when the current frames
+        hold them already."""
+        if np.all(np.isin(union, self.union_idx)) and np.all(np.isin(active, self.active_idx)):
+            return None
+        return self.with_frames(union, active)
 
     # ---- coordinates ----------------------------------------------------------
     def to_theta(self, system: System) -> jnp.ndarray:

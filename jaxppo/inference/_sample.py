@@ -382,7 +382,9 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         lowest-deviance solution (as the paper reports), 68.3 % intervals,
         rank-normalised R-hat and bulk / tail ESS, the sample statistics,
         and ``start``: how the chains started, {"optimised", "converged",
-        "message"}.
+        "message", "frames_complete"} (the last False when, after four
+        runs, the draws still reached frames the model did not compute:
+        a UserWarning says so).
 
     Raises
     ------
@@ -429,23 +431,29 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
     _check_priors(model, system, priors)
     fold_inc = fold_inc and system.orbits == "kepler"  # N-body orbits keep the sign of cos i
-    q0, start = start_q(model, system), None
-    for _ in range(3):
-        result, q0 = _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
-                               priors, fold_inc, system, optimise and start is None)
-        start = result.start = start or result.start
-        result.union_frames = model.union_idx
-        # The union-integral frames were fixed from the start (with a margin);
-        # if the posterior brings disks together elsewhere, sample again with
-        # those frames exact (from the mode found the first time).
-        thin = np.unique(np.linspace(0, len(result.samples[model.free[0]]) - 1, 200).astype(int))
-        ref = model.to_theta(system)
-        draws = np.stack([result.samples[n][thin] for n in model.free], axis=1)  # physical units
-        thetas = np.asarray(jax.jit(jax.vmap(lambda v: model.theta_from(v, ref)))(jnp.asarray(draws)))
-        wider = model.widened([model.to_system(np.asarray(th)) for th in thetas])
+    u0, chol, start = _start_point(model, start_q(model, system), priors, fold_inc, optimise)
+    # The frames computed (and those given the exact union integral) are
+    # fixed for a run. Before sampling they grow to where the Laplace
+    # approximation at the start reaches (256 draws at twice its widths);
+    # after it, to every frame the draws need, and the chains run again
+    # from the same start and metric, so no draw is scored on frames that
+    # were not computed.
+    z = 2.0 * np.random.default_rng(seed).standard_normal((256, u0.size))
+    model = _wider(model, priors, fold_inc, u0 + z @ chol.T) or model
+    for _ in range(4):
+        result, u = _run_nuts(model, u0, chol, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
+                              priors, fold_inc, system)
+        result.start, result.union_frames = dict(start, frames_complete=True), model.union_idx
+        wider = _wider(model, priors, fold_inc, np.unique(u.reshape(-1, u0.size), axis=0))
         if wider is None:
             break
         model = wider
+    else:
+        result.start["frames_complete"] = False
+        warnings.warn(f"sample: after 4 runs the draws still reach frames the model did not compute ({model.active_idx.size}"
+                      f" of {model.t_model.shape[0]} computed): those draws' likelihoods are short of the planets' "
+                      "transits there; check the posterior's tails (grazing orbits) or narrow the priors",
+                      UserWarning, stacklevel=2)
     if start["converged"] is False:
         warnings.warn(f"sample: the optimiser did not find the posterior mode from the given system ({start['message']});"
                       " the chains started there with the Laplace metric of that point: check R-hat, or start closer "
@@ -468,15 +476,13 @@ def _check_priors(model: Model, system: System, user) -> None:
                       "instead of (T14, b), which mixes more slowly along the a-b ridge", UserWarning, stacklevel=3)
 
 
-def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, user, fold,
-              system, optimise):
-    """(SampleResult, q at the start actually used): NUTS from q0, or from
-    the posterior mode near it when ``optimise``."""
-    from numpyro.infer import MCMC, NUTS
+def _coords(model: Model, user, fold) -> Coordinates:
+    """NUTS's coordinates of ``model`` (the priors' maps; ``._coords``)."""
+    return Coordinates(model, default_priors(model, user), user or (), fold)
 
-    coords = Coordinates(model, default_priors(model, user), user or (), fold)
-    k = len(model.free)
-    u0 = coords.from_q(q0)
+
+def _loglike(model: Model, coords: Coordinates):
+    """(u -> ln L at the coordinates u, the Gaussian normalisation)."""
     log_norm = -float(np.sum(np.log(np.asarray(model.sigma)))) - 0.5 * model.y.size * np.log(2.0 * np.pi)
 
     def loglike_u(u):
@@ -484,13 +490,23 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
         # the sum of squares is -2 ln L - sum ln(2 pi sigma^2) (fit's objective)
         return -0.5 * jnp.sum(model.residuals(model.theta_from(coords.to_q(u))) ** 2) + log_norm
 
+    return loglike_u, log_norm
+
+
+def _start_point(model: Model, q0, user, fold, optimise):
+    """(u at the start, the Cholesky factor of the Laplace covariance there,
+    the start's record): the posterior mode found from q0 when
+    ``optimise``, else q0 itself."""
+    coords = _coords(model, user, fold)
+    loglike_u, _ = _loglike(model, coords)
+    u0 = coords.from_q(q0)
+
     @jax.jit
     def potential_u(u):
         v = -(loglike_u(u) + coords.log_prior(u))
         return jnp.where(jnp.isnan(v), jnp.inf, v)
 
     jacobian_u = jax.jit(jax.jacfwd(lambda u: model.residuals(model.theta_from(coords.to_q(u)))))
-
     ll0 = float(jax.jit(loglike_u)(jnp.asarray(u0)))
     if not np.isfinite(ll0):
         raise ValueError(f"sample: the log-likelihood at the start is {ll0} (flux_err as small as "
@@ -498,15 +514,35 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
     prior_sd = coords.prior_widths(u0)
     if optimise:
         u0, chol, ok, why = find_mode(potential_u, jacobian_u, u0, prior_sd)
-        start = {"optimised": True, "converged": bool(ok), "message": why}
-    else:
-        chol = laplace_factor(jacobian_u, u0, prior_sd)
-        start = {"optimised": False, "converged": None, "message": "started at the given system"}
+        return np.asarray(u0), chol, {"optimised": True, "converged": bool(ok), "message": why}
+    return np.asarray(u0), laplace_factor(jacobian_u, u0, prior_sd), {
+        "optimised": False, "converged": None, "message": "started at the given system"}
+
+
+def _wider(model: Model, user, fold, us) -> "Model | None":
+    """The Model whose frames also cover the coordinates ``us`` [n, k]
+    (``Model.widened_at``), or None when they do already."""
+    coords = _coords(model, user, fold)
+    thetas = jax.jit(jax.vmap(lambda u: model.theta_from(coords.to_q(u))))(jnp.asarray(us))
+    return model.widened_at(np.asarray(thetas))
+
+
+def _run_nuts(model, u0, chol, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass, user, fold,
+              system):
+    """(SampleResult, the draws' coordinates u [chain, draw, k]): NUTS in
+    w, u = u0 + L w, from u0 with the metric L L^T."""
+    from numpyro.infer import MCMC, NUTS
+
+    coords = _coords(model, user, fold)
+    loglike_u, log_norm = _loglike(model, coords)
+    k = len(model.free)
     u0j, lj = jnp.asarray(u0), jnp.asarray(chol)
 
     @jax.jit  # numpyro evaluates it eagerly while it initialises: one program, not hundreds
     def potential(w):
-        return potential_u(u0j + lj @ w)
+        u = u0j + lj @ w
+        v = -(loglike_u(u) + coords.log_prior(u))
+        return jnp.where(jnp.isnan(v), jnp.inf, v)
 
     kernel = NUTS(potential_fn=potential, dense_mass=dense_mass)
     mcmc = MCMC(kernel, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
@@ -517,9 +553,7 @@ def _run_nuts(model, q0, num_warmup, num_samples, seed, num_chains, progress_bar
              extra_fields=("diverging", "num_steps", "energy", "potential_energy", "accept_prob", "adapt_state.step_size"))
     w = np.asarray(mcmc.get_samples(group_by_chain=True)).reshape(num_chains, num_samples, k)
     u = u0[None, None] + np.einsum("ij,cdj->cdi", chol, w)
-    result = _result(model, system, coords, mcmc, u, loglike_u, log_norm)
-    result.start = start
-    return result, np.asarray(coords.to_q(jnp.asarray(u0)))
+    return _result(model, system, coords, mcmc, u, loglike_u, log_norm), u
 
 
 def _result(model: Model, system: System, coords: Coordinates, mcmc, u, loglike_u, log_norm: float) -> SampleResult:

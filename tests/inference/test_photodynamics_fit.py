@@ -86,11 +86,11 @@ def test_sample_keeps_the_sign_of_cos_i_of_nbody_planets(monkeypatch):
     class Stop(Exception):
         pass
 
-    def run_nuts(model, q0, *args):
-        seen.append((args[7], model, q0))  # fold_inc
+    def start_point(model, q0, user, fold, optimise):
+        seen.append((fold, model, q0))
         raise Stop
 
-    monkeypatch.setattr(smp, "_run_nuts", run_nuts)
+    monkeypatch.setattr(smp, "_start_point", start_point)
     with pytest.raises(Stop):
         jp.sample(truth, lc, free=("c.inc",), num_warmup=3, num_samples=3, num_chains=1, progress_bar=False)
     kepler = jp.System(truth.star, [jp.Planet(period=21.0, t0=101.02, a=40.0, inc=90.4, radius=0.07, name="c")])

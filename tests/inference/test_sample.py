@@ -351,3 +351,50 @@ def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
         coords = Coordinates(model, default_priors(model), (), fold)
         back = np.asarray(coords.to_q(coords.from_q(q)))
         assert np.sign(back[3]) == sign and abs(back[3]) == pytest.approx(abs(q[3]), rel=1e-12)
+
+
+def test_widened_at_covers_what_each_draw_needs():
+    """``Model.widened_at`` (the vectorised frames of many parameter
+    vectors, which ``sample`` checks every distinct draw with) gives the
+    frames ``widened`` finds system by system: on star within 0.05 R*, and
+    none to add for a parameter vector the model already covers."""
+    from jaxppo.inference._model import Model
+
+    truth, lc = _one_planet()
+    model = Model(truth, lc, ("b.t0", "b.a"), active_margin=0.0)
+    th0 = np.asarray(model.to_theta(truth))
+    moved = [th0 + np.array([dt, 0.0]) for dt in (-0.03, 0.0, 0.02)]
+    fast = model.widened_at(np.stack(moved))
+    slow = model.widened([model.to_system(th) for th in moved])
+    assert fast is not None and slow is not None
+    np.testing.assert_array_equal(fast.active_idx, slow.active_idx)
+    np.testing.assert_array_equal(fast.union_idx, slow.union_idx)
+    assert fast.active_idx.size > model.active_idx.size
+    assert fast.widened_at(np.stack(moved)) is None
+
+
+def test_sample_never_keeps_draws_scored_on_frames_it_did_not_compute(monkeypatch):
+    """The frames a run computes are fixed; draws that reach others are
+    scored as if no planet were there. ``sample`` runs again with those
+    frames, and where the draws still reach new frames after its last run
+    it says so (``start["frames_complete"]`` False and a warning). The old
+    code ran three times and then returned the last run without a word."""
+    import jaxppo.inference._sample as smp
+
+    truth, lc = _one_planet()
+    calls = []
+    real = smp._wider
+
+    def always_wider(model, user, fold, us):
+        calls.append(len(us))
+        got = real(model, user, fold, us)
+        return got if got is not None else model.with_frames(active=[0])  # pretend the draws reach frame 0
+
+    monkeypatch.setattr(smp, "_wider", always_wider)
+    with pytest.warns(UserWarning, match="still reach frames the model did not compute"):
+        res = jp.sample(truth, lc, free=("b.radius",), num_warmup=20, num_samples=10, num_chains=1,
+                        progress_bar=False)
+    assert res.start["frames_complete"] is False and len(calls) == 5  # before sampling, then after each of 4 runs
+    monkeypatch.setattr(smp, "_wider", real)
+    res = jp.sample(truth, lc, free=("b.radius",), num_warmup=20, num_samples=10, num_chains=1, progress_bar=False)
+    assert res.start["frames_complete"] is True
