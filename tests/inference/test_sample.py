@@ -56,8 +56,13 @@ def test_without_information_the_draws_follow_the_physical_priors():
     ess = min(d["ess_bulk"] for d in res.diagnostics.values())
     assert ess > 500, res.diagnostics
     assert not np.any(res.stats["diverging"])
-    # thin to about one draw per effective sample for the KS tests
-    step = max(1, int(a.size / ess))
+    # thin to about one draw per effective sample for the KS tests, which
+    # assume independent draws: by the smaller of bulk and tail ESS, and at
+    # least every second draw (NUTS's bulk ESS of these chains, 1,100-1,650
+    # of 2,000, holds for the mean, not for the empirical CDF at every
+    # quantile: over seeds 1-6, every draw gave p down to 1.4e-4 for b at
+    # seed 1, every second draw p >= 0.003 at every seed)
+    step = max(2, int(a.size / min(min(d["ess_bulk"], d["ess_tail"]) for d in res.diagnostics.values())))
     hi = 4 * float(b.a)
     assert stats.kstest(a[::step], stats.uniform(1.0, hi - 1.0).cdf).pvalue > 1e-3
     assert np.all(bn >= 0)
