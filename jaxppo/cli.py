@@ -142,14 +142,16 @@ def cmd_scan(args) -> int:
     if draws or args.joint:
         from jaxppo.model._processes import require_one_process
 
-        require_one_process("jaxppo scan --marginalize / --joint")
+        require_one_process("jaxppo scan --marginalize / --joint (or the config's [scan] marginalize)")
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_scan(cfg, out, restart=args.restart, progress=not args.quiet)
         seconds = time.perf_counter() - t0
         result = _scan_products(result, cfg, out)
-    for w in caught:
+    from jaxppo.model._processes import is_writer
+
+    for w in caught if is_writer() else ():  # process 0 of several JAX processes reports
         print(f"jaxppo scan: note: {w.message}", file=sys.stderr)
     from jaxppo.obliquity._report import scan_report
 

@@ -160,11 +160,13 @@ class Model(eqx.Module):
 
     def widened_at(self, thetas, batch: int = 32) -> "Model | None":
         """``widened`` for many parameter vectors ``thetas`` [n, k] at once:
-        their positions in one compiled, vmapped call per ``batch``."""
+        their positions in one compiled, vmapped call per ``batch`` (fewer
+        for long light curves: at most ~4e6 model times a call)."""
         thetas = np.atleast_2d(np.asarray(thetas, float))
         if thetas.shape[0] == 0:
             return None
         t = self.t_model
+        batch = int(max(1, min(batch, 4_000_000 // max(1, t.shape[0]))))
         pos = jax.jit(jax.vmap(lambda th: self.to_system(th).positions(t, self.alpha, self.case)))
         n = thetas.shape[0]
         pad = -(-n // batch) * batch

@@ -441,6 +441,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     z = 2.0 * np.random.default_rng(seed).standard_normal((256, u0.size))
     model = _wider(model, priors, fold_inc, u0 + z @ chol.T) or model
     for _ in range(4):
+        used = model
         result, u = _run_nuts(model, u0, chol, num_warmup, num_samples, seed, num_chains, progress_bar, dense_mass,
                               priors, fold_inc, system)
         result.start, result.union_frames = dict(start, frames_complete=True), model.union_idx
@@ -450,10 +451,10 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         model = wider
     else:
         result.start["frames_complete"] = False
-        warnings.warn(f"sample: after 4 runs the draws still reach frames the model did not compute ({model.active_idx.size}"
-                      f" of {model.t_model.shape[0]} computed): those draws' likelihoods are short of the planets' "
-                      "transits there; check the posterior's tails (grazing orbits) or narrow the priors",
-                      UserWarning, stacklevel=2)
+        warnings.warn(f"sample: after 4 runs the draws still reach frames the model did not compute "
+                      f"({used.active_idx.size} of {used.t_model.shape[0]} computed, {model.active_idx.size} needed): "
+                      "those draws' likelihoods are short of the planets' transits there; check the posterior's "
+                      "tails (grazing orbits) or narrow the priors", UserWarning, stacklevel=2)
     if start["converged"] is False:
         warnings.warn(f"sample: the optimiser did not find the posterior mode from the given system ({start['message']});"
                       " the chains started there with the Laplace metric of that point: check R-hat, or start closer "

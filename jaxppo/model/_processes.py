@@ -70,7 +70,8 @@ def require_one_process(what: str) -> None:
     if jax.process_count() > 1:
         raise ValueError(
             f"{what} runs in one JAX process only (this is process {jax.process_index()} of "
-            f"{jax.process_count()}): run it without jax.distributed (docs/scale.md, 'Several processes')")
+            f"{jax.process_count()}): run it without jax.distributed (on the command line: without "
+            "JAXPPO_DISTRIBUTED; docs/scale.md, 'Several processes')")
 
 
 def start_from_environment(what: str = "this run", allowed: bool = True) -> bool:

@@ -368,7 +368,7 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     import matplotlib.pyplot as plt
 
     out = Path(out)
-    if not out.is_dir():
+    if is_writer() and not out.is_dir():  # process 0 alone touches the folder (several JAX processes)
         raise ValueError(f"out must be an existing folder, got {out}")
     cases = tuple(cases) if cases is not None else tuple(table)
     if not cases:

@@ -215,8 +215,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                                            baseline=baseline, clip=clip, multi_transits=multi_transits),
                   "jaxppo.joint_scan", "the joint obliquity sampler")
     if fixed is not None and fixed.config_digest != cfg.digest:
-        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, "
-                         f"this one {cfg.digest})")
+        raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, this one "
+                         f"{cfg.digest}; the digest covers the alpha grid too: give joint_scan the scan's alpha=)")
     t_begin = time.perf_counter()
     windows, _ = windows_and_events(cfg)
     if not windows:
@@ -230,15 +230,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                 "config": cfg.digest_without("alpha", "block"),
                 "cess": float(cess), "n_moves": int(n_moves)}
     path = Path(out) / JOINT if out is not None else None
-    done = {}
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if path.exists() and not restart:
-            rec = json.loads(path.read_text())
-            if rec.get("settings") != settings:
-                raise ValueError(f"{path} holds a joint run of other settings ({rec.get('settings')}); "
-                                 "use restart=True (--restart) or another folder")
-            done = rec.get("runs", {})
+    done = _open(path, settings, restart) if path is not None else {}
     say = (lambda m: print(f"joint: {m}", flush=True)) if progress else None
     cases = {}
     for case in cfg.cases:
@@ -285,6 +277,21 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
     return result
+
+
+def _open(path: Path, settings: dict, restart: bool) -> dict:
+    """The runs joint.json at ``path`` already holds for these settings
+    (none with ``restart``, which also removes an old joint.png)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if restart and (path.parent / "joint.png").is_file():
+        (path.parent / "joint.png").unlink()  # never an old run's figure beside new results
+    if not path.exists() or restart:
+        return {}
+    rec = json.loads(path.read_text())
+    if rec.get("settings") != settings:
+        raise ValueError(f"{path} holds a joint run of other settings ({rec.get('settings')}); "
+                         "use restart=True (--restart) or another folder")
+    return rec.get("runs", {})
 
 
 def _figure(cfg: ScanConfig, out, result: dict, fixed) -> Path:

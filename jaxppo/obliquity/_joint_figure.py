@@ -24,7 +24,7 @@ def plot_joint(out, result: dict, fixed) -> Path:
     import matplotlib.pyplot as plt
 
     cases = list(result["cases"])
-    fig, axes = plt.subplots(1, len(cases), figsize=(5.5 * len(cases), 3.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(cases), figsize=(6.5 * len(cases), 3.8), squeeze=False)
     for ax, case in zip(axes[0], cases):
         c = result["cases"][case]
         post = np.asarray(c["posterior"], float)  # mass per 1-degree bin = density [1/deg]
@@ -40,7 +40,7 @@ def plot_joint(out, result: dict, fixed) -> Path:
         ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
         geo = ", ".join(f"{n} {100 * g['probability']:.1f} +- {100 * g['error']:.1f} %"
                         for n, g in c["geometries"].items())
-        ax.set_title(f"case {case}: peak {c['alpha_peak']:.1f} deg\n{geo}", fontsize=8)
+        ax.set_title(f"case {case}: peak {c['alpha_peak']:.1f} deg\n{geo}", fontsize=7)
         ax.set_xlabel("tilt angle alpha [deg]")
         ax.set_ylabel("p(alpha | D) [1/deg]")
         ax.set_xlim(0, 360)

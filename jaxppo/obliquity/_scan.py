@@ -30,6 +30,7 @@ import time
 import warnings
 from pathlib import Path
 
+import jax
 import numpy as np
 
 from ._config import ScanConfig, require_scan_system
@@ -488,15 +489,24 @@ def _read_state(cfg: ScanConfig, out: Path, digest: str, restart: bool):
     """(done, notes, stored result or None) of the folder ``out``: read (and
     its progress header written) by process 0 alone and shared with the
     other JAX processes, so that all of them compute the same blocks."""
+    error = None
     if is_writer():
-        done, notes = _open_progress(cfg, out, digest, restart)
+        try:
+            done, notes = _open_progress(cfg, out, digest, restart)
+        except (ValueError, OSError) as err:  # every process stops with it, none waits for the others
+            if jax.process_count() == 1:
+                raise
+            error = f"{type(err).__name__}: {err}"
+            done, notes = {}, []
         complete = all((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
-        stored = _finished_result(out, cfg, digest) if complete and not notes else None
-        state = {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes,
+        stored = _finished_result(out, cfg, digest) if complete and not notes and error is None else None
+        state = {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes, "error": error,
                  "stored": None if stored is None else {"summary": stored.summary, "table": stored.table.tolist()}}
     else:
         state = None
     state = share(state)  # process 0's (a no-op with one process)
+    if state["error"] is not None:
+        raise ValueError(f"process 0 could not read {out}: {state['error']}")
     if not is_writer():
         done = {(c, a): v for c, a, v in state["done"]}
         notes = state["notes"]
@@ -631,6 +641,6 @@ def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same",
         with tempfile.TemporaryDirectory(prefix="jaxppo_scan_") as tmp:
             return run_scan(cfg, tmp, restart=restart, progress=progress)
     result = run_scan(cfg, out, restart=restart, progress=progress)
-    if figures and not figures_current(result, out):
+    if figures and not share(figures_current(result, out)):  # process 0's files decide
         result = draw_figures(result, cfg, out)
     return result

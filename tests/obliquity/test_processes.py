@@ -37,13 +37,12 @@ def test_two_processes_resume_and_write_the_scan_of_one(tmp_path):
     lines = (one / "scan_progress.jsonl").read_text().splitlines(keepends=True)
     (two / "scan_progress.jsonl").write_text("".join(lines[:2]))
     shutil.copy(one / "config.json", two / "config.json")
-    port = str(_free_port())
-    procs = [subprocess.Popen(SCAN + ["--out", str(two)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                              env=_env(tmp_path, JAXPPO_DISTRIBUTED="2", JAXPPO_PROCESS_ID=str(i),
-                                       JAX_COORDINATOR_ADDRESS="127.0.0.1:" + port))
-             for i in range(2)]
-    outs = [p.communicate(timeout=600) for p in procs]
-    assert all(p.returncode == 0 for p in procs), "\n".join(o[1][-3000:] for o in outs)
+    # process 1 runs where --out does not exist (as on another host without
+    # a shared file system): process 0 alone reads and writes it
+    host1 = tmp_path / "host1"
+    host1.mkdir()
+    outs = _two_processes(tmp_path, ["--out", "two"], (tmp_path, host1))
+
     def report(text):  # what jaxppo printed (gloo's C++ library prints its connection line itself)
         return [ln for ln in text.splitlines() if not ln.startswith("[Gloo]")]
 
@@ -65,6 +64,27 @@ def test_two_processes_resume_and_write_the_scan_of_one(tmp_path):
     assert len(keys) == len(set(keys)) == 360
     assert not list(two.glob("*.tmp*"))
     assert {f.name for f in two.iterdir()} >= {f.name for f in one.iterdir()}
+    assert not any(host1.iterdir())
+    # an error of process 0 while it reads the folder (another config's results) stops both, by name
+    outs = _two_processes(tmp_path, ["--out", "two", "--alpha", "0", "360", "3"], (tmp_path, host1), check=False)
+    for out, err in outs:
+        assert "holds results of a different configuration" in err, err[-2000:]
+
+
+def _two_processes(tmp_path, args, cwds, check=True):
+    """Run ``jaxppo scan`` ``args`` as two JAX processes (gloo on
+    localhost) in the folders ``cwds``; their (stdout, stderr)."""
+    port = str(_free_port())
+    procs = [subprocess.Popen(SCAN + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
+                              env=_env(tmp_path, JAXPPO_DISTRIBUTED="2", JAXPPO_PROCESS_ID=str(i),
+                                       JAX_COORDINATOR_ADDRESS="127.0.0.1:" + port))
+             for i, cwd in enumerate(cwds)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    if check:
+        assert all(p.returncode == 0 for p in procs), "\n".join(o[1][-3000:] for o in outs)
+    else:
+        assert all(p.returncode == 2 for p in procs), "\n".join(o[1][-3000:] for o in outs)
+    return outs
 
 
 def test_commands_of_one_process_refuse_distributed_settings(tmp_path):
