@@ -370,15 +370,15 @@ def test_scan_marginalize_and_joint_options_call_their_workflows(tmp_path, monke
     fake_joint = {"method": "fake SMC", "seconds": 1.0, "cases": {"same": case, "opposite": case},
                   "case_bayes_factors": {"same/opposite": 1.0}, "case_log_bayes_factors": {"same/opposite": 0.0}}
 
-    def fake_joint_scan(cfg, particles, out, free, restart, progress):
-        seen.update(particles=particles)
+    def fake_joint_scan(cfg, particles, out, free, restart, progress, fixed):
+        seen.update(particles=particles, joint_fixed=fixed is not None and fixed.config_digest == cfg.digest)
         return fake_joint
 
     monkeypatch.setattr(marginal, "marginal_scan", fake)
     monkeypatch.setattr(joint, "joint_scan", fake_joint_scan)
     assert main(["scan", "--out", str(tmp_path / "o"), "--quiet", "--alpha", "0", "360", "10",
                  "--marginalize", "3", "--joint", "64"]) == 0
-    assert seen == {"draws": 3, "fixed": True, "free": None, "particles": 64}
+    assert seen == {"draws": 3, "fixed": True, "free": None, "particles": 64, "joint_fixed": True}
     printed = capsys.readouterr().out
     assert "marginal: fake" in printed and "g2: 75.00 +- 1.00 %" in printed and "alpha peak 147.5" in printed
     # summary.json carries the marginal block (issue 22: marginal.cases.<case>...) and the
