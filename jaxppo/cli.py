@@ -139,10 +139,6 @@ def cmd_scan(args) -> int:
     out = _out_folder(args.out)
     cfg = load_config(args.config, alpha=args.alpha)
     draws = args.marginalize if args.marginalize is not None else cfg.marginalize
-    if draws or args.joint:
-        from jaxppo.model._processes import require_one_process
-
-        require_one_process("jaxppo scan --marginalize / --joint (or the config's [scan] marginalize)")
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

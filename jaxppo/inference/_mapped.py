@@ -25,3 +25,38 @@ def mapped(fn, batch_size: int | None = None):
         return jax.lax.map(lambda x: fn(*x), xs, batch_size=batch_size)
 
     return jax.jit(run)
+
+
+def mapped_over_devices(fn):
+    """``mapped(fn)`` with the batch split over every device of every JAX
+    process (one global mesh; ``jax.distributed``): each device maps its
+    share of the points, and every process gets the whole result as numpy
+    arrays (``jaxppo.model._plan.to_host``), so each holds the same numbers.
+    The batch is padded to a multiple of the device count (the last point
+    repeated, its results dropped). With one device this is ``mapped(fn)``
+    with the result brought to the host."""
+    import numpy as np
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    from ..model._plan import to_host
+
+    devices = jax.devices()
+    run = mapped(fn)
+    if len(devices) == 1:
+        return lambda *xs: jax.tree_util.tree_map(np.asarray, run(*xs))
+    mesh = Mesh(np.array(devices), ("points",))
+    spec = PartitionSpec("points")
+    each = jax.jit(jax.shard_map(lambda *xs: jax.lax.map(lambda x: fn(*x), xs), mesh=mesh, in_specs=spec,
+                                 out_specs=spec))
+    place = NamedSharding(mesh, spec)
+
+    def call(*xs):
+        xs = [np.asarray(x) for x in xs]
+        n = xs[0].shape[0]
+        pad = -n % len(devices)
+        if pad:
+            xs = [np.concatenate([x, np.repeat(x[-1:], pad, axis=0)]) for x in xs]
+        out = each(*(jax.device_put(x, place) for x in xs))
+        return jax.tree_util.tree_map(lambda v: to_host(v)[:n], out)
+
+    return call

@@ -37,7 +37,7 @@ import time
 import jax.numpy as jnp
 import numpy as np
 
-from ._mapped import mapped
+from ._mapped import mapped_over_devices
 
 __all__ = ["tempered_smc", "alpha_clusters"]
 
@@ -217,13 +217,15 @@ def tempered_smc(log_gamma, dim: int, *, n_particles: int = 256, ref_scale: floa
     n = int(n_particles)
     ref = _Reference(dim, ref_scale, modes, plateau)
     # one particle after another (``_mapped``): faster than vmap on CPU, and
-    # the model skips the union integral where no disks meet
-    batch = mapped(log_gamma)
+    # the model skips the union integral where no disks meet; the particles
+    # split over every device of every JAX process (each process then holds
+    # all the values, and runs the same steps)
+    batch = mapped_over_devices(log_gamma)
     calls = [0]
 
     def evaluate(w, a):
         calls[0] += w.shape[0]
-        v = np.asarray(batch(jnp.asarray(w), jnp.asarray(a)), float)
+        v = np.asarray(batch(w, a), float)
         return np.where(np.isnan(v), -np.inf, v)
 
     w, a = ref.draw(n, rng)

@@ -22,7 +22,7 @@ import json
 import jax
 import numpy as np
 
-__all__ = ["is_writer", "share", "barrier", "process_info", "require_one_process", "start_from_environment"]
+__all__ = ["is_writer", "share", "read_once", "barrier", "process_info", "start_from_environment"]
 
 
 def is_writer() -> bool:
@@ -55,6 +55,28 @@ def share(obj):
     return json.loads(buf.tobytes().decode())
 
 
+def read_once(read, what: str, encode=lambda v: v, decode=lambda v: v):
+    """``read()`` (a run's folder: its progress, its stored results) called
+    by process 0 alone; every other process gets ``decode(share(encode(
+    value)))`` (``encode`` makes the value JSON-able). An error there
+    (``ValueError``, ``OSError``) stops every process: with one process it
+    is raised as it is; with several, each raises a ``ValueError`` naming
+    process 0 and ``what`` (none is left waiting in a collective the
+    others never enter)."""
+    if jax.process_count() == 1:
+        return read()
+    value, error = None, None
+    if is_writer():
+        try:
+            value = read()
+        except (ValueError, OSError) as err:
+            error = f"{type(err).__name__}: {err}"
+    got = share({"value": None if error is not None or not is_writer() else encode(value), "error": error})
+    if got["error"] is not None:
+        raise ValueError(f"process 0 could not read {what}: {got['error']}")
+    return value if is_writer() else decode(got["value"])
+
+
 def barrier(name: str) -> None:
     """Wait until every process reaches the barrier ``name`` (a no-op with
     one process)."""
@@ -62,16 +84,6 @@ def barrier(name: str) -> None:
         from jax.experimental import multihost_utils
 
         multihost_utils.sync_global_devices(name)
-
-
-def require_one_process(what: str) -> None:
-    """Refuse ``what`` under several JAX processes, saying why: it would run
-    in every process independently and write the same files."""
-    if jax.process_count() > 1:
-        raise ValueError(
-            f"{what} runs in one JAX process only (this is process {jax.process_index()} of "
-            f"{jax.process_count()}): run it without jax.distributed (on the command line: without "
-            "JAXPPO_DISTRIBUTED; docs/scale.md, 'Several processes')")
 
 
 def start_from_environment(what: str = "this run", allowed: bool = True) -> bool:

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..inference._smc import joint_case_smc
-from ..model._processes import require_one_process
+from ._joint_figure import plot_joint
+from ..model._processes import barrier, is_writer, process_info, read_once
 from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
@@ -207,7 +208,6 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     """
     import jax
 
-    require_one_process("joint_scan")
     if not jax.config.jax_enable_x64:
         raise ValueError("joint_scan needs float64: jax.config.update('jax_enable_x64', True) first")
     particles, seeds = _check(particles, seeds, cess, n_moves)
@@ -230,8 +230,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                 "config": cfg.digest_without("alpha", "block"),
                 "cess": float(cess), "n_moves": int(n_moves)}
     path = Path(out) / JOINT if out is not None else None
-    done = _open(path, settings, restart) if path is not None else {}
-    say = (lambda m: print(f"joint: {m}", flush=True)) if progress else None
+    done = read_once(lambda: _open(path, settings, restart), path.parent) if path is not None else {}
+    say = (lambda m: print(f"joint: {m}", flush=True)) if progress and is_writer() else None
     cases = {}
     for case in cfg.cases:
         a_ref = quiet_alpha(sysm, tm, case)
@@ -268,14 +268,17 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
-              "seconds": time.perf_counter() - t_begin}
+              "seconds": time.perf_counter() - t_begin, **process_info()}
     if path is not None and figures:
-        result["figures"] = [str(_figure(cfg, out, result, fixed).resolve())]
+        fixed = _fixed_scan(cfg) if fixed is None else fixed  # in every process (its kernels are collective)
+        png = plot_joint(out, result, fixed) if is_writer() else Path(out) / "joint.png"
+        result["figures"] = [str(png.resolve())]
     if path is not None:
         atomic_write(path, _strict_json({"settings": settings, "runs": done, "result": result}, indent=1))
         rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
+        barrier("jaxppo joint scan written")  # every process returns once process 0 has written the folder
     return result
 
 
@@ -294,17 +297,15 @@ def _open(path: Path, settings: dict, restart: bool) -> dict:
     return rec.get("runs", {})
 
 
-def _figure(cfg: ScanConfig, out, result: dict, fixed) -> Path:
-    """joint.png, against the fixed scan (computed here when not given)."""
+def _fixed_scan(cfg: ScanConfig):
+    """The fixed-parameter scan of ``cfg`` (in a temporary folder), which
+    joint.png is drawn against when the caller gives none."""
     import tempfile
 
-    from ._joint_figure import plot_joint
     from ._scan import run_scan
 
-    if fixed is None:
-        with tempfile.TemporaryDirectory(prefix="jaxppo_fixed_") as tmp:
-            fixed = run_scan(cfg, tmp, progress=False)
-    return plot_joint(out, result, fixed)
+    with tempfile.TemporaryDirectory(prefix="jaxppo_fixed_") as tmp:
+        return run_scan(cfg, tmp, progress=False)
 
 
 def _strict_json(obj, indent=None) -> str:

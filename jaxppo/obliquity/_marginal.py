@@ -34,6 +34,7 @@ draws); an interrupted run resumes without recomputing finished draws.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import numbers
 import os
@@ -58,7 +59,7 @@ from ..inference._posterior import PLANET_PARAMS, nuts_draws, posterior_slot
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
-from ..model._processes import require_one_process
+from ..model._processes import barrier, is_writer, process_info, read_once, share
 from ..model._cases import case_signs
 from ..model._system import System
 
@@ -493,7 +494,6 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     >>> again.summary["seconds"]["draws_computed"]  # resumed: nothing recomputed
     0
     """
-    require_one_process("marginal_scan")
     t_begin = time.perf_counter()
     cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
                                            baseline=baseline, clip=clip, multi_transits=multi_transits))
@@ -518,26 +518,33 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         with tempfile.TemporaryDirectory(prefix="jaxppo_marginal_") as tmp:
             return _run(cfg, Path(tmp), fixed, False, opts)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if is_writer():  # process 0 of several JAX processes alone reads and writes the folder
+        out.mkdir(parents=True, exist_ok=True)
     return _run(cfg, out, fixed, figures, opts)
 
 
-def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, o, timing: dict):
-    """(samples, sampler) of the marginal scan: the draws stored in
-    ``draws_path`` by an earlier run with this digest, else those given by
-    the caller, else NUTS draws of the no-PPO transit posterior (written to
-    ``draws_path``: a resumed run uses the same)."""
-    stored = None
-    if draws_path.exists():
-        try:
-            rec = json.loads(draws_path.read_text())
-            if rec.get("digest") == o.digest:
-                stored = rec
-        except (json.JSONDecodeError, OSError):
-            stored = None
-        if stored is None:
-            raise ValueError(f"{draws_path.parent} holds draws of a different marginal scan ({draws_path.name}); "
-                             "use another out folder or restart=True (CLI: --restart)")
+def _stored_draws(draws_path: Path, digest: str):
+    """The draws record an earlier run with this digest stored in
+    ``draws_path`` ({"sampler", "samples"}), or None; draws of another scan
+    there are refused."""
+    if not draws_path.exists():
+        return None
+    try:
+        rec = json.loads(draws_path.read_text())
+    except (json.JSONDecodeError, OSError):
+        rec = None
+    if not isinstance(rec, dict) or rec.get("digest") != digest:
+        raise ValueError(f"{draws_path.parent} holds draws of a different marginal scan ({draws_path.name}); "
+                         "use another out folder or restart=True (CLI: --restart)")
+    return {"sampler": rec["sampler"], "samples": rec["samples"]}
+
+
+def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, stored, o, timing: dict):
+    """(samples, sampler) of the marginal scan: the ``stored`` draws of an
+    earlier run with this digest, else those given by the caller, else NUTS
+    draws of the no-PPO transit posterior (written to ``draws_path``: a
+    resumed run uses the same). Under several JAX processes every process
+    runs the same sampler and process 0's draws are used by all."""
     if stored is not None:
         return {k: np.asarray(v, float) for k, v in stored["samples"].items()}, stored["sampler"]
     if o.given is not None:
@@ -553,17 +560,18 @@ def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, o, timing: d
         centred = centre_epochs(sysm, 0.5 * (float(tm.min()) + float(tm.max())))
         t0 = time.perf_counter()
         samples, sampler = nuts_draws(centred, data, o.free, o.density, a_ref, cfg.cases[0], o.draws, o.num_warmup,
-                                      o.thin, o.seed, o.chains, o.progress)
+                                      o.thin, o.seed, o.chains, o.progress and is_writer())
         timing["sampler_s"] = time.perf_counter() - t0
         sampler.update({"alpha_ref": a_ref, "case_ref": cfg.cases[0], "density_prior": o.density,
                         "density_prior_source": o.density_source,
                         "t0_epochs": {pl.name or str(i): float(pl.t0) for i, pl in enumerate(centred.planets)}})
         if "star.density" in samples:
             sampler["star.density"] = samples.pop("star.density").tolist()
-    atomic_write(draws_path, json.dumps({"digest": o.digest, "sampler": sampler,
-                                          "samples": {k: v.tolist() for k, v in samples.items()}},
-                                         allow_nan=False, default=float))
-    return samples, sampler
+    rec = json.loads(json.dumps({"sampler": sampler, "samples": {k: v.tolist() for k, v in samples.items()}},
+                                allow_nan=False, default=float))
+    rec = share(rec)  # process 0's draws in every process (a no-op with one)
+    atomic_write(draws_path, json.dumps({"digest": o.digest, **rec}, allow_nan=False))
+    return {k: np.asarray(v, float) for k, v in rec["samples"].items()}, rec["sampler"]
 
 
 def _key(d, case) -> str:
@@ -590,10 +598,11 @@ def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, ti
             (_key(d, c), round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
 
     todo = [d for d in range(n_d) if not finished(d)]
-    bar = tqdm(total=n_d, initial=n_d - len(todo), desc="marginal scan", unit="draw", disable=not o.progress,
+    bar = tqdm(total=n_d, initial=n_d - len(todo), desc="marginal scan", unit="draw",
+               disable=not (o.progress and is_writer()),
                leave=False)
     t0 = time.perf_counter()
-    with open(prog_path, "a") as fh:
+    with open(prog_path, "a") if is_writer() else io.StringIO() as fh:  # process 0 of several writes
         for i in range(0, len(todo), o.chunk):
             idx = todo[i:i + o.chunk]
             chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
@@ -616,8 +625,9 @@ def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, ti
                     fh.write(record_line(rec))
                     for a, v in zip(rec["alpha"], rec["chi2"]):
                         done[(rec["case"], round(float(a), 9))] = float(v)
-            fh.flush()
-            os.fsync(fh.fileno())
+            if is_writer():
+                fh.flush()
+                os.fsync(fh.fileno())
             bar.update(len(idx))
     bar.close()
     timing["chi2_s"] = time.perf_counter() - t0
@@ -637,11 +647,7 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
         raise ValueError(f"fixed: a scan of another configuration (digest {fixed.config_digest}, "
                          f"this one {cfg.digest})")
     prog_path, draws_path = out / PROGRESS, out / DRAWS
-    if o.restart:
-        for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
-            if (out / name).is_file():
-                (out / name).unlink()
-    done, notes = read_progress(prog_path, o.digest, out, cfg.source)
+    done, notes, stored = _read_state(out, cfg, o)
     for note in notes:
         warnings.warn(note, stacklevel=3)
 
@@ -650,7 +656,7 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     tm, nsub = data.supersampled_times()
     y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
     timing = {}
-    samples, sampler = _draws(cfg, data, tm, draws_path, o, timing)
+    samples, sampler = _draws(cfg, data, tm, draws_path, stored, o, timing)
     if not prog_path.exists():
         atomic_write(prog_path, json.dumps({"config_digest": o.digest, "source": cfg.source, "format": 2}) + "\n")
     systems = _systems_from(sampled_system(cfg.system, sampler), samples, list(samples))
@@ -677,9 +683,34 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     summary["seconds"] = {"total": time.perf_counter() - o.t_begin, **timing,
                           "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
     summary["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
+    summary.update(process_info())
     summary["progress_notes"] = notes
     atomic_write(out / "marginal.csv", marginal_csv(result.table))
     if figures:
-        summary["figures"] = [str(plot_marginal(out, result, cfg))]
+        summary["figures"] = [str(plot_marginal(out, result, cfg) if is_writer() else out / "marginal.png")]
     atomic_write(out / "marginal.json", json.dumps(summary, indent=2, allow_nan=False))
+    barrier("jaxppo marginal scan written")  # every process returns once process 0 has written the folder
     return result
+
+
+def _read_state(out: Path, cfg: ScanConfig, o):
+    """(done, notes, stored draws or None) of the folder ``out`` (emptied
+    first for ``o.restart``): read by process 0 alone and shared with the
+    other JAX processes, so that all of them compute the same draws."""
+
+    def read():
+        if o.restart:
+            for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
+                if (out / name).is_file():
+                    (out / name).unlink()
+        done, notes = read_progress(out / PROGRESS, o.digest, out, cfg.source)
+        return done, notes, _stored_draws(out / DRAWS, o.digest)
+
+    def encode(state):
+        done, notes, stored = state
+        return {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes, "stored": stored}
+
+    def decode(state):
+        return {(c, a): v for c, a, v in state["done"]}, state["notes"], state["stored"]
+
+    return read_once(read, out, encode, decode)

@@ -30,7 +30,6 @@ import time
 import warnings
 from pathlib import Path
 
-import jax
 import numpy as np
 
 from ._config import ScanConfig, require_scan_system
@@ -42,7 +41,7 @@ from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
-from ..model._processes import barrier, is_writer, process_info, share
+from ..model._processes import barrier, is_writer, process_info, read_once, share
 from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
@@ -489,32 +488,25 @@ def _read_state(cfg: ScanConfig, out: Path, digest: str, restart: bool):
     """(done, notes, stored result or None) of the folder ``out``: read (and
     its progress header written) by process 0 alone and shared with the
     other JAX processes, so that all of them compute the same blocks."""
-    error = None
-    if is_writer():
-        try:
-            done, notes = _open_progress(cfg, out, digest, restart)
-        except (ValueError, OSError) as err:  # every process stops with it, none waits for the others
-            if jax.process_count() == 1:
-                raise
-            error = f"{type(err).__name__}: {err}"
-            done, notes = {}, []
+
+    def read():
+        done, notes = _open_progress(cfg, out, digest, restart)
         complete = all((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
-        stored = _finished_result(out, cfg, digest) if complete and not notes and error is None else None
-        state = {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes, "error": error,
-                 "stored": None if stored is None else {"summary": stored.summary, "table": stored.table.tolist()}}
-    else:
-        state = None
-    state = share(state)  # process 0's (a no-op with one process)
-    if state["error"] is not None:
-        raise ValueError(f"process 0 could not read {out}: {state['error']}")
-    if not is_writer():
-        done = {(c, a): v for c, a, v in state["done"]}
-        notes = state["notes"]
+        return done, notes, _finished_result(out, cfg, digest) if complete and not notes else None
+
+    def encode(state):
+        done, notes, stored = state
+        return {"done": [[c, a, v] for (c, a), v in done.items()], "notes": notes,
+                "stored": None if stored is None else {"summary": stored.summary, "table": stored.table.tolist()}}
+
+    def decode(state):
         got = state["stored"]
         stored = None if got is None else ScanResult(
             got["summary"], np.array([tuple(r) for r in got["table"]], dtype=_TABLE_DTYPE),
             tuple(windows_and_events(cfg)[0]))
-    return done, notes, stored
+        return {(c, a): v for c, a, v in state["done"]}, state["notes"], stored
+
+    return read_once(read, out, encode, decode)
 
 
 def scan(system, lightcurve=None, *, alpha=Default(None), cases=Default(("same", "opposite")), out=None,

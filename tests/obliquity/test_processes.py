@@ -99,3 +99,182 @@ def test_commands_of_one_process_refuse_distributed_settings(tmp_path):
                                   JAX_COORDINATOR_ADDRESS="127.0.0.1:1"))
     assert run.returncode == 2 and "JAXPPO_PROCESS_ID=2" in run.stderr
     assert not (tmp_path / "x").exists()
+
+
+def stand_in_nuts(system, data, free, density, alpha, case, draws, *args, **kwargs):
+    """A stand-in for the NUTS draws of the marginal scan: ``draws`` draws
+    around ``system``'s values, shifted by 1e-7 relative times the JAX
+    process index. A replicated sampler need not agree bit for bit across
+    hosts; process 0's draws must be the ones every process uses."""
+    import jax
+
+    rng = np.random.default_rng(0)
+    shift = 1.0 + 1e-7 * jax.process_index()
+    by_name = {pl.name: pl for pl in system.planets}
+    samples = {}
+    for name in free:
+        pl, attr = name.split(".")
+        v = float(getattr(by_name[pl], attr))
+        scale = 1e-4 if attr in ("t0", "period") else 1e-3 * abs(v)
+        samples[name] = (v + scale * rng.standard_normal(draws)) * shift
+    return samples, {"method": "stand-in (tests/obliquity/test_processes.py)"}
+
+
+MARGINAL = r"""
+import json, sys
+import jax
+jax.config.update("jax_enable_x64", True)
+out, pid, port, here = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+if port != "-":
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address="127.0.0.1:" + port, num_processes=2, process_id=pid)
+from importlib.resources import files
+sys.path.insert(0, here)
+import jaxppo as jp
+import jaxppo.obliquity._marginal as marginal
+from test_processes import stand_in_nuts
+marginal.nuts_draws = stand_in_nuts
+cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+res = jp.marginal_scan(cfg, **{OPTIONS}, out=out)
+print("RESULT " + json.dumps({"table": res.table.tolist(), "summary": res.summary}, default=str))
+"""
+OPTIONS = dict(draws=4, chunk=2, min_ess=1, progress=False)
+MARGINAL = MARGINAL.replace("{OPTIONS}", repr(OPTIONS))
+
+
+def _marginal(tmp_path, outs, cwds, ports):
+    """``jp.marginal_scan`` (4 draws of ``stand_in_nuts``) run by two JAX
+    processes, writing ``outs`` from ``cwds``; what each returned."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    procs = [subprocess.Popen([sys.executable, "-c", MARGINAL, out, str(i), port, here], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, cwd=cwd, env=_env(tmp_path))
+             for i, (out, cwd, port) in enumerate(zip(outs, cwds, ports))]
+    got = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), "\n".join(e[-3000:] for _, e in got)
+    return [json.loads(next(ln for ln in o.splitlines() if ln.startswith("RESULT "))[7:]) for o, _ in got]
+
+
+def test_two_processes_resume_and_write_the_marginal_scan_of_one(tmp_path, monkeypatch):
+    """The marginal scan (issue 26): its draws (sampled in every process,
+    process 0's used by all), its chi^2 per draw and its importance weights
+    are those of one process to 1e-12; process 0 alone writes, and an
+    interrupted run (two of four draws' chi^2 done, the draws not yet
+    stored) resumes in both processes. (The real NUTS sampler ran the same
+    way by hand; here a stand-in keeps the test short.)"""
+    from importlib.resources import files
+
+    import jaxppo as jp
+    import jaxppo.obliquity._marginal as marginal
+
+    monkeypatch.setattr(marginal, "nuts_draws", stand_in_nuts)
+    cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    res = jp.marginal_scan(cfg, **OPTIONS, out=tmp_path / "one")  # one process: this one
+    one = {"table": res.table.tolist(), "summary": json.loads(json.dumps(res.summary, default=str))}
+    two = tmp_path / "two"
+    two.mkdir()
+    lines = (tmp_path / "one" / "marginal_progress.jsonl").read_text().splitlines(keepends=True)
+    per_draw = 2 + 2 * 2  # null, ref, then per case its chi^2 curve and chi^2_0
+    (two / "marginal_progress.jsonl").write_text("".join(lines[:1 + 2 * per_draw]))
+    host1 = tmp_path / "host1"  # process 1 runs where the folder does not exist (another host)
+    host1.mkdir()
+    port = str(_free_port())
+    got = _marginal(tmp_path, ["two", "two"], [tmp_path, host1], [port, port])
+    assert not any(host1.iterdir())  # process 1 never touched a folder
+    d1, d2 = (json.loads((tmp_path / d / "marginal_draws.json").read_text())["samples"] for d in ("one", "two"))
+    assert set(d1) == set(d2)
+    for name in d1:
+        np.testing.assert_array_equal(d2[name], d1[name])
+    for res in got:
+        np.testing.assert_allclose([r[1:] for r in res["table"]], [r[1:] for r in one["table"]], rtol=1e-12,
+                                   atol=1e-12)
+        assert res["summary"]["seconds"]["draws_computed"] == 2
+        assert res["summary"]["probabilities"] == one["summary"]["probabilities"]
+    s1, s2 = (json.loads((tmp_path / d / "marginal.json").read_text()) for d in ("one", "two"))
+    assert (s1["devices"], s1["processes"], s2["devices"], s2["processes"]) == (1, 1, 2, 2)
+    recs = [json.loads(ln) for ln in (two / "marginal_progress.jsonl").read_text().splitlines()[1:]]
+    assert len(recs) == len({r["case"] for r in recs}) == 4 * per_draw  # every draw's records written once
+    assert (two / "marginal.png").is_file() and not list(two.glob("*.tmp*"))
+
+
+def stand_in_joint_smc(system, data, free, density, case, alpha_ref, *, n_particles, seed, cess, n_moves,
+                       progress=None, found=None):
+    """The joint sampler of one case on a stand-in target: the real
+    tempered SMC (its particles split over every device of every JAX
+    process) on a Gaussian in two transit coordinates times a bump in alpha
+    at 147 deg over a plateau, which costs a small fraction of the model."""
+    import jax.numpy as jnp
+
+    from jaxppo.inference._smc import tempered_smc
+
+    def log_gamma(w, alpha):
+        d = (alpha - 147.0 + 180.0) % 360.0 - 180.0
+        return -0.5 * jnp.sum(w ** 2) + jnp.log(0.05 + jnp.exp(-0.5 * (d / 4.0) ** 2))
+
+    out = tempered_smc(log_gamma, 2, n_particles=n_particles, seed=seed, cess=cess, n_moves=n_moves, progress=progress)
+    out.update(modes={"stand_in": True}, found=None)
+    return out
+
+
+JOINT = r"""
+import json, sys
+import jax
+jax.config.update("jax_enable_x64", True)
+out, pid, port, here = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+jax.config.update("jax_cpu_collectives_implementation", "gloo")
+jax.distributed.initialize(coordinator_address="127.0.0.1:" + port, num_processes=2, process_id=pid)
+from importlib.resources import files
+sys.path.insert(0, here)
+import jaxppo as jp
+import jaxppo.obliquity._joint as joint
+from test_processes import stand_in_joint_smc
+joint.joint_case_smc = stand_in_joint_smc
+cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+res = jp.joint_scan(cfg, particles=32, seeds=(0, 1), n_moves=2, out=out, progress=False)
+print("RESULT " + json.dumps(res, default=str))
+"""
+
+
+def test_two_processes_resume_and_write_the_joint_scan_of_one(tmp_path, monkeypatch):
+    """The joint sampler (issue 26): its particles split over two JAX
+    processes give the runs of one process to 1e-12 (every process then
+    holds every likelihood and takes the same steps); process 0 alone
+    writes joint.json, joint.csv and joint.png, and a run interrupted after
+    one of its four SMC runs resumes in both processes."""
+    from importlib.resources import files
+
+    import jaxppo as jp
+    import jaxppo.obliquity._joint as joint
+
+    monkeypatch.setattr(joint, "joint_case_smc", stand_in_joint_smc)
+    cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    one = jp.joint_scan(cfg, particles=32, seeds=(0, 1), n_moves=2, out=tmp_path / "one", progress=False)
+    rec1 = json.loads((tmp_path / "one" / "joint.json").read_text())
+    two = tmp_path / "two"
+    two.mkdir()
+    first = next(iter(rec1["runs"]))
+    (two / "joint.json").write_text(json.dumps({"settings": rec1["settings"],
+                                                "runs": {first: rec1["runs"][first]}}))
+    host1 = tmp_path / "host1"  # process 1 runs where the folder does not exist (another host)
+    host1.mkdir()
+    port = str(_free_port())
+    here = os.path.dirname(os.path.abspath(__file__))
+    procs = [subprocess.Popen([sys.executable, "-c", JOINT, "two", str(i), port, here], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, cwd=cwd, env=_env(tmp_path))
+             for i, cwd in enumerate((tmp_path, host1))]
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), "\n".join(e[-3000:] for _, e in outs)
+    got = [json.loads(next(ln for ln in o.splitlines() if ln.startswith("RESULT "))[7:]) for o, _ in outs]
+    assert not any(host1.iterdir())
+    rec2 = json.loads((two / "joint.json").read_text())
+    assert set(rec2["runs"]) == set(rec1["runs"])
+    for key, run in rec1["runs"].items():
+        for name in ("alpha", "weights", "log_z", "ess", "steps", "calls"):
+            np.testing.assert_allclose(rec2["runs"][key][name], run[name], rtol=1e-12, atol=1e-12, err_msg=key)
+    assert rec2["runs"][first]["seconds"] == rec1["runs"][first]["seconds"]  # kept, not rerun
+    for res in got:
+        for case, c in one["cases"].items():
+            assert res["cases"][case]["geometries"] == c["geometries"]
+            assert res["cases"][case]["alpha_peak"] == c["alpha_peak"] and abs(c["alpha_peak"] - 147.0) < 3.0
+        assert (res["processes"], res["devices"]) == (2, 2)
+    assert (one["processes"], one["devices"]) == (1, 1)
+    assert {f.name for f in two.iterdir()} == {"joint.json", "joint.csv", "joint.png"}
