@@ -53,7 +53,7 @@ def pytest_collection_modifyitems(session, config, items):
     for line in SLOW_FIRST.read_text().splitlines():
         if line.strip() and not line.startswith("#"):
             s, nodeid = line.split(maxsplit=1)
-            seconds[nodeid.strip()] = float(s)
+            seconds[nodeid.strip()] = seconds.get(nodeid.strip(), 0.0) + float(s)  # setup + call
     slow = sorted((it for it in items if it.nodeid in seconds), key=lambda it: -seconds[it.nodeid])
     rest = [it for it in items if it.nodeid not in seconds]
     k = int(workers) if str(workers).isdigit() else 2
