@@ -46,8 +46,12 @@ def mapped_over_devices(fn):
         return lambda *xs: jax.tree_util.tree_map(np.asarray, run(*xs))
     mesh = Mesh(np.array(devices), ("points",))
     spec = PartitionSpec("points")
+    # check_vma=False: the kernels close over constants (quadrature nodes,
+    # limb-darkening tables) that JAX's varying-axes check rejects beside
+    # the per-point values ("Primitive sub requires varying manual axes to
+    # match"); each device maps its own points, nothing crosses devices
     each = jax.jit(jax.shard_map(lambda *xs: jax.lax.map(lambda x: fn(*x), xs), mesh=mesh, in_specs=spec,
-                                 out_specs=spec))
+                                 out_specs=spec, check_vma=False))
     place = NamedSharding(mesh, spec)
 
     def call(*xs):

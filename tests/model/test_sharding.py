@@ -107,11 +107,13 @@ def results(sharded: bool) -> dict:
     systems, t, alpha = draws_grid()
     chi2, chi2_null, _ = marginal_chi2(systems, t, 1, np.ones(t.size), np.full(t.size, 1e-4), alpha, ("same", "opposite"))
     out["chi2"], out["chi2_null"] = chi2, chi2_null
-    # the joint sampler's particle batches (10 points: padded to 12 on 4 devices)
+    # the joint sampler's particle batches (mapped_over_devices): the model's
+    # kernels per point (their closed-over constants once failed shard_map's
+    # varying-axes check); 10 points, padded to 12 on 4 devices
     from jaxppo.inference._mapped import mapped_over_devices
 
-    w, a = np.linspace(-1.0, 1.0, 20).reshape(10, 2), np.linspace(0.0, 350.0, 10)
-    out["particles"] = mapped_over_devices(lambda wi, ai: jax.numpy.sum(wi ** 2) * jax.numpy.cos(ai / 57.3))(w, a)
+    one_frame = lambda a, b, c: jp.occultation_flux(star, a[None], b[None], c[None])[0]
+    out["particles"] = mapped_over_devices(one_frame)(x[:10], y[:10], r[:10])
     return out
 
 
