@@ -18,7 +18,7 @@ from ..model._overlap import may_touch
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._coords import Coordinates, default_priors, start_q
-from ._mapped import mapped
+from ._mapped import mapped, mapped_over_devices
 from ._model import Model
 from ._params import check_ttv_free, expand_tc
 
@@ -328,7 +328,7 @@ def _starts(post: TransitPosterior, u_mode, step: float):
 
     uj = jnp.asarray(u_mode)
     grid = np.arange(0.0, 360.0, 0.5)
-    prof = np.asarray(mapped(lambda a: post.log_density(uj, a))(jnp.asarray(grid)), float)
+    prof = np.asarray(mapped_over_devices(lambda a: post.log_density(uj, a))(grid), float)
     quiet = float(post.log_density(uj))
     if not np.isfinite(quiet):
         raise ValueError(f"the transit posterior is not finite at its no-PPO mode (log density {quiet})")
@@ -374,12 +374,15 @@ class _ModeSearch:
             return optx.least_squares(lambda zw, _: res(jnp.concatenate([zw, (a / a_unit)[None]]), None), lm, zw0,
                                       max_steps=steps, throw=False).value
 
-        # one solve after another (``mapped``): each stops when it converges
+        # one solve after another (``mapped``): each stops when it converges.
+        # The solves run whole in every JAX process: optimistix's linear
+        # solve inside jax.shard_map failed to trace ("pytree does not match
+        # out_structure"); the log densities are split over every device
         self.solve = mapped(solve)
         self.solve_at = mapped(lambda zw0, a: solve_at(zw0, a, 40))
         # along a ridge, from the line through the last nodes: a few steps
         self.follow = mapped(lambda zw0, a: solve_at(zw0, a, 8))
-        self.logd = mapped(lambda v, a: post.log_density(uj + Lj @ v[:-1], a))
+        self.logd = mapped_over_devices(lambda v, a: post.log_density(uj + Lj @ v[:-1], a))
         self.jac = jax.jit(jax.jacfwd(lambda v: res(v, None)))
 
     def _chunks(self, fn, *arrays):
