@@ -22,7 +22,7 @@ import json
 import jax
 import numpy as np
 
-__all__ = ["is_writer", "share", "read_once", "barrier", "process_info", "start_from_environment"]
+__all__ = ["is_writer", "share", "read_once", "on_writer", "barrier", "process_info", "start_from_environment"]
 
 
 def is_writer() -> bool:
@@ -59,7 +59,7 @@ def read_once(read, what: str, encode=lambda v: v, decode=lambda v: v):
     """``read()`` (a run's folder: its progress, its stored results) called
     by process 0 alone; every other process gets ``decode(share(encode(
     value)))`` (``encode`` makes the value JSON-able). An error there
-    (``ValueError``, ``OSError``) stops every process: with one process it
+    (any exception) stops every process: with one process it
     is raised as it is; with several, each raises a ``ValueError`` naming
     process 0 and ``what`` (none is left waiting in a collective the
     others never enter)."""
@@ -69,12 +69,33 @@ def read_once(read, what: str, encode=lambda v: v, decode=lambda v: v):
     if is_writer():
         try:
             value = read()
-        except (ValueError, OSError) as err:
+        except Exception as err:  # noqa: BLE001 - any error: every process must hear of it, none may wait
             error = f"{type(err).__name__}: {err}"
     got = share({"value": None if error is not None or not is_writer() else encode(value), "error": error})
     if got["error"] is not None:
         raise ValueError(f"process 0 could not read {what}: {got['error']}")
     return value if is_writer() else decode(got["value"])
+
+
+def on_writer(what: str, fn):
+    """``fn()`` (writing a run's files) in process 0 alone; its value there,
+    None elsewhere. With several processes every process waits for it (a
+    barrier) and an error there (a full disk, a folder that cannot be
+    written) is raised in every process as a ``ValueError`` naming
+    ``what``: none is left waiting in a collective process 0 never
+    enters. With one process ``fn()`` runs and raises as it is."""
+    if jax.process_count() == 1:
+        return fn()
+    value, error = None, None
+    if is_writer():
+        try:
+            value = fn()
+        except Exception as err:  # noqa: BLE001 - any error: every process must hear of it, none may wait
+            error = f"{type(err).__name__}: {err}"
+    error = share(error)
+    if error is not None:
+        raise ValueError(f"process 0 failed while {what}: {error}")
+    return value
 
 
 def barrier(name: str) -> None:

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..inference._smc import joint_case_smc
 from ._joint_figure import plot_joint
-from ..model._processes import barrier, is_writer, process_info, read_once
+from ..model._processes import is_writer, on_writer, process_info, read_once, share
 from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
@@ -247,10 +247,13 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                              "log_z": r["log_z"], "max_log_gamma": float(np.max(r["log_gamma"])),
                              "ess": r["ess"], "steps": r["steps"], "calls": r["calls"], "seconds": r["seconds"]}
                 if path is not None:
-                    atomic_write(path, _strict_json({"settings": settings, "runs": done}))
+                    on_writer(f"writing {path}", lambda: atomic_write(path, _strict_json({"settings": settings,
+                                                                                           "runs": done})))
             rec = done[key]
             runs.append({**rec, "alpha": np.asarray(rec["alpha"]), "weights": np.asarray(rec["weights"])})
         cases[case] = _case_summary(case, runs)
+        if not is_writer():  # process 0 of several says what follows
+            continue
         if min(cases[case]["ess"]) < 0.25 * particles:
             warnings.warn(f"joint_scan: case {case}: only {min(cases[case]['ess']):.0f} of {particles} particles are "
                           "effective (weights or copies); the errors given are rough: use more particles",
@@ -269,16 +272,22 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
               "seconds": time.perf_counter() - t_begin, **process_info()}
-    if path is not None and figures:
+    if path is None:
+        return result
+    if figures:
         fixed = _fixed_scan(cfg) if fixed is None else fixed  # in every process (its kernels are collective)
-        png = plot_joint(out, result, fixed) if is_writer() else Path(out) / "joint.png"
-        result["figures"] = [str(png.resolve())]
-    if path is not None:
+        result["figures"] = share([str((Path(out) / "joint.png").resolve())])  # process 0's path
+
+    def write():
+        if figures:
+            plot_joint(out, result, fixed)
         atomic_write(path, _strict_json({"settings": settings, "runs": done, "result": result}, indent=1))
         rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
                                            for k in range(360)]
         atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
-        barrier("jaxppo joint scan written")  # every process returns once process 0 has written the folder
+
+    # every process returns once process 0 has written the folder (or each raises its error)
+    on_writer(f"writing joint.json, joint.csv and joint.png in {out}", write)
     return result
 
 
@@ -290,7 +299,14 @@ def _open(path: Path, settings: dict, restart: bool) -> dict:
         (path.parent / "joint.png").unlink()  # never an old run's figure beside new results
     if not path.exists() or restart:
         return {}
-    rec = json.loads(path.read_text())
+    try:
+        rec = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path} is not a joint run's record ({err}); use restart=True (--restart) or another "
+                         "folder") from None
+    if not isinstance(rec, dict) or not isinstance(rec.get("runs", {}), dict):
+        raise ValueError(f"{path} is not a joint run's record (a JSON object with settings and runs); use "
+                         "restart=True (--restart) or another folder")
     if rec.get("settings") != settings:
         raise ValueError(f"{path} holds a joint run of other settings ({rec.get('settings')}); "
                          "use restart=True (--restart) or another folder")

@@ -34,7 +34,6 @@ draws); an interrupted run resumes without recomputing finished draws.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import numbers
 import os
@@ -59,7 +58,7 @@ from ..inference._posterior import PLANET_PARAMS, nuts_draws, posterior_slot
 from ..model._lightcurve import LightCurve
 from ..model._overlap import case_xy, contact_frames, on_star, ppo_table, quiet_model, untilted_geometry
 from ..model._plan import one_disk_sum, overlap_flux
-from ..model._processes import barrier, is_writer, process_info, read_once, share
+from ..model._processes import is_writer, on_writer, process_info, read_once, share
 from ..model._cases import case_signs
 from ..model._system import System
 
@@ -320,7 +319,7 @@ def _check_options(draws, samples, min_ess, chunk, thin, num_warmup, chains):
     if not (isinstance(min_ess, numbers.Real) and not isinstance(min_ess, (bool, np.bool_))
             and np.isfinite(min_ess) and min_ess >= 1):
         raise ValueError(f"min_ess must be a finite number >= 1 (effective draws), got {min_ess!r}")
-    if samples is None and draws < min_ess:
+    if samples is None and draws < min_ess and is_writer():  # (process 0 of several says it)
         warnings.warn(f"draws = {draws} is below min_ess = {min_ess:g}: the importance weights of fewer draws than "
                       "that can never carry a probability, peak or rating, so none will be given; draw more",
                       stacklevel=3)
@@ -517,10 +516,7 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     if out is None:
         with tempfile.TemporaryDirectory(prefix="jaxppo_marginal_") as tmp:
             return _run(cfg, Path(tmp), fixed, False, opts)
-    out = Path(out)
-    if is_writer():  # process 0 of several JAX processes alone reads and writes the folder
-        out.mkdir(parents=True, exist_ok=True)
-    return _run(cfg, out, fixed, figures, opts)
+    return _run(cfg, Path(out), fixed, figures, opts)
 
 
 def _stored_draws(draws_path: Path, digest: str):
@@ -570,7 +566,8 @@ def _draws(cfg: ScanConfig, data: LightCurve, tm, draws_path: Path, stored, o, t
     rec = json.loads(json.dumps({"sampler": sampler, "samples": {k: v.tolist() for k, v in samples.items()}},
                                 allow_nan=False, default=float))
     rec = share(rec)  # process 0's draws in every process (a no-op with one)
-    atomic_write(draws_path, json.dumps({"digest": o.digest, **rec}, allow_nan=False))
+    on_writer(f"writing {draws_path}", lambda: atomic_write(draws_path, json.dumps({"digest": o.digest, **rec},
+                                                                                 allow_nan=False)))
     return {k: np.asarray(v, float) for k, v in rec["samples"].items()}, rec["sampler"]
 
 
@@ -602,33 +599,32 @@ def _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path, o, ti
                disable=not (o.progress and is_writer()),
                leave=False)
     t0 = time.perf_counter()
-    with open(prog_path, "a") if is_writer() else io.StringIO() as fh:  # process 0 of several writes
-        for i in range(0, len(todo), o.chunk):
-            idx = todo[i:i + o.chunk]
-            chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
-            c0 = _chi2_0(chi2, ppo, [systems[d] for d in idx], tm, nsub, y, sig, cfg.cases)
+    # one chunk of draws after another, each appended to the progress file by process 0
+    for i in range(0, len(todo), o.chunk):
+        idx = todo[i:i + o.chunk]
+        chi2, chi2_null, ppo = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, cfg.alpha, cfg.cases)
+        c0 = _chi2_0(chi2, ppo, [systems[d] for d in idx], tm, nsub, y, sig, cfg.cases)
+        if a_ref is not None:
+            c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
+                                  (sampler["case_ref"],))[0][:, 0, 0]
+        lines = []
+        for j, d in enumerate(idx):
+            recs = [{"config_digest": digest, "case": _key(d, "null"), "alpha": [0.0],
+                     "chi2": [float(chi2_null[j])]}]
             if a_ref is not None:
-                c_ref = marginal_chi2([systems[d] for d in idx], tm, nsub, y, sig, np.array([float(a_ref)]),
-                                      (sampler["case_ref"],))[0][:, 0, 0]
-            for j, d in enumerate(idx):
-                recs = [{"config_digest": digest, "case": _key(d, "null"), "alpha": [0.0],
-                         "chi2": [float(chi2_null[j])]}]
-                if a_ref is not None:
-                    recs.append({"config_digest": digest, "case": _key(d, "ref"), "alpha": [0.0],
-                                 "chi2": [float(c_ref[j])]})
-                for ci, c in enumerate(cfg.cases):
-                    recs.append({"config_digest": digest, "case": _key(d, c), "alpha": cfg.alpha.tolist(),
-                                 "chi2": chi2[j, ci].tolist()})
-                    recs.append({"config_digest": digest, "case": _key(d, "c0:" + c), "alpha": [0.0],
-                                 "chi2": [float(c0[j, ci])]})
-                for rec in recs:
-                    fh.write(record_line(rec))
-                    for a, v in zip(rec["alpha"], rec["chi2"]):
-                        done[(rec["case"], round(float(a), 9))] = float(v)
-            if is_writer():
-                fh.flush()
-                os.fsync(fh.fileno())
-            bar.update(len(idx))
+                recs.append({"config_digest": digest, "case": _key(d, "ref"), "alpha": [0.0],
+                             "chi2": [float(c_ref[j])]})
+            for ci, c in enumerate(cfg.cases):
+                recs.append({"config_digest": digest, "case": _key(d, c), "alpha": cfg.alpha.tolist(),
+                             "chi2": chi2[j, ci].tolist()})
+                recs.append({"config_digest": digest, "case": _key(d, "c0:" + c), "alpha": [0.0],
+                             "chi2": [float(c0[j, ci])]})
+            for rec in recs:
+                lines.append(record_line(rec))
+                for a, v in zip(rec["alpha"], rec["chi2"]):
+                    done[(rec["case"], round(float(a), 9))] = float(v)
+        on_writer(f"writing {prog_path}", lambda: _append(prog_path, lines))
+        bar.update(len(idx))
     bar.close()
     timing["chi2_s"] = time.perf_counter() - t0
     timing["draws_computed"] = len(todo)
@@ -648,7 +644,7 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
                          f"this one {cfg.digest})")
     prog_path, draws_path = out / PROGRESS, out / DRAWS
     done, notes, stored = _read_state(out, cfg, o)
-    for note in notes:
+    for note in notes if is_writer() else ():  # (process 0 of several says it)
         warnings.warn(note, stacklevel=3)
 
     windows, _ = windows_and_events(cfg)
@@ -657,8 +653,6 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     y, sig = np.asarray(data.flux), np.asarray(data.flux_err)
     timing = {}
     samples, sampler = _draws(cfg, data, tm, draws_path, stored, o, timing)
-    if not prog_path.exists():
-        atomic_write(prog_path, json.dumps({"config_digest": o.digest, "source": cfg.source, "format": 2}) + "\n")
     systems = _systems_from(sampled_system(cfg.system, sampler), samples, list(samples))
     dchi2, chi2, c0, chi2_null, chi2_ref = _chi2_curves(cfg, systems, tm, nsub, y, sig, sampler, done, prog_path,
                                                         o, timing)
@@ -685,12 +679,26 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     summary["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
     summary.update(process_info())
     summary["progress_notes"] = notes
-    atomic_write(out / "marginal.csv", marginal_csv(result.table))
     if figures:
-        summary["figures"] = [str(plot_marginal(out, result, cfg) if is_writer() else out / "marginal.png")]
-    atomic_write(out / "marginal.json", json.dumps(summary, indent=2, allow_nan=False))
-    barrier("jaxppo marginal scan written")  # every process returns once process 0 has written the folder
+        summary["figures"] = [str(out / "marginal.png")]
+
+    def write():
+        atomic_write(out / "marginal.csv", marginal_csv(result.table))
+        if figures:
+            plot_marginal(out, result, cfg)
+        atomic_write(out / "marginal.json", json.dumps(summary, indent=2, allow_nan=False))
+
+    # every process returns once process 0 has written the folder (or each raises its error)
+    on_writer(f"writing marginal.csv, marginal.json and marginal.png in {out}", write)
     return result
+
+
+def _append(path: Path, lines: list[str]) -> None:
+    """Append ``lines`` to the progress file ``path``, fsynced."""
+    with open(path, "a") as fh:
+        fh.write("".join(lines))
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 def _read_state(out: Path, cfg: ScanConfig, o):
@@ -699,12 +707,17 @@ def _read_state(out: Path, cfg: ScanConfig, o):
     other JAX processes, so that all of them compute the same draws."""
 
     def read():
+        out.mkdir(parents=True, exist_ok=True)
         if o.restart:
             for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
                 if (out / name).is_file():
                     (out / name).unlink()
         done, notes = read_progress(out / PROGRESS, o.digest, out, cfg.source)
-        return done, notes, _stored_draws(out / DRAWS, o.digest)
+        stored = _stored_draws(out / DRAWS, o.digest)
+        if not (out / PROGRESS).exists():  # (written here: a folder that cannot be written stops every process now)
+            atomic_write(out / PROGRESS, json.dumps({"config_digest": o.digest, "source": cfg.source,
+                                                     "format": 2}) + "\n")
+        return done, notes, stored
 
     def encode(state):
         done, notes, stored = state

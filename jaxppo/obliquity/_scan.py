@@ -434,8 +434,6 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     _require_x64("the obliquity scan")
     require_scan_system(cfg.system)
     out = Path(out)
-    if is_writer():
-        out.mkdir(parents=True, exist_ok=True)
     t_begin = time.perf_counter()
     digest = cfg.digest
     done, notes, stored = _read_state(cfg, out, digest, restart)
@@ -490,6 +488,7 @@ def _read_state(cfg: ScanConfig, out: Path, digest: str, restart: bool):
     other JAX processes, so that all of them compute the same blocks."""
 
     def read():
+        out.mkdir(parents=True, exist_ok=True)
         done, notes = _open_progress(cfg, out, digest, restart)
         complete = all((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
         return done, notes, _finished_result(out, cfg, digest) if complete and not notes else None

@@ -280,3 +280,30 @@ def test_two_processes_resume_and_write_the_joint_scan_of_one(tmp_path, monkeypa
         assert (res["processes"], res["devices"]) == (2, 2)
     assert (one["processes"], one["devices"]) == (1, 1)
     assert {f.name for f in two.iterdir()} == {"joint.json", "joint.csv", "joint.png"}
+
+
+def test_an_error_of_process_0_in_the_folder_stops_both_by_name(tmp_path):
+    """What process 0 alone reads or writes fails (the marginal scan's out
+    is a file; joint.json holds a JSON list): both processes stop with the
+    error, none waits in a collective for the other (old code: the second
+    hung until killed)."""
+    (tmp_path / "afile").write_text("not a folder\n")
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "joint.json").write_text("[]")
+    host1 = tmp_path / "host1"
+    host1.mkdir()
+    here = os.path.dirname(os.path.abspath(__file__))
+    for script, out, want in ((MARGINAL, "afile", "process 0 could not read"),
+                              (JOINT, "bad", "is not a joint run's record")):
+        port = str(_free_port())
+        procs = [subprocess.Popen([sys.executable, "-c", script, out, str(i), port, here], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True, cwd=cwd, env=_env(tmp_path))
+                 for i, cwd in enumerate((tmp_path, host1))]
+        try:
+            outs = [p.communicate(timeout=300) for p in procs]
+        finally:
+            for p in procs:
+                p.kill()
+        for p, (_, err) in zip(procs, outs):
+            assert p.returncode != 0 and want in err, err[-2000:]
+    assert not any(host1.iterdir())
