@@ -34,28 +34,3 @@ def pytest_configure(config):
     except Exception:  # arviz missing or broken: the tests that need it say so themselves
         pass
 
-
-# The slowest tests (seconds on this project's 2-core CI machine, from
-# pytest --durations): started first, dealt alternately to the two halves of
-# the collection that pytest-xdist's work-stealing scheduler gives its two
-# workers, so that no long test starts last and runs alone while the other
-# worker idles. Tests not listed keep their order after them.
-SLOW_FIRST = Path(__file__).with_name("slow_tests.txt")
-
-
-def pytest_collection_modifyitems(session, config, items):
-    """Order ``items`` longest first, alternating between the workers'
-    halves (``SLOW_FIRST``); a no-op outside pytest-xdist."""
-    workers = os.environ.get("PYTEST_XDIST_WORKER_COUNT") or getattr(config.option, "numprocesses", None)
-    if not workers or not SLOW_FIRST.is_file():
-        return
-    seconds = {}
-    for line in SLOW_FIRST.read_text().splitlines():
-        if line.strip() and not line.startswith("#"):
-            s, nodeid = line.split(maxsplit=1)
-            seconds[nodeid.strip()] = seconds.get(nodeid.strip(), 0.0) + float(s)  # setup + call
-    slow = sorted((it for it in items if it.nodeid in seconds), key=lambda it: -seconds[it.nodeid])
-    rest = [it for it in items if it.nodeid not in seconds]
-    k = int(workers) if str(workers).isdigit() else 2
-    halves = [slow[i::k] + rest[i::k] for i in range(k)]
-    items[:] = [it for h in halves for it in h]
