@@ -272,23 +272,29 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
               "seconds": time.perf_counter() - t_begin, **process_info()}
-    if path is None:
-        return result
+    if path is not None:
+        _write(cfg, Path(out), {"settings": settings, "runs": done, "result": result}, figures, fixed)
+    return result
+
+
+def _write(cfg: ScanConfig, out: Path, rec: dict, figures: bool, fixed) -> None:
+    """joint.json (``rec``), joint.csv and joint.png (against ``fixed``, the
+    fixed scan, computed when None) in ``out``, by process 0; every process
+    returns once it has written (or each raises its error)."""
+    result = rec["result"]
     if figures:
         fixed = _fixed_scan(cfg) if fixed is None else fixed  # in every process (its kernels are collective)
-        result["figures"] = share([str((Path(out) / "joint.png").resolve())])  # process 0's path
+        result["figures"] = share([str((out / "joint.png").resolve())])  # process 0's path
 
     def write():
         if figures:
             plot_joint(out, result, fixed)
-        atomic_write(path, _strict_json({"settings": settings, "runs": done, "result": result}, indent=1))
-        rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in cases.items()
+        atomic_write(out / JOINT, _strict_json(rec, indent=1))
+        rows = ["case,alpha,posterior"] + [f"{c},{k + 0.5},{v['posterior'][k]:.17g}" for c, v in result["cases"].items()
                                            for k in range(360)]
-        atomic_write(Path(out) / JOINT_CSV, "\n".join(rows) + "\n")
+        atomic_write(out / JOINT_CSV, "\n".join(rows) + "\n")
 
-    # every process returns once process 0 has written the folder (or each raises its error)
     on_writer(f"writing joint.json, joint.csv and joint.png in {out}", write)
-    return result
 
 
 def _open(path: Path, settings: dict, restart: bool) -> dict:
