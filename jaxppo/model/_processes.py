@@ -55,6 +55,18 @@ def share(obj):
     return json.loads(buf.tobytes().decode())
 
 
+def _on_process_0(fn):
+    """(fn(), None) in process 0, (None, "Type: message") there if it
+    raised, (None, None) elsewhere: any error, so that every process can
+    hear of it and none is left waiting."""
+    if not is_writer():
+        return None, None
+    try:
+        return fn(), None
+    except Exception as err:  # noqa: BLE001 - any error: every process must hear of it, none may wait
+        return None, f"{type(err).__name__}: {err}"
+
+
 def read_once(read, what: str, encode=lambda v: v, decode=lambda v: v):
     """``read()`` (a run's folder: its progress, its stored results) called
     by process 0 alone; every other process gets ``decode(share(encode(
@@ -65,16 +77,14 @@ def read_once(read, what: str, encode=lambda v: v, decode=lambda v: v):
     others never enter)."""
     if jax.process_count() == 1:
         return read()
-    value, error = None, None
-    if is_writer():
-        try:
-            value = read()
-        except Exception as err:  # noqa: BLE001 - any error: every process must hear of it, none may wait
-            error = f"{type(err).__name__}: {err}"
+    value, error = _on_process_0(read)
     got = share({"value": None if error is not None or not is_writer() else encode(value), "error": error})
     if got["error"] is not None:
         raise ValueError(f"process 0 could not read {what}: {got['error']}")
     return value if is_writer() else decode(got["value"])
+
+
+_writing: list = []  # the on_writer calls under way in this process
 
 
 def on_writer(what: str, fn):
@@ -83,15 +93,16 @@ def on_writer(what: str, fn):
     barrier) and an error there (a full disk, a folder that cannot be
     written) is raised in every process as a ``ValueError`` naming
     ``what``: none is left waiting in a collective process 0 never
-    enters. With one process ``fn()`` runs and raises as it is."""
-    if jax.process_count() == 1:
-        return fn()
-    value, error = None, None
-    if is_writer():
-        try:
-            value = fn()
-        except Exception as err:  # noqa: BLE001 - any error: every process must hear of it, none may wait
-            error = f"{type(err).__name__}: {err}"
+    enters. With one process ``fn()`` runs and raises as it is; so does a
+    call inside another ``on_writer``'s ``fn`` (process 0 alone runs it;
+    the outer call shares the outcome)."""
+    if jax.process_count() == 1 or _writing:
+        return fn()  # one process, or inside another on_writer (process 0 alone is here; the outer one shares)
+    _writing.append(what)
+    try:
+        value, error = _on_process_0(fn)
+    finally:
+        _writing.pop()
     error = share(error)
     if error is not None:
         raise ValueError(f"process 0 failed while {what}: {error}")

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model._lightcurve import LightCurve
-from ..model._processes import is_writer
+from ..model._processes import is_writer, on_writer
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
@@ -83,11 +83,15 @@ def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np
 def _save(fig, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    if is_writer():  # process 0 of several JAX processes; every process computes the curves (collectives)
+    def write():
         tmp = path.with_name(path.stem + ".tmp.png")
         fig.savefig(tmp, dpi=130)
         tmp.replace(path)
-    plt.close(fig)
+
+    try:  # process 0 of several JAX processes writes; every process computes the curves (collectives)
+        on_writer(f"writing {path}", write)
+    finally:
+        plt.close(fig)
     return path
 
 

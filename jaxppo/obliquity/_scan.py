@@ -41,7 +41,7 @@ from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
-from ..model._processes import barrier, is_writer, process_info, read_once, share
+from ..model._processes import is_writer, on_writer, process_info, read_once, share
 from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
@@ -222,7 +222,9 @@ def write_summary(out, result: ScanResult) -> None:
     """summary.json of ``result`` in the folder ``out``, atomically; strict
     JSON (no NaN / Infinity): a value that cannot be written is a bug, not a
     file."""
-    atomic_write(Path(out) / "summary.json", json.dumps(result.summary, indent=2, allow_nan=False))
+    path = Path(out) / "summary.json"
+    text = json.dumps(result.summary, indent=2, allow_nan=False)
+    on_writer(f"writing {path}", lambda: atomic_write(path, text))  # an error there stops every process
 
 
 def with_summary(out, result: ScanResult, **entries) -> ScanResult:
@@ -388,15 +390,18 @@ def _compute_chi2(cfg: ScanConfig, prog_path: Path, digest: str, data: LightCurv
             blocks.append((c, alphas[i:i + cfg.block]))
     bar = tqdm(total=len(cfg.cases) * cfg.alpha.size, initial=len(cfg.cases) * cfg.alpha.size - len(todo),
                desc="scan", unit="alpha", disable=not progress, leave=False)
-    fh = open(prog_path, "a") if is_writer() else None
+    fh = on_writer(f"opening {prog_path}", lambda: open(prog_path, "a"))  # process 0's; None elsewhere
+
+    def append(rec):
+        fh.write(record_line(rec))
+        fh.flush()
+        os.fsync(fh.fileno())
+
     try:
         for case, alphas in blocks:
             chi2 = grid_chi2(cfg.system, data, alphas, case)
-            if fh is not None:
-                fh.write(record_line({"config_digest": digest, "case": case, "alpha": alphas.tolist(),
-                                      "chi2": chi2.tolist()}))
-                fh.flush()
-                os.fsync(fh.fileno())
+            rec = {"config_digest": digest, "case": case, "alpha": alphas.tolist(), "chi2": chi2.tolist()}
+            on_writer(f"appending to {prog_path}", lambda: append(rec))  # a full disk stops every process
             for a, c2 in zip(alphas, chi2):
                 done[(case, round(float(a), 9))] = float(c2)
             bar.update(alphas.size)
@@ -449,14 +454,8 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress and is_writer())
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, table, summary_cases = _analyse(cfg, done, windows, data, step)
-    atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
     pairs, pair_rows = pair_reports(cfg, windows, step)
-    if pairs:
-        atomic_write(out / "pairs.csv", PAIRS_HEADER + "\n" + "\n".join(pair_rows) + "\n")
-    elif is_writer() and (out / "pairs.csv").is_file():  # an earlier config's pairs
-        (out / "pairs.csv").unlink()
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
-    _write_ecsv(out / "scan.ecsv", table, cfg, digest, chi2_0, int(data.time.size), step)
     summary = dict(
         config=cfg.source, config_digest=digest, chi2_0=chi2_0,
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases}, cases=summary_cases,
@@ -475,10 +474,20 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     result = ScanResult(summary, table, tuple(windows))
     by_case = result.by_case()
     summary["table5"] = table5_rows(by_case, summary, cfg.cases)
-    summary["table5_files"] = write_table5(out, by_case, summary, cfg.cases)
-    summary["seconds"] = time.perf_counter() - t_begin
-    write_summary(out, result)
-    barrier("jaxppo scan written")  # every process returns once process 0 has written the folder
+
+    def write():  # process 0's files; every process returns once they are written (or all raise its error)
+        atomic_write(out / "scan.csv", "case,alpha,chi2,delta_chi2,posterior\n" + "\n".join(rows) + "\n")
+        if pairs:
+            atomic_write(out / "pairs.csv", PAIRS_HEADER + "\n" + "\n".join(pair_rows) + "\n")
+        elif (out / "pairs.csv").is_file():  # an earlier config's pairs
+            (out / "pairs.csv").unlink()
+        _write_ecsv(out / "scan.ecsv", table, cfg, digest, chi2_0, int(data.time.size), step)
+        summary["table5_files"] = write_table5(out, by_case, summary, cfg.cases)
+        summary["seconds"] = time.perf_counter() - t_begin
+        write_summary(out, result)  # result holds this summary
+        return {k: summary[k] for k in ("table5_files", "seconds")}
+
+    summary.update(share(on_writer(f"writing the scan's tables into {out}", write)))  # process 0's paths and time
     return result
 
 

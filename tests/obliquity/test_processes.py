@@ -71,6 +71,13 @@ def test_two_processes_resume_and_write_the_scan_of_one(tmp_path):
     outs = _two_processes(tmp_path, ["--out", "two", "--alpha", "0", "360", "3"], (tmp_path, host1), check=False)
     for out, err in outs:
         assert "holds results of a different configuration" in err, err[-2000:]
+    # a write of process 0 that fails after the scan (scan.csv cannot be
+    # replaced: here a folder; on a cluster a full disk) stops both, by name
+    # (old code: process 0 raised alone, process 1 waited in the final barrier)
+    (tmp_path / "three" / "scan.csv").mkdir(parents=True)
+    outs = _two_processes(tmp_path, ["--out", "three"], (tmp_path, host1), check=False)
+    for out, err in outs:
+        assert "process 0 failed while writing the scan's tables into three" in err, err[-2000:]
 
 
 def _two_processes(tmp_path, args, cwds, check=True):
@@ -81,7 +88,11 @@ def _two_processes(tmp_path, args, cwds, check=True):
                               env=_env(tmp_path, JAXPPO_DISTRIBUTED="2", JAXPPO_PROCESS_ID=str(i),
                                        JAX_COORDINATOR_ADDRESS="127.0.0.1:" + port))
              for i, cwd in enumerate(cwds)]
-    outs = [p.communicate(timeout=600) for p in procs]
+    try:
+        outs = [p.communicate(timeout=600) for p in procs]
+    finally:  # a hung process (the failure these tests guard) must not outlive the test
+        for p in procs:
+            p.kill()
     if check:
         assert all(p.returncode == 0 for p in procs), "\n".join(o[1][-3000:] for o in outs)
     else:
