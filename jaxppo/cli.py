@@ -105,46 +105,35 @@ def cmd_demo(args) -> int:
     return 0
 
 
-def _scan_products(result, cfg, out):
-    """After the scan: its figures, then the PPO-or-spot verdict of each
-    negative dip (written into summary.json as ``ppo_or_spot``; a failure
-    there is reported in the block, never fails the finished scan). What a
-    finished scan already holds is not redone."""
-    from jaxppo.activity import ppo_or_spot
-    from jaxppo.obliquity._scan import draw_figures, figures_current, with_summary
-
-    from jaxppo.model._processes import share
-
-    if not share(figures_current(result, out)):  # process 0's files decide (several JAX processes)
-        result = draw_figures(result, cfg, out)
-    if "ppo_or_spot" not in result.summary:
-        try:
-            block = ppo_or_spot(result, cfg.system, out=out)
-        except Exception as exc:  # noqa: BLE001 - a summary block, not the scan's result
-            block = {"error": f"{type(exc).__name__}: {exc}"}
-        result = with_summary(out, result, ppo_or_spot=block)
-    return result
-
-
 def cmd_scan(args) -> int:
     """Run the obliquity scan, then its figures, the PPO-or-spot verdict of
     its dips and, if asked for, the marginal scan; no config runs the
     bundled default."""
     _enable_x64()
     from jaxppo.obliquity._config import alpha_grid, load_config
-    from jaxppo.obliquity._scan import run_scan
+    from jaxppo.obliquity._scan import run_scan, scan_products
 
     if args.alpha is not None:
         alpha_grid(args.alpha, "--alpha")  # named after the option, before any loading
     out = _out_folder(args.out)
-    cfg = load_config(args.config, alpha=args.alpha)
-    draws = args.marginalize if args.marginalize is not None else cfg.marginalize
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
+    import contextlib
+
+    import jax
+
+    from jaxppo.obliquity._worker import Drawer
+
+    with contextlib.ExitStack() as stack:
+        # the figures' own process, started first: its imports overlap the
+        # loading and the scan (one JAX process only; docs/cli.md)
+        drawer = stack.enter_context(Drawer(_enable_x64, use=jax.process_count() == 1))
+        cfg = load_config(args.config, alpha=args.alpha)
+        draws = args.marginalize if args.marginalize is not None else cfg.marginalize
+        t0 = time.perf_counter()
+        caught = stack.enter_context(warnings.catch_warnings(record=True))
         warnings.simplefilter("always")
         result = run_scan(cfg, out, restart=args.restart, progress=not args.quiet)
         seconds = time.perf_counter() - t0
-        result = _scan_products(result, cfg, out)
+        result = scan_products(result, cfg, out, drawer)
     from jaxppo.model._processes import is_writer
 
     for w in caught if is_writer() else ():  # process 0 of several JAX processes reports

@@ -14,6 +14,12 @@ import jax
 os.environ["JAXPPO_CACHE"] = "0"
 os.environ.setdefault("JAXPPO_CACHE_DIR", tempfile.mkdtemp(prefix="jaxppo_test_cache_"))
 
+# `jaxppo scan` draws its figures in a second process (obliquity/_worker.py);
+# the tests' in-process scans draw them here (each second process would
+# import JAX again beside the other xdist worker), except
+# tests/obliquity/test_worker.py, which compares both ways byte for byte
+os.environ["JAXPPO_DRAW_PROCESS"] = "0"
+
 jax.config.update("jax_enable_x64", True)
 
 # tests/ mirrors the package (tests/core, tests/model, ...); their shared

@@ -44,8 +44,8 @@ from ..model._lightcurve import LightCurve
 from ..model._processes import is_writer, on_writer, process_info, read_once, share
 from ..model._sweep import sweep
 
-__all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "with_summary", "write_summary", "figures_current",
-           "PROGRESS"]
+__all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "start_figures", "scan_products", "with_summary",
+           "write_summary", "figures_current", "PROGRESS"]
 
 PROGRESS = "scan_progress.jsonl"
 
@@ -240,10 +240,21 @@ def draw_figures(result: ScanResult, cfg: ScanConfig, out) -> ScanResult:
     """Draw the scan's figures (paper Figs. 4-7 and the Table 6 bars;
     ``jaxppo.obliquity._figures.scan_figures``) of a finished scan into
     ``out`` and record their paths in summary.json (``figures``)."""
+    from ._worker import Drawer
+
+    return start_figures(result, cfg, out, Drawer(use=False))(result)
+
+
+def start_figures(result: ScanResult, cfg: ScanConfig, out, drawer):
+    """``draw_figures`` begun in ``drawer`` (a ``Drawer``: the command's
+    drawing process, or this one): returns a callable that waits for the
+    figures and returns the result with their paths recorded in
+    summary.json (``figures``), as ``draw_figures`` does."""
     from ._figures import scan_figures
 
-    files = scan_figures(out, result.summary, result.by_case(), cfg.system, result.windows, cfg.cases)
-    return with_summary(out, result, figures=files)
+    wait = drawer.run(scan_figures, Path(out), result.summary, result.by_case(), cfg.system, result.windows,
+                      tuple(cfg.cases))
+    return lambda res: with_summary(out, res, figures=wait())
 
 
 def figures_current(result: ScanResult, out) -> bool:
@@ -251,6 +262,30 @@ def figures_current(result: ScanResult, out) -> bool:
     of a finished scan then redraws nothing)."""
     files = result.summary.get("figures")
     return bool(files) and all((Path(out) / Path(f).name).is_file() for f in files)
+
+
+def scan_products(result: ScanResult, cfg: ScanConfig, out, drawer) -> ScanResult:
+    """After the scan: its figures (begun in ``drawer``, the command's
+    drawing process), meanwhile the PPO-or-spot verdict of each negative
+    dip (written into summary.json as ``ppo_or_spot``; a failure there is
+    reported in the block, never fails the finished scan). What a finished
+    scan already holds is not redone."""
+    from ..activity import ppo_or_spot
+
+    finish = None
+    if not share(figures_current(result, out)):  # process 0's files decide (several JAX processes)
+        finish = start_figures(result, cfg, out, drawer)
+    block = None
+    if "ppo_or_spot" not in result.summary:
+        try:
+            block = ppo_or_spot(result, cfg.system, out=out)
+        except Exception as exc:  # noqa: BLE001 - a summary block, not the scan's result
+            block = {"error": f"{type(exc).__name__}: {exc}"}
+    if finish is not None:
+        result = finish(result)
+    if block is not None:
+        result = with_summary(out, result, ppo_or_spot=block)
+    return result
 
 
 _TABLE_DTYPE = [("case", "U16"), ("alpha", float), ("chi2", float), ("delta_chi2", float), ("posterior", float)]
