@@ -8,9 +8,14 @@ Rows:
 * `jaxppo scan` (the README's main job, bundled real Kepler-20 data): first
   run with an empty JAX compilation cache, and a second run (warm cache);
 * `jaxppo ttv` on the bundled real Kepler-51 data (51 transit times);
-* `jaxppo fit` of the synthetic Kepler-20 example (default free set);
-* `jp.fit` of Kepler-20 b + c, 10 free parameters, ~2,900 points, cold and
-  warm in one process (benchmarks/fit_timing.py --no-nuts).
+* `jaxppo fit` of the synthetic Kepler-20 example (default free set),
+  first and second run;
+* `jp.fit` of Kepler-20 b + c, 10 free parameters, ~2,900 points: a new
+  Python process with ``jp.compilation_cache()``, first and second run
+  (benchmarks/fit_timing.py --once);
+* the stages of a warm `jaxppo scan` (import, config and data, the scan,
+  the figures and the PPO-or-spot fits side by side);
+* `jp.fit` cold and warm in one process (benchmarks/fit_timing.py --no-nuts).
 """
 
 from __future__ import annotations
@@ -39,6 +44,45 @@ def _run(cmd: list[str], env: dict) -> tuple[float, str]:
     return dt, proc.stdout + proc.stderr
 
 
+STAGES = r"""
+import sys, time
+t = [time.perf_counter()]
+import jaxppo.cli as cli
+from jaxppo.obliquity._config import load_config
+from jaxppo.obliquity._scan import run_scan, scan_products
+from jaxppo.obliquity._worker import Drawer
+cli._enable_x64()
+t.append(time.perf_counter())
+with Drawer(cli._enable_x64) as drawer:
+    cfg = load_config(None)
+    t.append(time.perf_counter())
+    result = run_scan(cfg, sys.argv[1], restart=True, progress=False)
+    t.append(time.perf_counter())
+    wait = drawer.run(sum, [0])  # what is left to the drawing process when the scan ends
+    wait()
+    t.append(time.perf_counter())
+    scan_products(result, cfg, sys.argv[1], drawer)
+    t.append(time.perf_counter())
+print(" ".join(f"{b - a:.2f}" for a, b in zip(t, t[1:])))
+"""
+
+
+def _stages(env: dict) -> list:
+    """Where the seconds of a warm `jaxppo scan` go: the stages timed in a
+    new process (the cache warm from the rows before)."""
+    with tempfile.TemporaryDirectory(prefix="jaxppo_stages_") as out:
+        _, text = _run([sys.executable, "-c", STAGES, out], env)
+    try:
+        imp, load, scan, ready, products = (float(v) for v in text.strip().splitlines()[-1].split())
+    except ValueError:
+        return [("`jaxppo scan` stages", float("nan"), "could not be timed")]
+    return [("stages of a later default scan: importing jaxppo and its CLI", imp, ""),
+            ("... loading the config and the real Kepler-20 light curve", load, ""),
+            ("... the scan itself (chi^2 over the alpha grid, tables)", scan, ""),
+            ("... waiting for the drawing process to be ready", ready, "its start overlaps the above"),
+            ("... figures (drawing process) and PPO-or-spot fits (this one), side by side", products, "")]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=str(ROOT / "docs" / "timings.md"))
@@ -54,8 +98,16 @@ def main() -> None:
         dt, out = _run([jaxppo, "ttv", str(cfg), "--out", str(Path(tmp) / "ttv"), "--quiet"], env)
         first = out.strip().splitlines()[0] if out.strip() else ""
         rows.append(("`jaxppo ttv` (real Kepler-51 LC, 51 transit times)", dt, first.split(",")[0]))
-        dt, out = _run([jaxppo, "fit", "--quiet"], env)
-        rows.append(("`jaxppo fit` (synthetic Kepler-20 example, default free set)", dt, ""))
+        for label in ("first run", "second run (warm cache)"):
+            dt, out = _run([jaxppo, "fit", "--quiet"], env)
+            rows.append((f"`jaxppo fit` (synthetic Kepler-20 example, default free set), {label}", dt, ""))
+        for label in ("first run (empty compilation cache)", "second run (the programs the first compiled)"):
+            dt, out = _run([sys.executable, str(HERE / "fit_timing.py"), "--once", "--cache", str(Path(tmp) / "fitcache")],
+                           env)
+            call = re.search(r"fit: ([0-9.]+) s", out)
+            rows.append((f"`jp.fit` Kepler-20 b + c, a new Python process with `jp.compilation_cache()`, {label}", dt,
+                         f"the fit call itself {float(call.group(1)):.1f} s" if call else "benchmarks/fit_timing.py --once"))
+        rows += _stages(env)
         t = time.perf_counter()
         proc = subprocess.run([sys.executable, str(HERE / "fit_timing.py"), "--no-nuts"], capture_output=True, text=True,
                               cwd=ROOT, env=env)

@@ -18,6 +18,7 @@ Enable float64 for science work: ``jax.config.update("jax_enable_x64", True)``
 
 from ._version import __version__ as __version__
 
+from .model._cache import compilation_cache as compilation_cache
 from .model._flux import occultation_flux as occultation_flux
 from .model._star import Spots as Spots
 from .model._star import Star as Star
@@ -68,6 +69,7 @@ from .inference._times import linear_ephemeris as linear_ephemeris
 # the public API: what the reference documents and tests/test_docstrings.py checks
 __all__ = [
     "__version__",
+    "compilation_cache",
     "occultation_flux",
     "Spots",
     "Star",

@@ -78,17 +78,10 @@ def _enable_x64() -> None:
     ~/.cache/jaxppo/jax; JAXPPO_CACHE=0 switches it off (docs/cli.md)."""
     import jax
 
+    from jaxppo.model._cache import compilation_cache
+
     jax.config.update("jax_enable_x64", True)
-    if os.environ.get("JAXPPO_CACHE", "1") != "0":
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        path = os.environ.get("JAXPPO_CACHE_DIR") or os.path.join(base, "jaxppo", "jax")
-        try:
-            os.makedirs(path, exist_ok=True)
-        except OSError:
-            return  # an unwritable cache folder only costs the recompilation
-        jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    compilation_cache()
 
 
 def cmd_demo(args) -> int:
