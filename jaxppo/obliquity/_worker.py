@@ -67,8 +67,10 @@ def serve() -> None:
         said = [(str(w.message), w.category) for w in caught]
         try:
             data = pickle.dumps((*answer, said))
-        except Exception as err:  # noqa: BLE001 - an answer that does not pickle
-            data = pickle.dumps(("error", RuntimeError(f"{type(err).__name__}: {err}"), said))
+            pickle.loads(data)  # what the command will read: an exception class that cannot be rebuilt fails here
+        except Exception as err:  # noqa: BLE001 - an answer that does not travel: its text does
+            what = answer[1] if answer[0] == "error" else err
+            data = pickle.dumps(("error", RuntimeError(f"{type(what).__name__}: {what}"), said))
         tx.write(data)
         tx.flush()
 
