@@ -26,14 +26,15 @@ def compilation_cache(path=None) -> str | None:
     Parameters
     ----------
     path : str or os.PathLike, optional
-        The cache folder. None (default): ``$JAXPPO_CACHE_DIR``, else
+        The cache folder (``~`` expanded, made absolute). None (default): ``$JAXPPO_CACHE_DIR``, else
         ``$XDG_CACHE_HOME/jaxppo/jax``, else ``~/.cache/jaxppo/jax`` (what
         the ``jaxppo`` commands use). It is created if missing.
 
     Returns
     -------
     str or None
-        The folder in use; None when ``JAXPPO_CACHE=0`` switches the cache
+        The folder in use (a later call with another folder moves the
+        cache there); None when ``JAXPPO_CACHE=0`` switches the cache
         off, or the folder cannot be made (then programs are only compiled
         again, nothing fails).
 
@@ -49,12 +50,17 @@ def compilation_cache(path=None) -> str | None:
     if path is None:
         base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
         path = os.environ.get("JAXPPO_CACHE_DIR") or os.path.join(base, "jaxppo", "jax")
-    path = os.fspath(path)
+    path = os.path.abspath(os.path.expanduser(os.fsdecode(path)))
     try:
         os.makedirs(path, exist_ok=True)
     except OSError:
         return None  # an unwritable cache folder only costs the recompilation
+    before = jax.config.jax_compilation_cache_dir
     jax.config.update("jax_compilation_cache_dir", path)
+    if before is not None and before != path:  # JAX opened the first folder for good: reopen
+        from jax.experimental.compilation_cache import compilation_cache as jax_cache
+
+        jax_cache.reset_cache()
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     return path

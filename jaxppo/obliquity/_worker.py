@@ -29,17 +29,32 @@ import warnings
 __all__ = ["Drawer", "serve"]
 
 
-def serve() -> None:
-    """The drawing process's main (``python -c "...; serve()"``): reads
-    pickled messages from stdin, answers on what was stdout (its own
-    printing goes to stderr). The first message is the set-up function
-    (the command's float64 and compilation cache); then jobs
-    ``(fn, args)`` until ``None`` or the end of the pipe, each answered
+def serve(parent: int, package: str) -> None:
+    """The drawing process's main (``python -c "...; serve(...)"``, which
+    first ignores Ctrl-C: the command handles it and ends this process, and
+    gives this process the command's ``sys.path``): reads pickled messages
+    from stdin, answers on what was stdout (its own printing goes to
+    stderr). It stops at once where its jaxppo is not the command's
+    (``package``: the command's ``jaxppo/__init__.py``), and when the
+    command (process id ``parent``) is gone. The first message is the
+    set-up function (the command's float64 and compilation cache); then
+    jobs ``(fn, args)`` until ``None`` or the end of the pipe, each answered
     ("ok", value, warnings) or ("error", exception, warnings) (warnings:
     the (message, category) pairs the job raised)."""
-    import signal
+    import threading
+    import time
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the command's to handle; it ends this process
+    import jaxppo
+
+    if os.path.abspath(jaxppo.__file__) != package:  # another copy of jaxppo: the command draws itself
+        return
+
+    def watch():  # the command killed (not by Ctrl-C): draw nothing more into its folder
+        while os.getppid() == parent:
+            time.sleep(0.2)
+        os._exit(0)
+
+    threading.Thread(target=watch, daemon=True).start()
     rx, tx = sys.stdin.buffer, os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # a print of a library cannot corrupt the answers
     setup = pickle.load(rx)
@@ -57,22 +72,40 @@ def serve() -> None:
             return
         if job is None:
             return
-        fn, args = job
-        with warnings.catch_warnings(record=True) as caught:  # said again by the command, as its own
-            warnings.simplefilter("always")
-            try:
-                answer = ("ok", fn(*args))
-            except Exception as err:  # noqa: BLE001 - sent back and raised there, as if run there
-                answer = ("error", err)
-        said = [(str(w.message), w.category) for w in caught]
         try:
-            data = pickle.dumps((*answer, said))
-            pickle.loads(data)  # what the command will read: an exception class that cannot be rebuilt fails here
-        except Exception as err:  # noqa: BLE001 - an answer that does not travel: its text does
-            what = answer[1] if answer[0] == "error" else err
-            data = pickle.dumps(("error", RuntimeError(f"{type(what).__name__}: {what}"), said))
-        tx.write(data)
-        tx.flush()
+            tx.write(_answer(*job))
+            tx.flush()
+        except OSError:  # the command is gone
+            return
+
+
+def _answer(fn, args) -> bytes:
+    """``fn(*args)`` run, its answer pickled: ("ok", value, warnings) or
+    ("error", exception, warnings); what cannot travel (or be rebuilt by
+    the command) travels as text."""
+    with warnings.catch_warnings(record=True) as caught:  # said again by the command, as its own
+        warnings.simplefilter("always")
+        try:
+            answer = ("ok", fn(*args))
+        except Exception as err:  # noqa: BLE001 - sent back and raised there, as if run there
+            answer = ("error", err)
+    said = [(str(w.message), w.category if _travels(w.category) else UserWarning) for w in caught]
+    try:
+        data = pickle.dumps((*answer, said))
+        pickle.loads(data)  # what the command will read: an exception class that cannot be rebuilt fails here
+    except Exception as err:  # noqa: BLE001 - an answer that does not travel: its text does
+        what = answer[1] if answer[0] == "error" else err
+        data = pickle.dumps(("error", RuntimeError(f"{type(what).__name__}: {what}"), said))
+    return data
+
+
+def _travels(obj) -> bool:
+    """Whether ``obj`` pickles and unpickles."""
+    try:
+        pickle.loads(pickle.dumps(obj))
+        return True
+    except Exception:  # noqa: BLE001 - any failure: it does not travel
+        return False
 
 
 class Drawer:
@@ -88,9 +121,16 @@ class Drawer:
         # a fresh interpreter, not multiprocessing: forking JAX's threads can
         # deadlock, and "spawn" would run the caller's own script again
         env = dict(os.environ, JAX_PLATFORMS="cpu")  # the figures' curves on the CPU: a GPU stays this process's
+        import jaxppo
+
+        code = ("import signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+                f"sys.path[:] = {sys.path!r}; "  # the command's jaxppo, however it found it (checked there too)
+                "from jaxppo.obliquity._worker import serve; "
+                f"serve({os.getpid()}, {os.path.abspath(jaxppo.__file__)!r})")
+        self._jobs = 0
         try:
-            self._proc = subprocess.Popen([sys.executable, "-c", "from jaxppo.obliquity._worker import serve; serve()"],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+            self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                          env=env)
             self._send(setup)
         except Exception:  # noqa: BLE001 - no second process (a sandbox, no executable): draw here
             self._stop()
@@ -118,6 +158,7 @@ class Drawer:
             return _done(fn, args)
         try:
             self._send((fn, args))
+            self._jobs += 1
         except Exception:  # noqa: BLE001 - the process is gone: run here
             self._stop()
             return _done(fn, args)
@@ -150,7 +191,7 @@ class Drawer:
         except Exception:  # noqa: BLE001 - already gone
             pass
         try:
-            proc.wait(timeout=0.5)
+            proc.wait(timeout=0.5 if self._jobs else 0)  # never used (a finished scan): no need to wait
         except subprocess.TimeoutExpired:  # still importing, or drawing a job nobody waits for
             proc.kill()
             proc.wait()

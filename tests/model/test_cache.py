@@ -23,13 +23,16 @@ star = jp.Star.quadratic(0.4, 0.26)
 print("flux", float(jp.occultation_flux(star, 0.1, 0.2, 0.1)))
 print("hits", len(hits))
 print("dir", jax.config.jax_compilation_cache_dir)
+if len(sys.argv) > 2:  # a second folder: the programs compiled from now on go there
+    print("moved", jp.compilation_cache(sys.argv[2]))
+    print("flux2", float(jp.occultation_flux(star, jax.numpy.array([0.3, 0.1]), 0.2, 0.05)))
 """
 
 
-def _run(tmp_path, **env):
+def _run(tmp_path, *more, **env):
     env = dict(os.environ, JAX_PLATFORMS="cpu", **env)
-    run = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "cache")], capture_output=True, text=True,
-                         env=env, timeout=300)
+    run = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "cache"), *more], capture_output=True,
+                         text=True, env=env, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
     return dict(line.split(" ", 1) for line in run.stdout.splitlines())
 
@@ -40,5 +43,7 @@ def test_a_second_process_loads_what_the_first_compiled(tmp_path):
     assert any((tmp_path / "cache").iterdir())
     second = _run(tmp_path, JAXPPO_CACHE="1")  # (the first hits its own cache where it builds a program twice)
     assert int(second["hits"]) > int(first["hits"]) + 10 and second["flux"] == first["flux"]
+    moved = _run(tmp_path, "~/../" + str(tmp_path / "other"), JAXPPO_CACHE="1")  # "~" expanded
+    assert moved["moved"] == str(tmp_path / "other") and any((tmp_path / "other").iterdir())
     off = _run(tmp_path, JAXPPO_CACHE="0")
     assert off["folder"] == "None" and off["dir"] == "None" and off["flux"] == first["flux"]

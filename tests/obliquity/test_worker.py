@@ -43,6 +43,60 @@ def test_a_dead_or_switched_off_drawing_process_leaves_the_job_here(monkeypatch)
         assert not drawer.separate and drawer.run(os.getpid)() == os.getpid()
 
 
+def warn_with_a_local_category():
+    """A job whose warning's category cannot be pickled (a local class)."""
+    class Local(UserWarning):
+        pass
+
+    warnings.warn("a local kind of warning", Local)
+    return 7
+
+
+def test_what_cannot_travel_travels_as_text_and_the_process_goes_on():
+    with Drawer() as drawer:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert drawer.run(warn_with_a_local_category)() == 7
+        assert [(str(w.message), w.category) for w in caught] == [("a local kind of warning", UserWarning)]
+        pid = drawer.run(os.getpid)()
+        assert pid != os.getpid() and drawer.separate
+
+
+def test_another_copy_of_jaxppo_in_the_drawing_process_leaves_the_job_here(monkeypatch):
+    """The drawing process imports the command's jaxppo (its sys.path);
+    where it still finds another copy it stops, and the command draws."""
+    import jaxppo
+
+    monkeypatch.setattr(jaxppo, "__file__", "/elsewhere/jaxppo/__init__.py")
+    with Drawer() as drawer:
+        assert drawer.run(os.getpid)() == os.getpid()
+
+
+def test_the_drawing_process_ends_with_the_command(tmp_path):
+    """A command killed (not by Ctrl-C) leaves no drawing process behind to
+    write into its folder."""
+    import subprocess
+    import sys
+    import time
+
+    # the command dies while its drawing process is busy with a long job
+    script = ("import os, time; from jaxppo.obliquity._worker import Drawer; d = Drawer(); "
+              "print(d._proc.pid, flush=True); d.run(os.getpid)(); d.run(time.sleep, 60); os._exit(0)")
+    env = dict(os.environ, JAXPPO_DRAW_PROCESS="1")
+    # (stderr not captured: the drawing process inherits it, and reading it would wait for that process)
+    run = subprocess.run([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                         timeout=120, env=env)
+    child = int(run.stdout.split()[0])
+    for _ in range(100):
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError(f"drawing process {child} outlived its command")
+
+
 def test_scan_figures_drawn_in_a_second_process_are_those_of_one(tmp_path, monkeypatch):
     """The default scan (real Kepler-20 data: its dips are fitted by the
     PPO-or-spot alternatives meanwhile), with and without the drawing
