@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model._lightcurve import LightCurve
-from ..model._processes import is_writer, on_writer
+from ..model._processes import on_writer
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
@@ -372,8 +372,12 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     import matplotlib.pyplot as plt
 
     out = Path(out)
-    if is_writer() and not out.is_dir():  # process 0 alone touches the folder (several JAX processes)
-        raise ValueError(f"out must be an existing folder, got {out}")
+
+    def check():  # process 0 alone touches the folder; its error stops every process (several JAX processes)
+        if not out.is_dir():
+            raise ValueError(f"out must be an existing folder, got {out}")
+
+    on_writer(f"drawing into {out}", check)
     cases = tuple(cases) if cases is not None else tuple(table)
     if not cases:
         raise ValueError("cases must not be empty")
