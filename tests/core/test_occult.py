@@ -36,9 +36,14 @@ def _lens_path_on_every_batch(monkeypatch):
 
 
 def _intensity_r(star):
+    # the star's own profile, compiled once: the reference's quadrature
+    # calls it at ~10^4 radii per scene list (eager, each call dispatched
+    # JAX's primitives one by one, most of these tests' time)
+    intensity = jax.jit(lambda mu: star.intensity(mu))
+
     def f(r):
         mu = np.sqrt(max(1.0 - r * r, 0.0))
-        return float(star.intensity(mu))
+        return float(intensity(mu))
 
     return f
 
