@@ -4,6 +4,8 @@ and guards that give d a zero derivative once made every second derivative
 0 (d^2F/dt0^2 at mid-transit 1.891 instead of 1.414 for an inc = 90 orbit).
 References: high-order central finite differences of the flux itself."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,19 +23,29 @@ def _fd2(f, x0, h):
     return sum(ci * f(x0 + (i - 3) * h) for i, ci in enumerate(c)) / h**2
 
 
-@pytest.mark.parametrize("law", sorted(STARS))
-@pytest.mark.parametrize("method", ["exact", "auto"])
-@pytest.mark.parametrize("p", [0.1, 0.6])
-def test_hessian_in_the_centre_at_and_near_d0(law, method, p):
+@functools.lru_cache(maxsize=None)
+def _compiled(law, method):
+    """(flux, its Hessian in the centre, its x derivative) of a disk of
+    radius p (an argument: both radii below run the same three programs)."""
     star = STARS[law]()
 
-    def flux(x, y):
+    def flux(x, y, p):
         return jp.occultation_flux(star, x, y, p + 0.0 * x, method=method)
 
-    fx = jax.jit(flux)
-    # compiled once per case, evaluated at the three points
-    hess = jax.jit(jax.hessian(flux, argnums=(0, 1)))
-    grad_x = jax.jit(jax.grad(flux, 0))
+    return jax.jit(flux), jax.jit(jax.hessian(flux, argnums=(0, 1))), jax.jit(jax.grad(flux, 0))
+
+
+# p varies fastest: the two radii of a law and method are neighbours, so
+# xdist's split keeps them in one worker, where they share _compiled's programs
+@pytest.mark.parametrize("p", [0.1, 0.6])
+@pytest.mark.parametrize("method", ["exact", "auto"])
+@pytest.mark.parametrize("law", sorted(STARS))
+def test_hessian_in_the_centre_at_and_near_d0(law, method, p):
+    flux, hessian, grad_x = _compiled(law, method)
+    p = jnp.asarray(p)
+    fx = lambda x, y: flux(x, y, p)  # noqa: E731
+    hess = lambda x, y: hessian(x, y, p)  # noqa: E731
+    grad_x_at = lambda x, y: grad_x(x, y, p)  # noqa: E731
     for d0 in (0.0, 1e-8, 1e-4):
         # references: finite differences of the flux along and across the
         # centre's direction (+x)
@@ -47,7 +59,7 @@ def test_hessian_in_the_centre_at_and_near_d0(law, method, p):
         assert abs(float(hyy) - ref_yy) < 5e-8 * abs(ref_yy), (d0, float(hyy), ref_yy)
         assert abs(float(hxy)) < 1e-8 * abs(ref_xx)  # 0 by symmetry in y
         # first derivatives stay finite and right (~ f''(0) d)
-        gx = grad_x(x0, y0)
+        gx = grad_x_at(x0, y0)
         assert np.isfinite(float(gx)) and abs(float(gx) - ref_xx * d0) < 1e-6 * abs(ref_xx) * d0 + 1e-15
 
 
