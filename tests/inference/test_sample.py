@@ -83,71 +83,104 @@ def small_run():
                                     progress_bar=False)
 
 
-def test_to_arviz_gives_physical_quantities_under_public_names(small_run, tmp_path):
-    """Issue 15 item 3: the posterior holds "b.inc" in degrees (the old
-    export called b / (1 + p) "b_inc"), the log-likelihood sits in its own
-    group (per data point), sample stats and observed data are there, with a
-    chain axis; a netCDF file round-trips through arviz."""
-    truth, lc, free, res = small_run
-    idata = res.to_arviz()
-    path = tmp_path / "posterior.nc"
-    res.to_netcdf(path)
-    back = az.from_netcdf(str(path))
-    for data in (idata, back):
-        post = data.posterior
-        assert sorted(post.data_vars) == sorted(free)
-        assert post["b.inc"].shape == (2, 30)
-        assert np.all((post["b.inc"].values > 45) & (post["b.inc"].values < 135))  # degrees, not b / (1 + p)
-        assert np.allclose(post["b.a"].values.reshape(-1), res.samples["b.a"])
-        assert "loglike" not in post.data_vars
-        assert data.log_likelihood["obs"].shape == (2, 30, len(lc))
-        for name in ("diverging", "step_size", "tree_depth", "n_steps", "energy", "lp", "acceptance_rate"):
-            assert data.sample_stats[name].shape == (2, 30), name
-        assert np.array_equal(data.observed_data["obs"].values, lc.flux)
-        assert np.array_equal(data.observed_data["time"].values, lc.time)
-    # the pointwise log-likelihood is the Gaussian density of the data around
-    # the model of each draw: check one draw against the light curve directly
-    i, j = 1, 7
-    draw = {n: float(back.posterior[n].values[i, j]) for n in free}
-    bb = truth.planets[0].replace(t0=draw["b.t0"], a=draw["b.a"], inc=draw["b.inc"], radius=draw["b.radius"])
-    model = np.asarray(truth.replace(planets=(bb,)).flux(*lc.supersampled_times()[:1], 0.0))
-    model = model.reshape(-1, lc.supersampled_times()[1]).mean(-1)
-    ref = stats.norm(model, lc.flux_err).logpdf(lc.flux)
-    assert np.allclose(back.log_likelihood["obs"].values[i, j], ref, rtol=0, atol=1e-6)
-    if AZ1:
-        # arviz 1.x's PSIS k-hat refuses a tail of equal values ("All tail
-        # values are the same"), as this 60-draw run has (NUTS repeats a
-        # draw it rejects): its own ESS of the posterior read back instead
-        ess = az.ess(back)
-        assert all(np.isfinite(float(ess[n])) for n in free)
-    else:
-        # PSIS-LOO runs on it (needs the pointwise log-likelihood and the chain axis)
-        assert np.isfinite(az.loo(back).elpd_loo)
+class TestSmallRun:
+    """The tests of one short run (small_run: 40 s to compile and run). A
+    class is their xdist scope: .ci/run's arviz 1.x rerun (--dist
+    loadscope) gives it one worker, which runs the fixture once (split over
+    both workers, each ran it)."""
 
+    def test_to_arviz_gives_physical_quantities_under_public_names(self, small_run, tmp_path):
+        """Issue 15 item 3: the posterior holds "b.inc" in degrees (the old
+        export called b / (1 + p) "b_inc"), the log-likelihood sits in its own
+        group (per data point), sample stats and observed data are there, with a
+        chain axis; a netCDF file round-trips through arviz."""
+        truth, lc, free, res = small_run
+        idata = res.to_arviz()
+        path = tmp_path / "posterior.nc"
+        res.to_netcdf(path)
+        back = az.from_netcdf(str(path))
+        for data in (idata, back):
+            post = data.posterior
+            assert sorted(post.data_vars) == sorted(free)
+            assert post["b.inc"].shape == (2, 30)
+            assert np.all((post["b.inc"].values > 45) & (post["b.inc"].values < 135))  # degrees, not b / (1 + p)
+            assert np.allclose(post["b.a"].values.reshape(-1), res.samples["b.a"])
+            assert "loglike" not in post.data_vars
+            assert data.log_likelihood["obs"].shape == (2, 30, len(lc))
+            for name in ("diverging", "step_size", "tree_depth", "n_steps", "energy", "lp", "acceptance_rate"):
+                assert data.sample_stats[name].shape == (2, 30), name
+            assert np.array_equal(data.observed_data["obs"].values, lc.flux)
+            assert np.array_equal(data.observed_data["time"].values, lc.time)
+        # the pointwise log-likelihood is the Gaussian density of the data around
+        # the model of each draw: check one draw against the light curve directly
+        i, j = 1, 7
+        draw = {n: float(back.posterior[n].values[i, j]) for n in free}
+        bb = truth.planets[0].replace(t0=draw["b.t0"], a=draw["b.a"], inc=draw["b.inc"], radius=draw["b.radius"])
+        model = np.asarray(truth.replace(planets=(bb,)).flux(*lc.supersampled_times()[:1], 0.0))
+        model = model.reshape(-1, lc.supersampled_times()[1]).mean(-1)
+        ref = stats.norm(model, lc.flux_err).logpdf(lc.flux)
+        assert np.allclose(back.log_likelihood["obs"].values[i, j], ref, rtol=0, atol=1e-6)
+        if AZ1:
+            # arviz 1.x's PSIS k-hat refuses a tail of equal values ("All tail
+            # values are the same"), as this 60-draw run has (NUTS repeats a
+            # draw it rejects): its own ESS of the posterior read back instead
+            ess = az.ess(back)
+            assert all(np.isfinite(float(ess[n])) for n in free)
+        else:
+            # PSIS-LOO runs on it (needs the pointwise log-likelihood and the chain axis)
+            assert np.isfinite(az.loo(back).elpd_loo)
 
-def test_diagnostics_agree_with_arviz(small_run):
-    _, _, free, res = small_run
-    for n in free:
-        x = res.chains[n]
-        d = res.diagnostics[n]
-        assert np.isclose(d["r_hat"], float(az.rhat(x)), rtol=1e-6)
-        # numpyro's autocorrelation estimator and arviz's differ a little
-        # on 30-draw chains; on long chains they agree within 2 % (below)
-        assert np.isclose(d["ess_bulk"], _az_ess(x, "bulk"), rtol=0.15)
-        assert np.isclose(d["ess_tail"], _az_ess(x, "tail"), rtol=0.15)
-    rng = np.random.default_rng(0)
-    x = rng.standard_normal((4, 200)) + np.array([[0.0], [0.0], [0.0], [1.0]])  # one chain off: R-hat large
-    x[:, 50:60] = x[:, 49:50]  # ties, as when NUTS stays put
-    d = rank_diagnostics(x)
-    assert np.isclose(d["r_hat"], float(az.rhat(x)), rtol=1e-9) and d["r_hat"] > 1.1
-    ar = np.zeros((4, 1000))  # AR(1), rho = 0.8: ESS about 1/9 of the draws
-    e = rng.standard_normal((4, 1000))
-    for i in range(1, 1000):
-        ar[:, i] = 0.8 * ar[:, i - 1] + e[:, i]
-    d = rank_diagnostics(ar)
-    for key, method in (("ess_bulk", "bulk"), ("ess_tail", "tail")):
-        assert np.isclose(d[key], _az_ess(ar, method), rtol=0.02), (key, d[key], _az_ess(ar, method))
-    assert np.isclose(d["r_hat"], float(az.rhat(ar)), rtol=1e-9)
+    def test_diagnostics_agree_with_arviz(self, small_run):
+        _, _, free, res = small_run
+        for n in free:
+            x = res.chains[n]
+            d = res.diagnostics[n]
+            assert np.isclose(d["r_hat"], float(az.rhat(x)), rtol=1e-6)
+            # numpyro's autocorrelation estimator and arviz's differ a little
+            # on 30-draw chains; on long chains they agree within 2 % (below)
+            assert np.isclose(d["ess_bulk"], _az_ess(x, "bulk"), rtol=0.15)
+            assert np.isclose(d["ess_tail"], _az_ess(x, "tail"), rtol=0.15)
+        rng = np.random.default_rng(0)
+        x = rng.standard_normal((4, 200)) + np.array([[0.0], [0.0], [0.0], [1.0]])  # one chain off: R-hat large
+        x[:, 50:60] = x[:, 49:50]  # ties, as when NUTS stays put
+        d = rank_diagnostics(x)
+        assert np.isclose(d["r_hat"], float(az.rhat(x)), rtol=1e-9) and d["r_hat"] > 1.1
+        ar = np.zeros((4, 1000))  # AR(1), rho = 0.8: ESS about 1/9 of the draws
+        e = rng.standard_normal((4, 1000))
+        for i in range(1, 1000):
+            ar[:, i] = 0.8 * ar[:, i - 1] + e[:, i]
+        d = rank_diagnostics(ar)
+        for key, method in (("ess_bulk", "bulk"), ("ess_tail", "tail")):
+            assert np.isclose(d[key], _az_ess(ar, method), rtol=0.02), (key, d[key], _az_ess(ar, method))
+        assert np.isclose(d["r_hat"], float(az.rhat(ar)), rtol=1e-9)
+
+    def test_sample_result_save_load_round_trip(self, small_run, tmp_path):
+        res = small_run[3]
+        path = res.save(tmp_path / "post.npz")
+        back = jp.SampleResult.load(path)
+        assert back.names == res.names and list(back.chains) == list(res.chains)
+        for n in res.chains:
+            assert np.array_equal(back.chains[n], res.chains[n]) and np.array_equal(back.samples[n], res.samples[n])
+        for n in res.stats:
+            assert np.array_equal(back.stats[n], res.stats[n])
+        assert np.array_equal(back.log_likelihood, res.log_likelihood) and np.array_equal(back.time, res.time)
+        assert back.intervals == res.intervals and back.deviance_min == res.deviance_min
+        assert all(np.isclose(back.diagnostics[n][k], res.diagnostics[n][k], rtol=0, atol=0, equal_nan=True)
+                   for n in res.diagnostics for k in res.diagnostics[n])
+        assert float(back.best.planets[0].a) == float(res.best.planets[0].a)
+        # without the model the pointwise log-likelihood cannot be made: asked
+        # for it (the default), a loaded result refuses instead of handing the
+        # total per draw to az.loo as if it were one observation
+        with pytest.raises(ValueError, match="pointwise=False"):
+            back.to_arviz()
+        ar = back.to_arviz(pointwise=False)
+        assert list(ar.posterior.data_vars) == list(res.names)
+        assert ar.log_likelihood["obs"].shape == res.log_likelihood.shape
+        live = res.to_arviz(pointwise=False)  # a live run's total, the same numbers
+        assert np.array_equal(live.log_likelihood["obs"].values, ar.log_likelihood["obs"].values)
+        with pytest.raises(ValueError, match="not a file written by SampleResult.save"):
+            (tmp_path / "x.npz").write_text("nonsense")
+            jp.SampleResult.load(tmp_path / "x.npz")
 
 
 def test_cli_sample_writes_netcdf(tmp_path, capsys):
@@ -257,35 +290,6 @@ def test_user_priors_are_checked_and_a_prior_on_a_keeps_plain_coordinates():
     # the prior's own density is what the potential adds for a (identity-free check: a
     # TruncatedNormal on a through numpyro's bijection onto (1.2, inf))
     assert float(coords.maps[1](coords.from_q(q)[1])) == pytest.approx(20.0, rel=1e-12)
-
-
-def test_sample_result_save_load_round_trip(small_run, tmp_path):
-    res = small_run[3]
-    path = res.save(tmp_path / "post.npz")
-    back = jp.SampleResult.load(path)
-    assert back.names == res.names and list(back.chains) == list(res.chains)
-    for n in res.chains:
-        assert np.array_equal(back.chains[n], res.chains[n]) and np.array_equal(back.samples[n], res.samples[n])
-    for n in res.stats:
-        assert np.array_equal(back.stats[n], res.stats[n])
-    assert np.array_equal(back.log_likelihood, res.log_likelihood) and np.array_equal(back.time, res.time)
-    assert back.intervals == res.intervals and back.deviance_min == res.deviance_min
-    assert all(np.isclose(back.diagnostics[n][k], res.diagnostics[n][k], rtol=0, atol=0, equal_nan=True)
-               for n in res.diagnostics for k in res.diagnostics[n])
-    assert float(back.best.planets[0].a) == float(res.best.planets[0].a)
-    # without the model the pointwise log-likelihood cannot be made: asked
-    # for it (the default), a loaded result refuses instead of handing the
-    # total per draw to az.loo as if it were one observation
-    with pytest.raises(ValueError, match="pointwise=False"):
-        back.to_arviz()
-    ar = back.to_arviz(pointwise=False)
-    assert list(ar.posterior.data_vars) == list(res.names)
-    assert ar.log_likelihood["obs"].shape == res.log_likelihood.shape
-    live = res.to_arviz(pointwise=False)  # a live run's total, the same numbers
-    assert np.array_equal(live.log_likelihood["obs"].values, ar.log_likelihood["obs"].values)
-    with pytest.raises(ValueError, match="not a file written by SampleResult.save"):
-        (tmp_path / "x.npz").write_text("nonsense")
-        jp.SampleResult.load(tmp_path / "x.npz")
 
 
 def test_rank_diagnostics_equal_arviz_and_never_negative():
