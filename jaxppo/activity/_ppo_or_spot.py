@@ -40,7 +40,6 @@ bounds), from a grid of starting centres and widths; the lowest chi^2 kept.
 
 from __future__ import annotations
 
-import functools
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -51,6 +50,7 @@ import numpy as np
 
 from ..model._exposure import exposure_mean, supersampled_times
 from ..model._processes import is_writer
+from ..model._programs import stored
 
 __all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model"]
 
@@ -103,7 +103,7 @@ def _unpack(th, bounds):
     return a_max * s[0], lo + (hi - lo) * s[1], w_min + (w_max - w_min) * s[2]
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@stored(static_argnames=("nsub",))
 def _solve_bump(nsub, th0, tm, y, sig, base, bounds):
     """One Levenberg-Marquardt solve (compiled once per window size, not per
     dip: the scan runs it on every negative dip)."""

@@ -9,6 +9,8 @@ import os
 
 import jax
 
+from ._programs import set_store
+
 __all__ = ["compilation_cache"]
 
 
@@ -17,8 +19,11 @@ def compilation_cache(path=None) -> str | None:
 
     Compiled programs are written to the folder and read back by later
     processes (the same program: the same code, shapes, options, JAX and
-    hardware), so a second run skips XLA's compilation; tracing still runs.
-    Results do not depend on it. It sets JAX's process-wide options
+    hardware), so a second run skips XLA's compilation. jaxppo's own
+    kernels go further: their executables are kept in the folder's
+    ``programs`` subfolder under a key of the package's code, the versions,
+    the device, the options and the arguments' structure and shapes, so a
+    second run skips their tracing too. Results do not depend on either. It sets JAX's process-wide options
     (``jax_compilation_cache_dir``, and caches every program however
     small or quick to compile), so it is a call, not a side effect of
     importing jaxppo.
@@ -63,4 +68,5 @@ def compilation_cache(path=None) -> str | None:
         jax_cache.reset_cache()
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    set_store(os.path.join(path, "programs"))
     return path

@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
+from ._programs import stored
 from ._star import Star
 from ._terms import disk_terms, exact_frames, inner_disk_terms, lens_rho_jit, lens_terms
 from ..core.centre import centre_split
@@ -88,7 +89,7 @@ def _pairs(k: int) -> np.ndarray:
     return np.array([(i, j) for i in range(k) for j in range(i + 1, k)], int).reshape(-1, 2)
 
 
-@jax.jit
+@stored
 def _survey(star: Star, x: Array, y: Array, r: Array) -> tuple[Array, Array, Array, Array, Array]:
     """One pass over [frame, disk] arrays that decides how each frame is
     modelled, and does the cheapest part of it.

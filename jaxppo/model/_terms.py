@@ -4,17 +4,16 @@ crossing pairs. ``jaxppo.model._plan`` decides which frames take which."""
 
 from __future__ import annotations
 
-import functools
-
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array
 
+from ._programs import stored
 from ._star import Star
 from ..core.centre import centre_split
 from ..core.occult import disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
 
-@functools.partial(jax.jit, static_argnames=("order",))
+@stored(static_argnames=("order",))
 def exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Flux of each frame by the exact union integral ([frame, disk] centres
     and radii [R*]; ``order`` Gauss-Legendre nodes per arc piece)."""
@@ -24,7 +23,7 @@ def exact_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
 
-@functools.partial(jax.jit, static_argnames=("order",))
+@stored(static_argnames=("order",))
 def separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Frames whose disks do not overlap each other: a sum of one-disk terms."""
     g, phi1 = star.radial_kernel()
@@ -35,7 +34,7 @@ def separate_frames(star: Star, x: Array, y: Array, r: Array, order: int) -> Arr
     return 1.0 - deficit / (2.0 * jnp.pi * phi1)
 
 
-@functools.partial(jax.jit, static_argnames=("order",))
+@stored(static_argnames=("order",))
 def disk_terms(star: Star, d: Array, p: Array, order: int) -> Array:
     """Relative deficits of single disks (general rule, any position)."""
     g, phi1 = star.radial_kernel()
@@ -43,14 +42,14 @@ def disk_terms(star: Star, d: Array, p: Array, order: int) -> Array:
     return jax.vmap(lambda dd, rr: disk_deficit(dd, rr, g, phi1, order, inten))(d, p) / (2.0 * jnp.pi * phi1)
 
 
-@jax.jit
+@stored
 def inner_disk_terms(star: Star, d: Array, p: Array) -> Array:
     """Relative deficits of single disks well inside the star (midpoint rule)."""
     g, phi1 = star.radial_kernel()
     return inner_disk_deficit(d, p, g) / (2.0 * jnp.pi * phi1)
 
 
-@functools.partial(jax.jit, static_argnames=("order",))
+@stored(static_argnames=("order",))
 def lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Relative flux of the lens of each crossing pair ([pair, 2] arrays),
     ``order`` Gauss-Legendre nodes per arc."""

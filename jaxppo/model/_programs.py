@@ -1,0 +1,314 @@
+"""The program store: jaxppo's compiled kernels kept on disk, beside JAX's
+compilation cache, so that a new process loads them instead of tracing,
+lowering and compiling them again.
+
+JAX's persistent cache saves XLA's compilation only: a new process still
+traces every program and lowers it to find the cache entry (0.1-0.5 s per
+kernel on a 2-core CPU; most of a warm command's start). A stored kernel
+(``stored``) is saved as its serialized executable
+(``jax.experimental.serialize_executable``) under a key that covers
+everything the program is made from:
+
+* the function (module and qualified name) and the whole jaxppo package
+  (the content of every source file, the size and time of every data
+  file; hashed at the first use per process);
+* the versions of Python, numpy, JAX, jaxlib, equinox, optimistix and
+  lineax, and JAX's options that change a trace (float64, matmul
+  precision, dtype and rank promotion, NaN/Inf checks);
+* the device (platform, kind, platform version, the CPU's instruction set);
+* the static arguments and the structure of the others (equinox Modules'
+  static fields included), each leaf's shape, dtype and weak type.
+
+Only programs whose custom calls are all LAPACK's are stored (LAPACK is
+loaded into the process before such a program runs): a host callback or
+another library's kernel is an address in the process that compiled it.
+Anything the key cannot describe exactly (a static value other than None,
+bool, int, float, complex, str, bytes, numpy arrays and containers of
+them; a traced argument; several devices or processes; ``jax.disable_jit``)
+runs the ordinary ``jax.jit`` path: the store only skips work, it never
+changes a number. A function with closure cells is refused when it is
+decorated (what it closes over would not be in the key).
+
+The store is on where ``jaxppo.compilation_cache`` turned JAX's cache on
+(every ``jaxppo`` command does): it is the cache folder's ``programs``
+subfolder, kept to ``MAX_FILES`` files (the least recently written go).
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+import hashlib
+import inspect
+import os
+import pickle
+import platform
+import re
+import sys
+import threading
+from pathlib import Path
+
+import jax
+import numpy as np
+
+__all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "MAX_FILES"]
+
+MAX_FILES = 512
+
+_state = {"folder": None}
+# programs read from the store and compiled (and written) by this process
+counts = {"loaded": 0, "compiled": 0}
+_lock = threading.Lock()
+
+
+def set_store(folder) -> None:
+    """Use ``folder`` for stored programs (None: off). ``compilation_cache``
+    calls it with its cache folder's ``programs`` subfolder."""
+    _state["folder"] = None if folder is None else Path(folder)
+
+
+def store_folder() -> Path | None:
+    """The folder in use, or None when the store is off."""
+    return _state["folder"]
+
+
+class _Unstable(Exception):
+    """A value the key cannot describe exactly."""
+
+
+def _stable(obj) -> bytes:
+    """An exact byte description of a static value (raises _Unstable)."""
+    if obj is None or isinstance(obj, (bool, int, float, complex, str, bytes)):
+        return f"{type(obj).__name__}:{obj!r}".encode()
+    if isinstance(obj, enum.Enum):
+        return f"enum:{type(obj).__module__}.{type(obj).__qualname__}.{obj.name}".encode()
+    if isinstance(obj, (tuple, list)):
+        return f"{type(obj).__name__}(".encode() + b",".join(_stable(v) for v in obj) + b")"
+    if isinstance(obj, dict):
+        items = sorted((_stable(k), _stable(v)) for k, v in obj.items())
+        return b"dict(" + b",".join(k + b":" + v for k, v in items) + b")"
+    if isinstance(obj, (frozenset, set)):
+        return b"set(" + b",".join(sorted(_stable(v) for v in obj)) + b")"
+    if isinstance(obj, (np.ndarray, np.generic)):
+        a = np.ascontiguousarray(obj)
+        if a.dtype.hasobject:
+            raise _Unstable("object array")
+        return f"ndarray:{a.dtype.str}:{a.shape}:".encode() + hashlib.sha256(a.tobytes()).hexdigest().encode()
+    if isinstance(obj, type):
+        return f"type:{obj.__module__}.{obj.__qualname__}".encode()
+    if type(obj).__name__ == "_Missing" and type(obj).__module__.startswith("equinox"):
+        return b"equinox-missing"  # equinox's sentinel of a field without a value
+    raise _Unstable(type(obj).__qualname__)
+
+
+def _treedef_key(treedef) -> bytes:
+    """The structure of the arguments, static fields included, exactly."""
+    data = treedef.node_data()
+    if data is None:  # a leaf
+        return b"*"
+    kind, aux = data
+    children = b",".join(_treedef_key(c) for c in treedef.children())
+    return _stable(kind) + b"[" + _stable(aux) + b"](" + children + b")"
+
+
+def _package_hash(root=None) -> str:
+    """sha256 of the installed jaxppo package (or the folder ``root``):
+    every source file by its content, every other file (data) by its size
+    and modification time."""
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        if not path.is_file() or "__pycache__" in path.parts or path.suffix in (".pyc", ".pyo"):
+            continue
+        h.update(str(path.relative_to(root)).encode() + b"\0")
+        if path.suffix == ".py":
+            h.update(path.read_bytes() + b"\0")
+        else:
+            st = path.stat()
+            h.update(f"{st.st_size}:{st.st_mtime_ns}\0".encode())
+    return h.hexdigest()
+
+
+def _cpu_flags() -> str:
+    """The CPU's instruction-set flags (Linux), else the processor's name."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.startswith(("flags", "Features")):
+                    return hashlib.sha256(line.encode()).hexdigest()[:16]
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+@functools.lru_cache(maxsize=None)
+def _environment(x64: bool, options: tuple) -> bytes:
+    """What every key shares: package, versions, device, JAX options."""
+    from importlib import metadata
+
+    versions = [sys.version, np.__version__, jax.__version__]
+    for dist in ("jaxlib", "equinox", "optimistix", "lineax"):
+        try:
+            versions.append(f"{dist}={metadata.version(dist)}")
+        except metadata.PackageNotFoundError:
+            versions.append(f"{dist}=none")
+    dev = jax.devices()[0]
+    device = [dev.platform, getattr(dev, "device_kind", ""), dev.client.platform_version, _cpu_flags()]
+    return _stable((_package_hash(), versions, device, x64, options))
+
+
+_OPTIONS = ("jax_default_matmul_precision", "jax_numpy_rank_promotion", "jax_numpy_dtype_promotion",
+            "jax_debug_nans", "jax_debug_infs", "jax_enable_checks")
+
+
+def _usable() -> bool:
+    """One device, one process, jit enabled: where a stored program is the
+    program jit would run."""
+    return (jax.process_count() == 1 and len(jax.devices()) == 1
+            and not jax.config.jax_disable_jit)
+
+
+class _Stored:
+    """A jitted function whose compiled programs are kept in the store."""
+
+    def __init__(self, fn, static_argnames):
+        if fn.__closure__:
+            raise ValueError(f"stored: {fn.__qualname__} has closure cells ({fn.__code__.co_freevars}); "
+                             "what it closes over would not be in the program's key")
+        self._fn = fn
+        self._sig = inspect.signature(fn)
+        self._static = tuple(static_argnames)
+        self._jit = jax.jit(fn, static_argnames=self._static)
+        self._name = f"{fn.__module__}.{fn.__qualname__}"
+        self._loaded = {}
+        functools.update_wrapper(self, fn)
+
+    def __getattr__(self, name):  # lower, trace, eval_shape, ... of the jitted function
+        return getattr(self._jit, name)
+
+    def __call__(self, *args, **kwargs):
+        folder = _state["folder"]
+        if folder is None or not _usable():
+            return self._jit(*args, **kwargs)
+        bound = self._sig.bind(*args, **kwargs)
+        bound.apply_defaults()
+        statics = {k: v for k, v in bound.arguments.items() if k in self._static}
+        dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
+        leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+        try:
+            avals = []
+            for leaf in leaves:
+                if isinstance(leaf, jax.core.Tracer) or not isinstance(
+                        leaf, (jax.Array, np.ndarray, np.generic, bool, int, float, complex)):
+                    raise _Unstable("traced or not an array")
+                aval = jax.typeof(leaf)
+                avals.append((aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False))))
+            options = tuple(str(getattr(jax.config, o, None)) for o in _OPTIONS)
+            key = hashlib.sha256(
+                _environment(bool(jax.config.jax_enable_x64), options) + _stable(self._name)
+                + _stable(statics) + _treedef_key(treedef) + _stable(avals)).hexdigest()
+        except _Unstable:
+            return self._jit(*args, **kwargs)
+        compiled = self._loaded.get(key)
+        if compiled is None:
+            compiled = self._load_or_compile(folder, key, leaves, treedef, statics)
+            self._loaded[key] = compiled
+        return compiled(*leaves)
+
+    def _load_or_compile(self, folder: Path, key: str, leaves, treedef, statics):
+        """The program of ``key``: read from the store, else compiled (and
+        written there). A file that does not load is compiled again."""
+        from jax.experimental import serialize_executable as se
+
+        path = folder / f"{key}.exe"
+        try:
+            with open(path, "rb") as fh:
+                targets, payload, in_tree, out_tree = pickle.load(fh)
+            if targets:
+                _prepare_lapack()
+            compiled = se.deserialize_and_load(payload, in_tree, out_tree)
+            counts["loaded"] += 1
+            return compiled
+        except FileNotFoundError:
+            pass
+        except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again
+            pass
+        fn = self._fn
+
+        def flat(*flat_leaves):
+            return fn(**jax.tree_util.tree_unflatten(treedef, flat_leaves), **statics)
+
+        lowered = jax.jit(flat).lower(*leaves)
+        targets = custom_call_targets(lowered.as_text())
+        compiled = lowered.compile()
+        counts["compiled"] += 1
+        if any(not t.startswith("lapack_") for t in targets):
+            return compiled  # a host callback or another library's kernel: never reloaded
+        try:
+            blob = pickle.dumps((sorted(targets), *se.serialize(compiled)))
+        except Exception:  # noqa: BLE001 - not serializable (constants, custom outputs): in memory only
+            return compiled
+        _write(folder, path, blob)
+        return compiled
+
+
+def custom_call_targets(text: str) -> set:
+    """The custom-call targets of a lowered program's text (StableHLO)."""
+    return set(re.findall(r"custom_call\s*@([\w.$-]+)", text)) | set(re.findall(r'call_target_name\s*=\s*"([^"]+)"', text))
+
+
+@functools.lru_cache(maxsize=None)
+def _prepare_lapack() -> None:
+    """Load LAPACK into this process before a stored program that calls it
+    runs (jaxlib does so when it lowers a LAPACK call; a stored program is
+    not lowered, and would call an empty LAPACK table)."""
+    import jax.numpy as jnp
+
+    jax.jit(jnp.linalg.qr).lower(jnp.ones((2, 2)))
+
+
+def _write(folder: Path, path: Path, blob: bytes) -> None:
+    """Write one program atomically; keep at most MAX_FILES in the store."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+        tmp.write_bytes(blob)
+        os.replace(tmp, path)
+        with _lock:
+            files = sorted(folder.glob("*.exe"), key=lambda p: p.stat().st_mtime)
+            for old in files[:max(len(files) - MAX_FILES, 0)]:
+                old.unlink(missing_ok=True)
+    except OSError:
+        pass  # an unwritable store only costs the compilation next time
+
+
+def stored(fn=None, *, static_argnames=()):
+    """``jax.jit`` whose compiled programs are also kept in the program store.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (no closure cells) of arrays and pytrees.
+    static_argnames : tuple of str, optional
+        Its static arguments, as for ``jax.jit``.
+
+    Returns
+    -------
+    callable
+        Called like ``jax.jit(fn, static_argnames=...)``, with the same
+        results; ``lower`` and the other attributes are the jitted
+        function's.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> from jaxppo.model._programs import stored
+    >>> @stored(static_argnames=("power",))
+    ... def moment(x, power):
+    ...     return jnp.mean(x ** power)
+    >>> float(moment(jnp.arange(4.0), power=2))
+    3.5
+    """
+    if fn is None:
+        return functools.partial(stored, static_argnames=static_argnames)
+    return _Stored(fn, static_argnames)

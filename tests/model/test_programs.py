@@ -1,0 +1,212 @@
+"""The program store (jaxppo.model._programs): stored kernels give the jitted
+function's numbers, a new process loads them instead of compiling, and the
+key changes with everything a program is made from."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.model import _programs
+from jaxppo.model._programs import counts, custom_call_targets, set_store, stored
+from jaxppo.model._terms import exact_frames
+
+
+@pytest.fixture
+def store(tmp_path):
+    """The store on in a fresh folder for one test, off afterwards."""
+    folder = tmp_path / "programs"
+    set_store(folder)
+    yield folder
+    set_store(None)
+
+
+@stored(static_argnames=("power",))
+def _moment(x, scale, power):
+    return jnp.sum((scale * x) ** power)
+
+
+class _Weights(eqx.Module):
+    w: jax.Array
+    label: str = eqx.field(static=True)
+
+
+@stored
+def _weighted(m, x):
+    return jnp.sum(m.w * x)
+
+
+def _frames():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-0.6, 0.6, (64, 3))
+    return x, 0.4 * x[:, ::-1], np.full((64, 3), 0.07)
+
+
+def test_same_numbers_as_jit_and_written_once(store):
+    """A stored kernel (the union integral) gives jax.jit's numbers bit for
+    bit; its program is written once and reused from memory."""
+    star = jp.Star.quadratic(0.4, 0.26)
+    x, y, r = (jnp.asarray(v) for v in _frames())
+    plain = jax.jit(exact_frames.__wrapped__, static_argnames=("order",))(star, x, y, r, order=20)
+    before = dict(counts)
+    first = exact_frames(star, x, y, r, 20)
+    again = exact_frames(star, x, y, r, order=20)
+    np.testing.assert_array_equal(np.asarray(first), np.asarray(plain))
+    np.testing.assert_array_equal(np.asarray(again), np.asarray(plain))
+    assert counts["compiled"] - before["compiled"] == 1
+    assert len(list(store.glob("*.exe"))) == 1
+
+
+def test_key_follows_static_arguments_shapes_and_static_fields(store):
+    """Another static argument, shape, dtype or static field of a Module is
+    another program; the same call is the same program."""
+    x = jnp.arange(4.0)
+    assert float(_moment(x, 1.0, power=2)) == 14.0
+    assert float(_moment(x, 1.0, power=3)) == 36.0
+    assert float(_moment(jnp.arange(5.0), 1.0, power=2)) == 30.0
+    assert float(_moment(jnp.arange(4, dtype=jnp.int32), 1.0, power=2)) == 14.0
+    assert float(_moment(x, 2.0, power=2)) == 56.0  # another value: the same program
+    assert len(list(store.glob("*.exe"))) == 4
+    a = _weighted(_Weights(jnp.ones(3), "a"), jnp.arange(3.0))
+    b = _weighted(_Weights(jnp.ones(3), "b"), jnp.arange(3.0))
+    assert float(a) == float(b) == 3.0
+    assert len(list(store.glob("*.exe"))) == 6
+
+
+def test_traced_calls_and_transformations_bypass_the_store(store):
+    """Under jit, grad and vmap a stored function is the jitted one (nothing
+    is written), with the same numbers."""
+    x = jnp.arange(3.0)
+    g = jax.grad(lambda s: _moment(x, s, power=2))(2.0)
+    assert float(g) == pytest.approx(2 * 2.0 * 5.0)
+    v = jax.vmap(lambda s: _moment(x, s, power=2))(jnp.array([1.0, 2.0]))
+    np.testing.assert_allclose(np.asarray(v), [5.0, 20.0])
+    assert float(jax.jit(lambda s: _moment(x, s, power=2))(1.0)) == 5.0
+    assert not list(store.glob("*.exe"))
+
+
+def test_damaged_file_is_compiled_again(store):
+    """A damaged program file is not trusted: the program is compiled again
+    and the right number returned."""
+    x = jnp.arange(4.0)
+    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)  # no program in memory: written
+    (path,) = store.glob("*.exe")
+    path.write_bytes(b"not a program")
+    fresh = _programs._Stored(_moment.__wrapped__, ("power",))
+    before = counts["compiled"]
+    assert float(fresh(x, 1.0, power=2)) == 14.0
+    assert counts["compiled"] == before + 1
+
+
+def test_closures_and_callbacks_are_refused():
+    """A function with closure cells cannot be stored (what it closes over is
+    not in the key); a program with a host callback is never written."""
+    offset = 1.0
+
+    def shifted(x):
+        return x + offset
+
+    with pytest.raises(ValueError, match="closure cells"):
+        stored(shifted)
+    text = jax.jit(lambda x: jax.pure_callback(np.sin, jax.ShapeDtypeStruct((), jnp.float64), x)).lower(1.0).as_text()
+    assert any("callback" in t for t in custom_call_targets(text))
+
+
+@stored
+def _printed(x):
+    jax.debug.callback(lambda v: None, x)
+    return 2.0 * x
+
+
+def test_program_with_callback_not_written(store):
+    assert float(_printed(jnp.float64(1.5))) == 3.0
+    assert not list(store.glob("*.exe"))
+
+
+def test_package_hash_follows_the_source(tmp_path):
+    """An edited source file changes every key (the package hash)."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "kernel.py").write_text("SCALE = 1.0\n")
+    (pkg / "table.dat").write_text("1 2 3\n")
+    h0 = _programs._package_hash(pkg)
+    assert _programs._package_hash(pkg) == h0
+    (pkg / "kernel.py").write_text("SCALE = 2.0\n")
+    h1 = _programs._package_hash(pkg)
+    assert h1 != h0
+    (pkg / "table.dat").write_text("1 2 4 5\n")
+    assert _programs._package_hash(pkg) != h1
+
+
+NEW_PROCESS = textwrap.dedent("""
+    import sys
+    import jax, jax.numpy as jnp, numpy as np
+    jax.config.update("jax_enable_x64", True)
+    import jaxppo as jp
+    from jaxppo.model._programs import counts, stored
+    from jaxppo.activity._ppo_or_spot import _solve_bump
+    from jaxppo.model._terms import exact_frames
+    jp.compilation_cache(sys.argv[1])
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-0.6, 0.6, (64, 3))
+    f = exact_frames(jp.Star.quadratic(0.4, 0.26), jnp.asarray(x), jnp.asarray(0.4 * x[:, ::-1]),
+                     jnp.asarray(np.full((64, 3), 0.07)), 20)
+    t = jnp.linspace(-0.1, 0.1, 50)
+    y = 1.0 + 5e-4 * jnp.exp(-0.5 * (t / 0.02) ** 2)
+    th, chi2, ok = _solve_bump(1, jnp.zeros(3), t, y, jnp.full(50, 1e-5), jnp.ones(50),
+                               jnp.array([1e-3, -0.05, 0.05, 0.005, 0.05]))
+    print(repr(float(np.sum(f))), repr(float(chi2)), counts["loaded"], counts["compiled"])
+""")
+
+
+def test_new_process_loads_what_the_first_compiled(tmp_path):
+    """A second process loads the programs (the union integral and the
+    bump's Levenberg-Marquardt solve, whose QR calls LAPACK) instead of
+    compiling them, and gets the first's numbers exactly. (Without loading
+    LAPACK first, the loaded solve crashed the process.)"""
+    script = tmp_path / "run.py"
+    script.write_text(NEW_PROCESS)
+    env = dict(os.environ, JAXPPO_CACHE="1")
+    runs = [subprocess.run([sys.executable, str(script), str(tmp_path / "cache")], env=env, capture_output=True,
+                           text=True, timeout=300) for _ in range(2)]
+    for run in runs:
+        assert run.returncode == 0, run.stderr[-2000:]
+    first, second = (run.stdout.split() for run in runs)
+    assert first[:2] == second[:2]
+    assert (first[2], first[3]) == ("0", "2")
+    assert (second[2], second[3]) == ("2", "0")
+    assert len(list((tmp_path / "cache" / "programs").glob("*.exe"))) == 2
+
+
+def test_scan_outputs_identical_with_the_store_cold_and_warm(tmp_path):
+    """`jaxppo scan` (the bundled real Kepler-20 data, its dips fitted by the
+    PPO-or-spot alternatives) without the store, with it empty (programs
+    compiled and written) and with it full (programs loaded): the same
+    tables, summary and figures, byte for byte."""
+    jaxppo = os.path.join(os.path.dirname(sys.executable), "jaxppo")
+    runs = {"off": "0", "cold": "1", "warm": "1"}
+    for name, on in runs.items():
+        env = dict(os.environ, JAXPPO_CACHE=on, JAXPPO_CACHE_DIR=str(tmp_path / "cache"))
+        run = subprocess.run([jaxppo, "scan", "--quiet", "--alpha", "0", "360", "10", "--out", str(tmp_path / name)],
+                             env=env, capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-2000:]
+    assert len(list((tmp_path / "cache" / "programs").glob("*.exe"))) >= 5
+    names = sorted(p.name for p in (tmp_path / "off").iterdir() if p.suffix in (".csv", ".md", ".png"))
+    assert "scan.csv" in names and "ppo_or_spot.png" in names and len(names) >= 9
+    for name in ("cold", "warm"):
+        for f in names:
+            assert (tmp_path / name / f).read_bytes() == (tmp_path / "off" / f).read_bytes(), (name, f)
+        summary = json.loads((tmp_path / name / "summary.json").read_text())
+        off = json.loads((tmp_path / "off" / "summary.json").read_text())
+        for s, d in ((summary, name), (off, "off")):
+            s.pop("seconds")
+            s.update(json.loads(json.dumps(s).replace(str(tmp_path / d), "OUT")))
+        assert summary == off, name
