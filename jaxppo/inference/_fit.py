@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._lightcurve import LightCurve
+from ..model._programs import stored
 from ..model._system import System
 from ._model import Model, scaled_residuals
 from ._params import as_lightcurve, planet_value, star_value
@@ -350,6 +351,19 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
                      0, model.union_idx)
 
 
+@stored(filtered=True)
+def least_squares_pass(theta, scale, data, rtol: float, atol: float, max_steps: int):
+    """One Levenberg-Marquardt pass (optimistix) in z = (theta' - theta) *
+    scale from z = 0: (z at its end, the leaves of optimistix's result, its
+    steps). A stored program (outputs of arrays only): a new process loads
+    it instead of tracing the solver."""
+    import optimistix as optx
+
+    sol = optx.least_squares(scaled_residuals, optx.LevenbergMarquardt(rtol=rtol, atol=atol), jnp.zeros_like(theta),
+                             args=(theta, scale, data), max_steps=max_steps, throw=False)
+    return sol.value, tuple(jax.tree_util.tree_leaves(sol.result)), sol.stats["num_steps"]
+
+
 def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     """Levenberg-Marquardt passes until the solution is a minimum of a model
     whose frame sets cover it. Returns (model, theta, optimistix's failure
@@ -365,15 +379,15 @@ def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     function, so no recompilation)."""
     import optimistix as optx
 
-    solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     steps, restarts = 0, 0
     scale = jnp.ones_like(theta)
     verdict = None
     for stage in range(10):
-        sol = optx.least_squares(scaled_residuals, solver, jnp.zeros_like(theta), args=(theta, scale, model.data()),
-                                 max_steps=max_steps, throw=False)
-        theta = theta + sol.value / scale
-        steps += int(sol.stats.get("num_steps", -1))
+        value, result, num_steps = least_squares_pass(theta, scale, model.data(), float(rtol), float(atol),
+                                                      int(max_steps))
+        result = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(optx.RESULTS.successful), result)
+        theta = theta + value / scale
+        steps += int(num_steps)
         say(f"Levenberg-Marquardt pass {stage + 1}: {steps} steps in all")
         verdict = None
         wider = model.widened([model.to_system(theta)])
@@ -391,8 +405,8 @@ def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     if verdict is None:
         verdict = _assess(model, theta)
     failure = None
-    if not bool(sol.result == optx.RESULTS.successful):
-        failure = str(optx.RESULTS[sol.result]) if hasattr(optx.RESULTS, "__getitem__") else str(sol.result)
+    if not bool(result == optx.RESULTS.successful):
+        failure = str(optx.RESULTS[result]) if hasattr(optx.RESULTS, "__getitem__") else str(result)
     return model, theta, failure, steps, verdict
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._overlap import on_star, pairs_in_contact
 from ..model._planet import Planet
+from ..model._programs import stored
 from ..model._system import System
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
@@ -539,7 +540,7 @@ def _variance(theta, d: ModelData):
     return d.sigma**2, None
 
 
-@eqx.filter_jit
+@stored(filtered=True)
 def residuals(theta, d: ModelData) -> jnp.ndarray:
     """Residuals whose sum of squares is the objective: (y - model) /
     sigma, and with a free jitter s also sqrt(ln(1 + s^2 / sigma_i^2)) per
@@ -555,7 +556,7 @@ def residuals(theta, d: ModelData) -> jnp.ndarray:
     return jnp.concatenate([(d.y - model) / jnp.sqrt(var), jnp.sqrt(jnp.log1p(s2 / d.sigma**2))])
 
 
-@eqx.filter_jit
+@stored(filtered=True)
 def pointwise_loglike(theta, d: ModelData) -> jnp.ndarray:
     """Gaussian log-likelihood of each data point (jitter included)."""
     var, _ = _variance(theta, d)
@@ -572,19 +573,19 @@ def scaled_residuals(z, args) -> jnp.ndarray:
     return residuals(theta_ref + z / scale, d)
 
 
-@eqx.filter_jit
+@stored(filtered=True)
 def chi2_batch(thetas, d: ModelData):
     """Sum of squared residuals at each row of ``thetas`` (lax.map)."""
     return jax.lax.map(lambda t: jnp.sum(residuals(t, d) ** 2), thetas)
 
 
-@eqx.filter_jit
+@stored(filtered=True)
 def residuals_batch(thetas, d: ModelData):
     """Residuals at each row of ``thetas`` (lax.map)."""
     return jax.lax.map(lambda t: residuals(t, d), thetas)
 
 
-@eqx.filter_jit
+@stored(filtered=True)
 def jacobian(theta, d: ModelData):
     """(d residuals / d theta, residuals) by forward differentiation."""
     return jax.jacfwd(lambda th: (residuals(th, d),) * 2, has_aux=True)(theta)

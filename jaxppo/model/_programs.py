@@ -19,7 +19,8 @@ everything the program is made from:
 * the static arguments and the structure of the others (equinox Modules'
   static fields included), each leaf's shape, dtype and weak type.
 
-Only programs whose custom calls are all LAPACK's are stored (LAPACK is
+Only programs whose outputs are arrays in tuples, lists and dicts, and
+whose custom calls are all LAPACK's, are stored (LAPACK is
 loaded into the process before such a program runs): a host callback or
 another library's kernel is an address in the process that compiled it.
 Anything the key cannot describe exactly (a static value other than None,
@@ -171,20 +172,41 @@ def _usable() -> bool:
 class _Stored:
     """A jitted function whose compiled programs are kept in the store."""
 
-    def __init__(self, fn, static_argnames):
+    def __init__(self, fn, static_argnames, filtered=False):
         if fn.__closure__:
             raise ValueError(f"stored: {fn.__qualname__} has closure cells ({fn.__code__.co_freevars}); "
                              "what it closes over would not be in the program's key")
         self._fn = fn
         self._sig = inspect.signature(fn)
         self._static = tuple(static_argnames)
-        self._jit = jax.jit(fn, static_argnames=self._static)
+        self._filtered = filtered
+        if filtered:
+            import equinox as eqx
+
+            self._jit = eqx.filter_jit(fn)
+        else:
+            self._jit = jax.jit(fn, static_argnames=self._static)
         self._name = f"{fn.__module__}.{fn.__qualname__}"
         self._loaded = {}
         functools.update_wrapper(self, fn)
 
     def __getattr__(self, name):  # lower, trace, eval_shape, ... of the jitted function
         return getattr(self._jit, name)
+
+    def _split(self, leaves):
+        """(which leaves are traced, the others): arrays are traced; with
+        ``filtered`` (as ``equinox.filter_jit``) every other leaf is
+        static, else Python numbers are traced and nothing else may occur."""
+        traced, fixed = [], []
+        for leaf in leaves:
+            if isinstance(leaf, jax.core.Tracer):
+                raise _Unstable("traced")
+            array = isinstance(leaf, (jax.Array, np.ndarray, np.generic))
+            if not array and not self._filtered and not isinstance(leaf, (bool, int, float, complex)):
+                raise _Unstable("not an array")
+            traced.append(array or not self._filtered)
+            fixed.append(None if traced[-1] else leaf)
+        return traced, tuple(fixed)
 
     def __call__(self, *args, **kwargs):
         folder = _state["folder"]
@@ -196,26 +218,25 @@ class _Stored:
         dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
         leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         try:
+            traced, fixed = self._split(leaves)
+            inputs = [leaf for leaf, t in zip(leaves, traced) if t]
             avals = []
-            for leaf in leaves:
-                if isinstance(leaf, jax.core.Tracer) or not isinstance(
-                        leaf, (jax.Array, np.ndarray, np.generic, bool, int, float, complex)):
-                    raise _Unstable("traced or not an array")
+            for leaf in inputs:
                 aval = jax.typeof(leaf)
                 avals.append((aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False))))
             options = tuple(str(getattr(jax.config, o, None)) for o in _OPTIONS)
             key = hashlib.sha256(
                 _environment(bool(jax.config.jax_enable_x64), options) + _stable(self._name)
-                + _stable(statics) + _treedef_key(treedef) + _stable(avals)).hexdigest()
+                + _stable(statics) + _treedef_key(treedef) + _stable(fixed) + _stable(avals)).hexdigest()
         except _Unstable:
             return self._jit(*args, **kwargs)
         compiled = self._loaded.get(key)
         if compiled is None:
-            compiled = self._load_or_compile(folder, key, leaves, treedef, statics)
+            compiled = self._load_or_compile(folder, key, inputs, (treedef, traced, fixed), statics)
             self._loaded[key] = compiled
-        return compiled(*leaves)
+        return compiled(*inputs)
 
-    def _load_or_compile(self, folder: Path, key: str, leaves, treedef, statics):
+    def _load_or_compile(self, folder: Path, key: str, inputs, structure, statics):
         """The program of ``key``: read from the store, else compiled (and
         written there). A file that does not load is compiled again."""
         from jax.experimental import serialize_executable as se
@@ -234,22 +255,35 @@ class _Stored:
         except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again
             pass
         fn = self._fn
+        treedef, traced, fixed = structure
 
-        def flat(*flat_leaves):
-            return fn(**jax.tree_util.tree_unflatten(treedef, flat_leaves), **statics)
+        def flat(*values):
+            it = iter(values)
+            leaves = [next(it) if t else f for t, f in zip(traced, fixed)]
+            return fn(**jax.tree_util.tree_unflatten(treedef, leaves), **statics)
 
-        lowered = jax.jit(flat).lower(*leaves)
+        lowered = jax.jit(flat).lower(*inputs)
         targets = custom_call_targets(lowered.as_text())
         compiled = lowered.compile()
         counts["compiled"] += 1
         if any(not t.startswith("lapack_") for t in targets):
             return compiled  # a host callback or another library's kernel: never reloaded
+        if not _builtin(compiled.out_tree):
+            return compiled  # outputs with classes of their own (their sentinels do not survive pickling)
         try:
             blob = pickle.dumps((sorted(targets), *se.serialize(compiled)))
         except Exception:  # noqa: BLE001 - not serializable (constants, custom outputs): in memory only
             return compiled
         _write(folder, path, blob)
         return compiled
+
+
+def _builtin(treedef) -> bool:
+    """Whether a pytree structure holds only tuples, lists, dicts and None."""
+    data = treedef.node_data()
+    if data is None:
+        return True
+    return data[0] in (tuple, list, dict, type(None)) and all(_builtin(c) for c in treedef.children())
 
 
 def custom_call_targets(text: str) -> set:
@@ -282,8 +316,8 @@ def _write(folder: Path, path: Path, blob: bytes) -> None:
         pass  # an unwritable store only costs the compilation next time
 
 
-def stored(fn=None, *, static_argnames=()):
-    """``jax.jit`` whose compiled programs are also kept in the program store.
+def stored(fn=None, *, static_argnames=(), filtered=False):
+    """``jax.jit`` (or ``equinox.filter_jit``) whose compiled programs are also kept in the program store.
 
     Parameters
     ----------
@@ -291,6 +325,9 @@ def stored(fn=None, *, static_argnames=()):
         A module-level function (no closure cells) of arrays and pytrees.
     static_argnames : tuple of str, optional
         Its static arguments, as for ``jax.jit``.
+    filtered : bool, optional
+        As ``equinox.filter_jit``: array leaves are traced, every other
+        leaf is static (default False: ``jax.jit``).
 
     Returns
     -------
@@ -310,5 +347,5 @@ def stored(fn=None, *, static_argnames=()):
     3.5
     """
     if fn is None:
-        return functools.partial(stored, static_argnames=static_argnames)
-    return _Stored(fn, static_argnames)
+        return functools.partial(stored, static_argnames=static_argnames, filtered=filtered)
+    return _Stored(fn, static_argnames, filtered)

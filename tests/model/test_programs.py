@@ -210,3 +210,21 @@ def test_scan_outputs_identical_with_the_store_cold_and_warm(tmp_path):
             s.pop("seconds")
             s.update(json.loads(json.dumps(s).replace(str(tmp_path / d), "OUT")))
         assert summary == off, name
+
+
+def test_fit_identical_with_the_store_cold_and_warm(tmp_path):
+    """`jaxppo fit` (the bundled synthetic Kepler-20 set, b.t0 and c.radius
+    free: its residuals, Jacobian and Levenberg-Marquardt passes are stored
+    programs) without the store, with it empty and with it full: the same
+    values, errors and chi^2, digit for digit."""
+    jaxppo = os.path.join(os.path.dirname(sys.executable), "jaxppo")
+    out = {}
+    for name, on in {"off": "0", "cold": "1", "warm": "1"}.items():
+        env = dict(os.environ, JAXPPO_CACHE=on, JAXPPO_CACHE_DIR=str(tmp_path / "cache"))
+        run = subprocess.run([jaxppo, "fit", "--quiet", "--free", "b.t0", "c.radius"], env=env, capture_output=True,
+                             text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-2000:]
+        out[name] = [line for line in run.stdout.splitlines() if not line.endswith(" s")]
+    assert len(list((tmp_path / "cache" / "programs").glob("*.exe"))) >= 3
+    assert any(line.startswith("chi2 = ") for line in out["off"]) and len(out["off"]) >= 3
+    assert out["cold"] == out["off"] and out["warm"] == out["off"]
