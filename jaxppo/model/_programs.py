@@ -11,7 +11,8 @@ everything the program is made from:
 
 * the function (module and qualified name) and the whole jaxppo package
   (the content of every source file, the size and time of every data
-  file; hashed at the first use per process);
+  file; hashed when jaxppo is imported, and the store is turned off for
+  the process if the files change afterwards);
 * the versions of Python, numpy, JAX, jaxlib, equinox, optimistix and
   lineax, and JAX's options that change a trace (float64, matmul
   precision, dtype and rank promotion, NaN/Inf checks);
@@ -25,7 +26,8 @@ loaded into the process before such a program runs): a host callback or
 another library's kernel is an address in the process that compiled it.
 Anything the key cannot describe exactly (a static value other than None,
 bool, int, float, complex, str, bytes, numpy arrays and containers of
-them; a traced argument; several devices or processes; ``jax.disable_jit``)
+them and classes of jaxppo, JAX, equinox, optimistix, lineax and numpy; a
+traced argument; several devices or processes; ``jax.disable_jit``)
 runs the ordinary ``jax.jit`` path: the store only skips work, it never
 changes a number. A function with closure cells is refused when it is
 decorated (what it closes over would not be in the key).
@@ -82,7 +84,7 @@ def _stable(obj) -> bytes:
     if obj is None or isinstance(obj, (bool, int, float, complex, str, bytes)):
         return f"{type(obj).__name__}:{obj!r}".encode()
     if isinstance(obj, enum.Enum):
-        return f"enum:{type(obj).__module__}.{type(obj).__qualname__}.{obj.name}".encode()
+        return f"enum:{_known(type(obj))}.{obj.name}".encode()
     if isinstance(obj, (tuple, list)):
         return f"{type(obj).__name__}(".encode() + b",".join(_stable(v) for v in obj) + b")"
     if isinstance(obj, dict):
@@ -96,10 +98,23 @@ def _stable(obj) -> bytes:
             raise _Unstable("object array")
         return f"ndarray:{a.dtype.str}:{a.shape}:".encode() + hashlib.sha256(a.tobytes()).hexdigest().encode()
     if isinstance(obj, type):
-        return f"type:{obj.__module__}.{obj.__qualname__}".encode()
+        return f"type:{_known(obj)}".encode()
     if type(obj).__name__ == "_Missing" and type(obj).__module__.startswith("equinox"):
         return b"equinox-missing"  # equinox's sentinel of a field without a value
     raise _Unstable(type(obj).__qualname__)
+
+
+# packages whose code is in every key (jaxppo by its files, the others by
+# their versions); a class from anywhere else (a user's subclass of Planet,
+# say) could change without changing the key
+_VERSIONED = ("jaxppo", "jax", "jaxlib", "equinox", "optimistix", "lineax", "numpy", "builtins")
+
+
+def _known(cls: type) -> str:
+    """``module.qualname`` of a class whose code the key covers."""
+    if cls.__module__.split(".")[0] not in _VERSIONED:
+        raise _Unstable(f"class {cls.__module__}.{cls.__qualname__} from outside the versioned packages")
+    return f"{cls.__module__}.{cls.__qualname__}"
 
 
 def _treedef_key(treedef) -> bytes:
@@ -142,6 +157,33 @@ def _cpu_flags() -> str:
     return platform.processor() or platform.machine()
 
 
+def _stamp(root: Path) -> tuple:
+    """(path, size, modification time) of every file of the package."""
+    out = []
+    for path in sorted(root.rglob("*")):
+        if "__pycache__" not in path.parts and path.is_file():
+            st = path.stat()
+            out.append((str(path), st.st_size, st.st_mtime_ns))
+    return tuple(out)
+
+
+_ROOT = Path(__file__).resolve().parents[1]
+# the package as imported (jaxppo imports this module first): hashed now, so
+# that an edit made later in this process's life cannot be taken for the
+# code it runs; every read and write of the store checks it is unchanged
+_PACKAGE = {"hash": _package_hash(_ROOT), "stamp": _stamp(_ROOT)}
+
+
+def _unchanged() -> bool:
+    """Whether the package's files are still those hashed at import; if
+    not, the store is turned off for this process (its code may differ from
+    the files)."""
+    if _stamp(_ROOT) != _PACKAGE["stamp"]:
+        _state["folder"] = None
+        return False
+    return True
+
+
 @functools.lru_cache(maxsize=None)
 def _environment(x64: bool, options: tuple) -> bytes:
     """What every key shares: package, versions, device, JAX options."""
@@ -155,7 +197,7 @@ def _environment(x64: bool, options: tuple) -> bytes:
             versions.append(f"{dist}=none")
     dev = jax.devices()[0]
     device = [dev.platform, getattr(dev, "device_kind", ""), dev.client.platform_version, _cpu_flags()]
-    return _stable((_package_hash(), versions, device, x64, options))
+    return _stable((_PACKAGE["hash"], versions, device, x64, options))
 
 
 _OPTIONS = ("jax_default_matmul_precision", "jax_numpy_rank_promotion", "jax_numpy_dtype_promotion",
@@ -187,6 +229,8 @@ class _Stored:
         else:
             self._jit = jax.jit(fn, static_argnames=self._static)
         self._name = f"{fn.__module__}.{fn.__qualname__}"
+        if fn.__module__.split(".")[0] != "jaxppo":  # not in the package hash: its file's content is
+            self._name += ":" + hashlib.sha256(Path(inspect.getsourcefile(fn)).read_bytes()).hexdigest()
         self._loaded = {}
         functools.update_wrapper(self, fn)
 
@@ -232,6 +276,8 @@ class _Stored:
             return self._jit(*args, **kwargs)
         compiled = self._loaded.get(key)
         if compiled is None:
+            if not _unchanged():
+                return self._jit(*args, **kwargs)
             compiled = self._load_or_compile(folder, key, inputs, (treedef, traced, fixed), statics)
             self._loaded[key] = compiled
         return compiled(*inputs)

@@ -8,7 +8,6 @@ import subprocess
 import sys
 import textwrap
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -34,14 +33,13 @@ def _moment(x, scale, power):
     return jnp.sum((scale * x) ** power)
 
 
-class _Weights(eqx.Module):
-    w: jax.Array
-    label: str = eqx.field(static=True)
-
-
 @stored
-def _weighted(m, x):
-    return jnp.sum(m.w * x)
+def _radius_sum(planet, x):
+    return jnp.sum(planet.radius * x)
+
+
+class _MyPlanet(jp.Planet):
+    """A user's subclass: its code is not in the key."""
 
 
 def _frames():
@@ -75,10 +73,22 @@ def test_key_follows_static_arguments_shapes_and_static_fields(store):
     assert float(_moment(jnp.arange(4, dtype=jnp.int32), 1.0, power=2)) == 14.0
     assert float(_moment(x, 2.0, power=2)) == 56.0  # another value: the same program
     assert len(list(store.glob("*.exe"))) == 4
-    a = _weighted(_Weights(jnp.ones(3), "a"), jnp.arange(3.0))
-    b = _weighted(_Weights(jnp.ones(3), "b"), jnp.arange(3.0))
-    assert float(a) == float(b) == 3.0
-    assert len(list(store.glob("*.exe"))) == 6
+    b, c = (jp.Planet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.5, name=n) for n in "bc")
+    assert float(_radius_sum(b, jnp.arange(3.0))) == float(_radius_sum(c, jnp.arange(3.0))) == 1.5
+    assert len(list(store.glob("*.exe"))) == 6  # the planet's name (a static field) is in the key
+
+
+def test_what_the_key_cannot_cover_is_not_stored(store, monkeypatch):
+    """A user's subclass (its code is not in the key) and a package edited
+    after import (its files no longer the code that runs) take the jitted
+    path: the right numbers, nothing written; the edit turns the store off."""
+    mine = _MyPlanet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.5, name="b")
+    assert float(_radius_sum(mine, jnp.arange(3.0))) == 1.5
+    assert not list(store.glob("*.exe"))
+    monkeypatch.setitem(_programs._PACKAGE, "stamp", ())
+    assert float(_moment(jnp.arange(6.0), 1.0, power=2)) == 55.0
+    assert not list(store.glob("*.exe"))
+    assert _programs.store_folder() is None
 
 
 def test_traced_calls_and_transformations_bypass_the_store(store):
