@@ -73,8 +73,13 @@ def test_two_processes_resume_and_write_the_scan_of_one(tmp_path):
         assert "holds results of a different configuration" in err, err[-2000:]
     # a write of process 0 that fails after the scan (scan.csv cannot be
     # replaced: here a folder; on a cluster a full disk) stops both, by name
-    # (old code: process 0 raised alone, process 1 waited in the final barrier)
+    # (old code: process 0 raised alone, process 1 waited in the final barrier);
+    # the scan itself resumes from one's finished progress (every alpha done:
+    # the chi^2 blocks are not computed a third time), its analysis and the
+    # write of its tables then run as in any scan
     (tmp_path / "three" / "scan.csv").mkdir(parents=True)
+    for name in ("scan_progress.jsonl", "config.json"):
+        shutil.copy(one / name, tmp_path / "three" / name)
     outs = _two_processes(tmp_path, ["--out", "three"], (tmp_path, host1), check=False)
     for out, err in outs:
         assert "process 0 failed while writing the scan's tables into three" in err, err[-2000:]
