@@ -55,9 +55,10 @@ from ..model._programs import stored
 __all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model"]
 
 
-def bump_model(t, amplitude, centre, width):
-    """A exp(-(t - t_c)^2 / (2 w^2)) [relative flux] at times t [d]."""
-    return amplitude * jnp.exp(-0.5 * ((jnp.asarray(t) - centre) / width) ** 2)
+def bump_model(t, amplitude, centre, width, xp=jnp):
+    """A exp(-(t - t_c)^2 / (2 w^2)) [relative flux] at times t [d]
+    (``xp``: jax.numpy, default, or numpy on the host)."""
+    return amplitude * xp.exp(-0.5 * ((xp.asarray(t) - centre) / width) ** 2)
 
 
 def _window_models(system, window, alpha, case):
@@ -69,6 +70,15 @@ def _window_models(system, window, alpha, case):
     null = exposure_mean(sweep(system, tm, np.zeros(1), cases=(case,), no_overlap=True)[0, 0], nsub)
     ppo = exposure_mean(sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0], nsub)
     return tm, nsub, np.asarray(null), np.asarray(ppo)
+
+
+@stored
+def _own_depth(star, planet, t):
+    """1 - the flux of ``planet`` alone in front of ``star`` at t[0] [d]
+    (exact method; one stored program, not one per operation)."""
+    from ..model._system import System
+
+    return 1.0 - System(star, [planet]).flux(t, method="exact")[0]
 
 
 def _planet_transits(system, window):
@@ -88,9 +98,7 @@ def _planet_transits(system, window):
         p = float(pl.radius)
         speed = 2 * math.pi * float(pl.a) / period  # [R* / d]
         # the planet's own depth at mid-transit, limb-darkened: an upper bound of A
-        from ..model._system import System
-
-        depth = 1.0 - float(np.asarray(System(system.star, [pl]).flux(np.array([mid]), method="exact"))[0])
+        depth = float(_own_depth(system.star, pl, np.array([float(mid)])))
         out.append((pl.name or "?", mid - half, mid + half, depth, 2 * p / speed))
     return out
 
@@ -106,7 +114,8 @@ def _unpack(th, bounds):
 @stored(static_argnames=("nsub",))
 def _solve_bump(nsub, th0, tm, y, sig, base, bounds):
     """One Levenberg-Marquardt solve (compiled once per window size, not per
-    dip: the scan runs it on every negative dip)."""
+    dip: the scan runs it on every negative dip): the bump's (A, t_c, w),
+    chi^2 and whether optimistix converged."""
     import optimistix as optx
 
     def resid(th, _):
@@ -116,27 +125,27 @@ def _solve_bump(nsub, th0, tm, y, sig, base, bounds):
 
     sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10), th0, max_steps=400, throw=False)
     r = resid(sol.value, None)
-    return sol.value, jnp.sum(r * r), sol.result == optx.RESULTS.successful
+    return jnp.stack(_unpack(sol.value, bounds)), jnp.sum(r * r), sol.result == optx.RESULTS.successful
 
 
 def _fit_bump(tm, nsub, y, sig, base, lo, hi, a_max, w_min, w_max, starts=7):
     """Least-squares bump (optimistix LM) with t_c in [lo, hi], A in
     [0, a_max], w in [w_min, w_max]; returns (params, chi2, converged)."""
-    args = tuple(jnp.asarray(v, float) for v in (tm, y, sig, base))
-    bounds = jnp.asarray([a_max, lo, hi, w_min, w_max], float)
+    args = tuple(np.asarray(v, float) for v in (tm, y, sig, base))
+    bounds = np.asarray([a_max, lo, hi, w_min, w_max], float)
     best = None
     logit = lambda q: math.log(q / (1 - q))
     for q_c in (np.arange(starts) + 0.5) / starts:
         for q_w in (0.1, 0.5):
-            th0 = jnp.array([logit(0.3), logit(q_c), logit(q_w)])
-            th, chi2, ok = _solve_bump(int(nsub), th0, *args, bounds)
+            th0 = np.array([logit(0.3), logit(q_c), logit(q_w)])
+            params, chi2, ok = _solve_bump(int(nsub), th0, *args, bounds)
             chi2 = float(chi2)
             if np.isfinite(chi2) and (best is None or chi2 < best[1]):
-                best = (th, chi2, bool(ok))
+                best = (params, chi2, bool(ok))
     if best is None:
         raise ValueError("ppo_or_spot: no start of the bump fit gave a finite chi^2")
-    th, chi2, ok = best
-    a, c, w = (float(v) for v in _unpack(th, bounds))
+    params, chi2, ok = best
+    a, c, w = (float(v) for v in np.asarray(params))
     return {"amplitude": a, "centre": c, "width": w}, chi2, ok
 
 
@@ -238,7 +247,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             fine = SimpleNamespace(time=np.linspace(w.time.min(), w.time.max(), 300), flux=np.ones(300),
                                    flux_err=np.ones(300), exposure=w.exposure)
             tf, nf, null_f, ppo_f = _window_models(system, fine, d["alpha"], d["case"])
-            bump_f = exposure_mean(np.asarray(bump_model(tf, params["amplitude"], params["centre"], params["width"])), nf)
+            bump_f = exposure_mean(bump_model(tf, params["amplitude"], params["centre"], params["width"], np), nf)
             entry["windows"].append({"number": num, "mid": float(w.event.mid), "points": int(y.size),
                                      "chi2_no_ppo": c2_none, "chi2_ppo": c2_ppo, "chi2_spot": c2_spot,
                                      "bump": params, "crossing_planet": planet, "converged": ok})

@@ -15,7 +15,7 @@ from jaxtyping import Array
 
 from ._programs import stored
 from ._star import Star
-from ._terms import disk_terms, exact_frames, inner_disk_terms, lens_rho_jit, lens_terms
+from ._terms import column_terms, exact_frames, lens_rho_jit, lens_terms
 from ..core.centre import centre_split
 from ..core.geometry import safe_hypot
 from ..core.occult import INNER_MARGIN, LENS_RULES, MAX_RADIUS, disk_deficit, inner_disk_deficit, lens_deficit, lens_rho, union_deficit
@@ -68,19 +68,21 @@ def one_disk_sum(star: Star, d: np.ndarray, r: np.ndarray, order: int, chunk: in
     on = (flat_r > 0) & (flat_d - flat_r < 1.0)
     inner = on & (1.0 - flat_d - flat_r >= INNER_MARGIN * flat_r) & star.smooth
     rest = on & ~inner
-    for mask, kernel in ((inner, lambda s, a, b, o: inner_disk_terms(s, a, b)), (rest, disk_terms)):
+    for mask, is_inner in ((inner, True), (rest, False)):
         idx = np.nonzero(mask)[0]
         if idx.size:
-            terms[idx] = _per_disk(kernel, star, flat_d[idx], flat_r[idx], order, chunk)
+            terms[idx] = _per_disk(is_inner, star, flat_d[idx], flat_r[idx], order, chunk)
     return 1.0 - terms.reshape(d.shape).sum(-1)
 
 
-def _per_disk(kernel, star: Star, d: np.ndarray, p: np.ndarray, order: int, chunk: int) -> np.ndarray:
-    """A one-disk kernel(star, d, p, order) over host arrays of disks, in the
-    padded calls of ``run_padded`` (padding disks lie off the star; the
-    kernel gets d in the x slot, and the y slot is unused)."""
+def _per_disk(is_inner: bool, star: Star, d: np.ndarray, p: np.ndarray, order: int, chunk: int) -> np.ndarray:
+    """One-disk terms (the midpoint rule where ``is_inner``, else the
+    general rule) over host arrays of disks, in the padded calls of
+    ``run_padded`` (padding disks lie off the star; ``column_terms`` gets d
+    in the x slot, and the y slot is unused)."""
     col = d[:, None]
-    return run_padded(lambda s, a, b, c, o: kernel(s, a[:, 0], c[:, 0], o), star, col, col, p[:, None], order, chunk)
+    kernel = functools.partial(column_terms, inner=is_inner)
+    return run_padded(kernel, star, col, col, p[:, None], order, chunk)
 
 
 @functools.lru_cache(maxsize=None)
@@ -175,7 +177,7 @@ def auto_frames(star: Star, x: np.ndarray, y: np.ndarray, r: np.ndarray, order: 
     # counting disks outside the midpoint rule's domain: the general one-disk rule
     fd, kd = np.nonzero(counts & ~inner & ~general[:, None])
     if fd.size:
-        terms = _per_disk(disk_terms, star, np.hypot(x[fd, kd], y[fd, kd]), r[fd, kd], order, chunk)
+        terms = _per_disk(False, star, np.hypot(x[fd, kd], y[fd, kd]), r[fd, kd], order, chunk)
         out -= np.bincount(fd, weights=terms, minlength=n)
     idx = np.nonzero(general)[0]
     if idx.size:
@@ -229,7 +231,9 @@ def run_padded(fn, star, x, y, r, order, chunk: int):
             xs = xp.concatenate([xs, xp.full((pad, kk), 10.0, xs.dtype) + xp.arange(kk, dtype=xs.dtype)], 0)
             ys = xp.concatenate([ys, xp.zeros((pad, kk), ys.dtype)], 0)
             rs = xp.concatenate([rs, xp.full((pad, kk), 0.1, rs.dtype)], 0)
-        xs, ys, rs = _shard(tuple(jnp.asarray(v) for v in (xs, ys, rs)))
+        # host arrays go to the program as they are (jnp.asarray would run
+        # one device program per array on an eager call)
+        xs, ys, rs = _shard((xs, ys, rs) if concrete else tuple(jnp.asarray(v) for v in (xs, ys, rs)))
         res = fn(star, xs, ys, rs, order)
         outs.append(jax.tree_util.tree_map(lambda v: to_host(v)[:m] if concrete else v[:m], res))
     cat = np.concatenate if concrete else jnp.concatenate

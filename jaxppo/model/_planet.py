@@ -289,13 +289,21 @@ class Planet(eqx.Module):
 
         Returns
         -------
-        jax.Array
-            b [R*], a scalar (or the shape of the parameters).
+        numpy.ndarray or jax.Array
+            b [R*], a scalar (or the shape of the parameters): a numpy array
+            for concrete parameters, traced under jit/grad/vmap.
         """
-        b = self.a * jnp.cos(jnp.deg2rad(self.inc))
+        xp = self._xp()
+        b = xp.asarray(self.a) * xp.cos(xp.deg2rad(xp.asarray(self.inc)))
         if self.circular:
             return b
-        return b * (1.0 - self.e**2) / (1.0 + self.e * jnp.sin(jnp.deg2rad(self.omega)))
+        e = xp.asarray(self.e)
+        return b * (1.0 - e**2) / (1.0 + e * xp.sin(xp.deg2rad(xp.asarray(self.omega))))
+
+    def _xp(self):
+        """numpy where every parameter is concrete (host arithmetic: no
+        device program per operation), else jax.numpy."""
+        return jnp if any(isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(self)) else np
 
     def position(self, t: ArrayLike, xp=jnp) -> tuple[Array, Array, Array]:
         """Sky position (x, y, z) [R*] at times t [d].
@@ -421,17 +429,20 @@ class Planet(eqx.Module):
 
         Returns
         -------
-        jax.Array
-            The half-width [d]; 0 if the planet never transits.
+        numpy.ndarray or jax.Array
+            The half-width [d]; 0 if the planet never transits (a numpy
+            array for concrete parameters, traced under jit/grad/vmap).
         """
         if not self.circular:
             t1, t4 = self.contacts()
-            return jnp.asarray(np.maximum(-t1, t4))
-        sin_i = jnp.sin(jnp.deg2rad(self.inc))
-        c2 = (1.0 - ((1.0 + self.radius) / self.a) ** 2) / jnp.maximum(sin_i**2, 1e-300)
-        transits = (jnp.abs(self.impact) < 1.0 + self.radius) & (c2 < 1.0)
-        phase = jnp.arccos(jnp.sqrt(jnp.clip(c2, 0.0, 1.0)))
-        return jnp.where(transits, self.period * phase / (2.0 * jnp.pi), 0.0)
+            return np.maximum(-t1, t4)
+        xp = self._xp()
+        radius, a = xp.asarray(self.radius), xp.asarray(self.a)
+        sin_i = xp.sin(xp.deg2rad(xp.asarray(self.inc)))
+        c2 = (1.0 - ((1.0 + radius) / a) ** 2) / xp.maximum(sin_i**2, 1e-300)
+        transits = (xp.abs(self.impact) < 1.0 + radius) & (c2 < 1.0)
+        phase = xp.arccos(xp.sqrt(xp.clip(c2, 0.0, 1.0)))
+        return xp.where(transits, xp.asarray(self.period) * phase / (2.0 * np.pi), 0.0)
 
     def __repr__(self) -> str:
         """Planet(name='b', period=3.6961159 d, t0=134.501962 d, a=10.6 R*, inc=87.687 deg, radius=0.01805);

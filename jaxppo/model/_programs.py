@@ -32,6 +32,12 @@ runs the ordinary ``jax.jit`` path: the store only skips work, it never
 changes a number. A function with closure cells is refused when it is
 decorated (what it closes over would not be in the key).
 
+Each stored program is compiled afresh, under a module name of its own
+(an executable that JAX's persistent cache had loaded serialized without
+its kernels), and a program read from the store runs once, to the end,
+before it is trusted; one that fails is removed and the call takes the
+jitted path.
+
 The store is on where ``jaxppo.compilation_cache`` turned JAX's cache on
 (every ``jaxppo`` command does): it is the cache folder's ``programs``
 subfolder, kept to ``MAX_FILES`` files (the least recently written go).
@@ -43,6 +49,7 @@ import enum
 import functools
 import hashlib
 import inspect
+import itertools
 import os
 import pickle
 import platform
@@ -59,8 +66,9 @@ __all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts
 MAX_FILES = 512
 
 _state = {"folder": None}
+_NONCE = itertools.count()
 # programs read from the store and compiled (and written) by this process
-counts = {"loaded": 0, "compiled": 0}
+counts = {"loaded": 0, "compiled": 0, "failed": 0}
 _lock = threading.Lock()
 
 
@@ -275,16 +283,27 @@ class _Stored:
         except _Unstable:
             return self._jit(*args, **kwargs)
         compiled = self._loaded.get(key)
-        if compiled is None:
-            if not _unchanged():
-                return self._jit(*args, **kwargs)
-            compiled = self._load_or_compile(folder, key, inputs, (treedef, traced, fixed), statics)
+        if compiled is not None:
+            return compiled(*inputs)
+        if not _unchanged():
+            return self._jit(*args, **kwargs)
+        compiled, from_file = self._load_or_compile(folder, key, inputs, (treedef, traced, fixed), statics)
+        if not from_file:
             self._loaded[key] = compiled
-        return compiled(*inputs)
+            return compiled(*inputs)
+        try:  # a program read from the store runs once, to the end, before it is trusted
+            out = jax.block_until_ready(compiled(*inputs))
+        except Exception:  # noqa: BLE001 - it does not run here: removed, and the jitted path instead
+            (folder / f"{key}.exe").unlink(missing_ok=True)
+            counts["failed"] += 1
+            return self._jit(*args, **kwargs)
+        self._loaded[key] = compiled
+        return out
 
     def _load_or_compile(self, folder: Path, key: str, inputs, structure, statics):
-        """The program of ``key``: read from the store, else compiled (and
-        written there). A file that does not load is compiled again."""
+        """(the program of ``key``, whether it was read from the store): read
+        from the store, else compiled (and written there). A file that does
+        not load is compiled again."""
         from jax.experimental import serialize_executable as se
 
         path = folder / f"{key}.exe"
@@ -295,7 +314,7 @@ class _Stored:
                 _prepare_lapack()
             compiled = se.deserialize_and_load(payload, in_tree, out_tree)
             counts["loaded"] += 1
-            return compiled
+            return compiled, True
         except FileNotFoundError:
             pass
         except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again
@@ -308,20 +327,26 @@ class _Stored:
             leaves = [next(it) if t else f for t, f in zip(traced, fixed)]
             return fn(**jax.tree_util.tree_unflatten(treedef, leaves), **statics)
 
+        # a module name of its own: XLA compiles this program afresh. From
+        # JAX's persistent cache (the same program compiled before: another
+        # planet's name, a store file lost) came an executable whose
+        # serialization lacked its kernels ("Function ... not found" when
+        # loaded in a new process)
+        flat.__name__ = flat.__qualname__ = f"stored_{key[:20]}_{os.getpid()}_{next(_NONCE)}"
         lowered = jax.jit(flat).lower(*inputs)
         targets = custom_call_targets(lowered.as_text())
         compiled = lowered.compile()
         counts["compiled"] += 1
         if any(not t.startswith("lapack_") for t in targets):
-            return compiled  # a host callback or another library's kernel: never reloaded
+            return compiled, False  # a host callback or another library's kernel: never reloaded
         if not _builtin(compiled.out_tree):
-            return compiled  # outputs with classes of their own (their sentinels do not survive pickling)
+            return compiled, False  # outputs with classes of their own (their sentinels do not survive pickling)
         try:
             blob = pickle.dumps((sorted(targets), *se.serialize(compiled)))
         except Exception:  # noqa: BLE001 - not serializable (constants, custom outputs): in memory only
-            return compiled
+            return compiled, False
         _write(folder, path, blob)
-        return compiled
+        return compiled, False
 
 
 def _builtin(treedef) -> bool:

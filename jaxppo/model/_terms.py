@@ -49,6 +49,16 @@ def inner_disk_terms(star: Star, d: Array, p: Array) -> Array:
     return inner_disk_deficit(d, p, g) / (2.0 * jnp.pi * phi1)
 
 
+@stored(static_argnames=("order", "inner"))
+def column_terms(star: Star, d: Array, unused: Array, p: Array, order: int, inner: bool) -> Array:
+    """One-disk relative deficits of [disk, 1] columns d and p (the frame
+    kernels' layout; ``unused`` fills their y slot): the midpoint rule where
+    ``inner`` (disks well inside the star), else the general rule."""
+    if inner:
+        return inner_disk_terms(star, d[:, 0], p[:, 0])
+    return disk_terms(star, d[:, 0], p[:, 0], order)
+
+
 @stored(static_argnames=("order",))
 def lens_terms(star: Star, x: Array, y: Array, r: Array, order: int) -> Array:
     """Relative flux of the lens of each crossing pair ([pair, 2] arrays),

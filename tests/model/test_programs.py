@@ -238,3 +238,57 @@ def test_fit_identical_with_the_store_cold_and_warm(tmp_path):
     assert len(list((tmp_path / "cache" / "programs").glob("*.exe"))) >= 3
     assert any(line.startswith("chi2 = ") for line in out["off"]) and len(out["off"]) >= 3
     assert out["cold"] == out["off"] and out["warm"] == out["off"]
+
+
+SAME_CODE = textwrap.dedent("""
+    import sys
+    import jax, numpy as np
+    jax.config.update("jax_enable_x64", True)
+    import jaxppo as jp
+    from jaxppo.model._programs import counts
+    from jaxppo.activity._ppo_or_spot import _own_depth
+    jp.compilation_cache(sys.argv[1])
+    star = jp.Star.quadratic(0.4, 0.26)
+    for name in sys.argv[2]:
+        planet = jp.Planet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.08, name=name)
+        print(repr(float(_own_depth(star, planet, np.array([0.001])))), counts["loaded"], counts["failed"])
+""")
+
+
+def test_programs_of_the_same_code_load_alone(tmp_path):
+    """Two stored programs of the same XLA code (planets b and c: their
+    names are static, the program is the same) compiled in one process; a
+    new process loads c's alone and gets the same depth. (c's executable
+    came from JAX's persistent cache and was serialized without its
+    kernels: "Function multiply_cosine_fusion not found".)"""
+    script = tmp_path / "run.py"
+    script.write_text(SAME_CODE)
+    env = dict(os.environ, JAXPPO_CACHE="1")
+    first, second = (subprocess.run([sys.executable, str(script), str(tmp_path / "cache"), names], env=env,
+                                    capture_output=True, text=True, timeout=300) for names in ("bc", "c"))
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert second.returncode == 0, second.stderr[-2000:]
+    depth_b, depth_c = (line.split()[0] for line in first.stdout.splitlines())
+    assert depth_b == depth_c
+    assert second.stdout.split() == [depth_c, "1", "0"]
+
+
+def test_a_stored_program_that_does_not_run_is_removed(store, monkeypatch):
+    """A program read from the store that fails when it runs is removed and
+    the call answered by the jitted path."""
+    x = jnp.arange(4.0)
+    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
+    (path,) = store.glob("*.exe")
+
+    def broken(*args, **kwargs):
+        def run(*inputs):
+            raise jax.errors.JaxRuntimeError("NOT_FOUND: Function fusion not found")
+        return run
+
+    from jax.experimental import serialize_executable
+
+    monkeypatch.setattr(serialize_executable, "deserialize_and_load", broken)
+    before = counts["failed"]
+    assert float(_programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)) == 14.0
+    assert counts["failed"] == before + 1
+    assert not path.exists()
