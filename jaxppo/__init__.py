@@ -117,3 +117,7 @@ __all__ = [
     "measure_transit_times",
     "linear_ephemeris",
 ]
+
+from .model._programs import record_constants as _record_constants  # noqa: E402
+
+_record_constants()  # the program store's reference (jaxppo.model._programs)

@@ -21,7 +21,7 @@ __all__ = ["occultation_flux", "METHODS"]
 METHODS = ("auto", "exact", "raster")
 
 
-_FLOAT32_WARNED = False
+_WARNED = {"float32": False}  # (a dict: module-level values stay put for the program store)
 FLOAT32_MESSAGE = (
     "jaxppo: float32: JAX's float64 is off (jax_enable_x64 is False), so every flux is computed in float32. "
     "The flux kernel alone then errs by ~1e-7, but float32 times and positions put a light curve off by up to "
@@ -34,9 +34,8 @@ FLOAT32_MESSAGE = (
 def _warn_float32_once() -> None:
     """The float32 policy (docs/methods.md): the library never flips JAX's
     global x64 switch, but a user cannot miss that it is off."""
-    global _FLOAT32_WARNED
-    if not _FLOAT32_WARNED and not jax.config.jax_enable_x64:
-        _FLOAT32_WARNED = True
+    if not _WARNED["float32"] and not jax.config.jax_enable_x64:
+        _WARNED["float32"] = True
         import warnings
 
         warnings.warn(FLOAT32_MESSAGE, UserWarning, stacklevel=3)

@@ -11,8 +11,9 @@ everything the program is made from:
 
 * the function (module and qualified name) and the whole jaxppo package
   (the content of every source file, the size and time of every data
-  file; hashed when jaxppo is imported, and the store is turned off for
-  the process if the files change afterwards);
+  file; hashed when jaxppo is imported, with the bytecode Python runs,
+  and the store is turned off for the process if the files change
+  afterwards, or a module-level value of jaxppo is set anew);
 * the versions of Python, numpy, JAX, jaxlib, equinox, optimistix and
   lineax, and JAX's options that change a trace (float64, matmul
   precision, dtype and rank promotion, NaN/Inf checks);
@@ -56,17 +57,21 @@ import platform
 import re
 import sys
 import threading
+import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
-__all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "MAX_FILES"]
+__all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "record_constants", "MAX_FILES"]
 
 MAX_FILES = 512
 
 _state = {"folder": None}
 _NONCE = itertools.count()
+# a stored program's file: this format's tag, the sha256 of the rest, the rest
+# (a damaged executable can kill the process that loads it: it is checked first)
+_FORMAT = b"jaxppo-program-1\n"
 # programs read from the store and compiled (and written) by this process
 counts = {"loaded": 0, "compiled": 0, "failed": 0}
 _lock = threading.Lock()
@@ -137,8 +142,12 @@ def _treedef_key(treedef) -> bytes:
 
 def _package_hash(root=None) -> str:
     """sha256 of the installed jaxppo package (or the folder ``root``):
-    every source file by its content, every other file (data) by its size
-    and modification time."""
+    every source file by its content and that of its bytecode for this
+    Python (``__pycache__``: what Python runs where it holds the source's
+    size and time, even if the source was edited since), every other file
+    (data) by its size and modification time."""
+    import importlib.util
+
     root = Path(__file__).resolve().parents[1] if root is None else Path(root)
     h = hashlib.sha256()
     for path in sorted(root.rglob("*")):
@@ -147,6 +156,10 @@ def _package_hash(root=None) -> str:
         h.update(str(path.relative_to(root)).encode() + b"\0")
         if path.suffix == ".py":
             h.update(path.read_bytes() + b"\0")
+            try:
+                h.update(Path(importlib.util.cache_from_source(str(path))).read_bytes() + b"\0")
+            except (OSError, NotImplementedError):
+                h.update(b"no bytecode\0")
         else:
             st = path.stat()
             h.update(f"{st.st_size}:{st.st_mtime_ns}\0".encode())
@@ -166,10 +179,11 @@ def _cpu_flags() -> str:
 
 
 def _stamp(root: Path) -> tuple:
-    """(path, size, modification time) of every file of the package."""
+    """(path, size, modification time) of every file of the package, its
+    bytecode included."""
     out = []
     for path in sorted(root.rglob("*")):
-        if "__pycache__" not in path.parts and path.is_file():
+        if path.is_file() and not path.name.endswith(".tmp"):
             st = path.stat()
             out.append((str(path), st.st_size, st.st_mtime_ns))
     return tuple(out)
@@ -182,19 +196,47 @@ _ROOT = Path(__file__).resolve().parents[1]
 _PACKAGE = {"hash": _package_hash(_ROOT), "stamp": _stamp(_ROOT)}
 
 
+_CONSTANTS: dict = {}
+
+
+def _module_values() -> dict:
+    """{(module, name): id} of the module-level values of every loaded
+    jaxppo module (constants a kernel may read while it is traced)."""
+    out = {}
+    for name, module in list(sys.modules.items()):
+        if module is not None and (name == "jaxppo" or name.startswith("jaxppo.")):
+            for key, value in list(vars(module).items()):
+                if not key.startswith("__"):
+                    out[(name, key)] = id(value)
+    return out
+
+
+def record_constants() -> None:
+    """Remember the module-level values of jaxppo's loaded modules (jaxppo's
+    ``__init__`` calls it last): a value set later (``INNER_MARGIN = 50``)
+    turns the store off for the process, as an edited file does."""
+    _CONSTANTS.update(_module_values())
+
+
 def _unchanged() -> bool:
-    """Whether the package's files are still those hashed at import; if
-    not, the store is turned off for this process (its code may differ from
-    the files)."""
-    if _stamp(_ROOT) != _PACKAGE["stamp"]:
+    """Whether the package's files are still those hashed at import and its
+    modules' values those recorded (modules imported since are recorded
+    now); if not, the store is turned off for this process (its code may
+    differ from the files, or read another value)."""
+    now = _module_values()
+    moved = any(now.get(k, v) != v for k, v in _CONSTANTS.items())
+    for k, v in now.items():
+        _CONSTANTS.setdefault(k, v)
+    if moved or _stamp(_ROOT) != _PACKAGE["stamp"]:
         _state["folder"] = None
         return False
     return True
 
 
 @functools.lru_cache(maxsize=None)
-def _environment(x64: bool, options: tuple) -> bytes:
-    """What every key shares: package, versions, device, JAX options."""
+def _environment(options: bytes) -> bytes:
+    """What every key shares: package, versions, device, XLA's flags, JAX's
+    options (``options``, encoded)."""
     from importlib import metadata
 
     versions = [sys.version, np.__version__, jax.__version__]
@@ -205,18 +247,28 @@ def _environment(x64: bool, options: tuple) -> bytes:
             versions.append(f"{dist}=none")
     dev = jax.devices()[0]
     device = [dev.platform, getattr(dev, "device_kind", ""), dev.client.platform_version, _cpu_flags()]
-    return _stable((_PACKAGE["hash"], versions, device, x64, options))
+    flags = [os.environ.get(v, "") for v in ("XLA_FLAGS", "LIBTPU_INIT_ARGS", "NEURON_CC_FLAGS")]
+    return _stable((_PACKAGE["hash"], versions, device, flags)) + options
 
 
-_OPTIONS = ("jax_default_matmul_precision", "jax_numpy_rank_promotion", "jax_numpy_dtype_promotion",
-            "jax_debug_nans", "jax_debug_infs", "jax_enable_checks")
+# JAX's options, every one of them (their values where the call is made,
+# context managers included), but the choice of platform: the device the
+# program runs on is in the key itself
+_NOT_OPTIONS = ("jax_platforms", "jax_platform_name")
+
+
+def _options() -> tuple:
+    """The values of all of JAX's options at this call."""
+    return tuple((name, getattr(jax.config, name, None)) for name in sorted(jax.config.values)
+                 if name not in _NOT_OPTIONS)
 
 
 def _usable() -> bool:
-    """One device, one process, jit enabled: where a stored program is the
-    program jit would run."""
-    return (jax.process_count() == 1 and len(jax.devices()) == 1
-            and not jax.config.jax_disable_jit)
+    """One device, one process, jit enabled, no NaN/Inf checks (jit re-runs
+    a failing program op by op to name the operation; a compiled one
+    cannot): where a stored program is what jit would run."""
+    return (jax.process_count() == 1 and len(jax.devices()) == 1 and not jax.config.jax_disable_jit
+            and not jax.config.jax_debug_nans and not jax.config.jax_debug_infs)
 
 
 class _Stored:
@@ -226,6 +278,9 @@ class _Stored:
         if fn.__closure__:
             raise ValueError(f"stored: {fn.__qualname__} has closure cells ({fn.__code__.co_freevars}); "
                              "what it closes over would not be in the program's key")
+        if "<" in fn.__qualname__:
+            raise ValueError(f"stored: {fn.__qualname__} is not a module-level function; its name would not "
+                             "tell it from another one of the same name")
         self._fn = fn
         self._sig = inspect.signature(fn)
         self._static = tuple(static_argnames)
@@ -238,7 +293,10 @@ class _Stored:
             self._jit = jax.jit(fn, static_argnames=self._static)
         self._name = f"{fn.__module__}.{fn.__qualname__}"
         if fn.__module__.split(".")[0] != "jaxppo":  # not in the package hash: its file's content is
-            self._name += ":" + hashlib.sha256(Path(inspect.getsourcefile(fn)).read_bytes()).hexdigest()
+            try:
+                self._name += ":" + hashlib.sha256(Path(inspect.getsourcefile(fn)).read_bytes()).hexdigest()
+            except (OSError, TypeError):  # no file (python -c, a notebook): never stored
+                self._name = None
         self._loaded = {}
         functools.update_wrapper(self, fn)
 
@@ -262,7 +320,7 @@ class _Stored:
 
     def __call__(self, *args, **kwargs):
         folder = _state["folder"]
-        if folder is None or not _usable():
+        if folder is None or self._name is None or not _usable():
             return self._jit(*args, **kwargs)
         bound = self._sig.bind(*args, **kwargs)
         bound.apply_defaults()
@@ -274,11 +332,13 @@ class _Stored:
             inputs = [leaf for leaf, t in zip(leaves, traced) if t]
             avals = []
             for leaf in inputs:
-                aval = jax.typeof(leaf)
+                try:
+                    aval = jax.typeof(leaf)
+                except TypeError as err:  # a big-endian numpy array: jit converts it, the key cannot
+                    raise _Unstable(str(err)) from None
                 avals.append((aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False))))
-            options = tuple(str(getattr(jax.config, o, None)) for o in _OPTIONS)
             key = hashlib.sha256(
-                _environment(bool(jax.config.jax_enable_x64), options) + _stable(self._name)
+                _environment(_stable(_options())) + _stable(self._name)
                 + _stable(statics) + _treedef_key(treedef) + _stable(fixed) + _stable(avals)).hexdigest()
         except _Unstable:
             return self._jit(*args, **kwargs)
@@ -294,7 +354,10 @@ class _Stored:
         try:  # a program read from the store runs once, to the end, before it is trusted
             out = jax.block_until_ready(compiled(*inputs))
         except Exception:  # noqa: BLE001 - it does not run here: removed, and the jitted path instead
-            (folder / f"{key}.exe").unlink(missing_ok=True)
+            try:
+                (folder / f"{key}.exe").unlink(missing_ok=True)
+            except OSError:  # a read-only store
+                pass
             counts["failed"] += 1
             return self._jit(*args, **kwargs)
         self._loaded[key] = compiled
@@ -309,7 +372,11 @@ class _Stored:
         path = folder / f"{key}.exe"
         try:
             with open(path, "rb") as fh:
-                targets, payload, in_tree, out_tree = pickle.load(fh)
+                blob = fh.read()
+            head, digest, body = blob[:len(_FORMAT)], blob[len(_FORMAT):len(_FORMAT) + 32], blob[len(_FORMAT) + 32:]
+            if head != _FORMAT or hashlib.sha256(body).digest() != digest:
+                raise ValueError("not a stored program, or a damaged one")  # never handed to the loader
+            targets, payload, in_tree, out_tree = pickle.loads(body)
             if targets:
                 _prepare_lapack()
             compiled = se.deserialize_and_load(payload, in_tree, out_tree)
@@ -342,7 +409,8 @@ class _Stored:
         if not _builtin(compiled.out_tree):
             return compiled, False  # outputs with classes of their own (their sentinels do not survive pickling)
         try:
-            blob = pickle.dumps((sorted(targets), *se.serialize(compiled)))
+            body = pickle.dumps((sorted(targets), *se.serialize(compiled)))
+            blob = _FORMAT + hashlib.sha256(body).digest() + body
         except Exception:  # noqa: BLE001 - not serializable (constants, custom outputs): in memory only
             return compiled, False
         _write(folder, path, blob)
@@ -374,17 +442,29 @@ def _prepare_lapack() -> None:
 
 def _write(folder: Path, path: Path, blob: bytes) -> None:
     """Write one program atomically; keep at most MAX_FILES in the store."""
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-        tmp.write_bytes(blob)
+        with open(tmp, "wb") as fh:
+            fh.write(blob)
+            fh.flush()
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
+    except OSError:  # an unwritable or full store only costs the compilation next time
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        return
+    try:
         with _lock:
+            now = time.time()
+            stale = [p for p in folder.glob("*.tmp") if now - p.stat().st_mtime > 3600]  # an interrupted write
             files = sorted(folder.glob("*.exe"), key=lambda p: p.stat().st_mtime)
-            for old in files[:max(len(files) - MAX_FILES, 0)]:
+            for old in stale + files[:max(len(files) - MAX_FILES, 0)]:
                 old.unlink(missing_ok=True)
     except OSError:
-        pass  # an unwritable store only costs the compilation next time
+        pass
 
 
 def stored(fn=None, *, static_argnames=(), filtered=False):

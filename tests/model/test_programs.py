@@ -292,3 +292,55 @@ def test_a_stored_program_that_does_not_run_is_removed(store, monkeypatch):
     assert float(_programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)) == 14.0
     assert counts["failed"] == before + 1
     assert not path.exists()
+
+
+def test_key_follows_every_jax_option_and_xla_flags(store, monkeypatch):
+    """JAX's options (every one: explicit x64 dtypes, matmul precision, ...)
+    and XLA's flags are in the key: a program traced under other options is
+    another program (a fast-math program loaded without the flags answered
+    NaN where jit gave -1)."""
+    names = dict(_programs._options())
+    assert "jax_explicit_x64_dtypes" in names and "jax_default_matmul_precision" in names
+    x = jnp.arange(4.0)
+    moment = _programs._Stored(_moment.__wrapped__, ("power",))  # nothing in memory
+    moment(x, 1.0, power=2)
+    with jax.default_matmul_precision("float32"):
+        moment(x, 1.0, power=2)
+    assert len(list(store.glob("*.exe"))) == 2
+    base = _programs._environment(_programs._stable(_programs._options()))
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_fast_math=true")
+    _programs._environment.cache_clear()
+    assert _programs._environment(_programs._stable(_programs._options())) != base
+    _programs._environment.cache_clear()
+
+
+def test_nan_checks_lambdas_and_constants(store, monkeypatch):
+    """Under jax_debug_nans a call takes jit's path (which names the failing
+    operation); lambdas and nested functions cannot be stored (two of them
+    share a name); a module-level value of jaxppo set anew (a kernel reads
+    it while traced) turns the store off, as an edited file does."""
+    with pytest.raises(ValueError, match="not a module-level function"):
+        stored(lambda x: x + 1.0)
+    with jax.debug_nans(True):
+        assert float(_moment(jnp.arange(3.0), 1.0, power=2)) == 5.0
+    assert not list(store.glob("*.exe"))
+    from jaxppo.model import _plan
+
+    monkeypatch.setattr(_plan, "INNER_MARGIN", 50.0)
+    assert float(_moment(jnp.arange(7.0), 1.0, power=2)) == 91.0
+    assert not list(store.glob("*.exe")) and _programs.store_folder() is None
+
+
+def test_damaged_payload_is_never_loaded(store):
+    """A file whose bytes changed (one flipped byte inside a readable
+    pickle killed the loading process with SIGILL) fails its checksum: the
+    program is compiled again, never handed to the loader."""
+    x = jnp.arange(4.0)
+    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
+    (path,) = store.glob("*.exe")
+    blob = bytearray(path.read_bytes())
+    blob[len(blob) // 2] ^= 0x01
+    path.write_bytes(bytes(blob))
+    before = dict(counts)
+    assert float(_programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)) == 14.0
+    assert counts["loaded"] == before["loaded"] and counts["compiled"] == before["compiled"] + 1
