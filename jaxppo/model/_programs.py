@@ -42,6 +42,8 @@ jitted path.
 The store is on where ``jaxppo.compilation_cache`` turned JAX's cache on
 (every ``jaxppo`` command does): it is the cache folder's ``programs``
 subfolder, kept to ``MAX_FILES`` files (the least recently written go).
+Like JAX's own cache, it holds executables that are loaded and run: the
+folder must be the user's own, not one others can write to.
 """
 
 from __future__ import annotations
