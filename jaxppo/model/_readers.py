@@ -265,15 +265,36 @@ def kepler_exposure(hdr) -> float | None:
     return None
 
 
+def _plain_csv(text: str):
+    """(the header's names, the values [rows, columns]) of a CSV text that
+    holds only numbers: '#' comment lines, then a header row of distinct
+    names without quotes, then rows of numbers, no empty cells. None for
+    anything else, which astropy's reader then reads (with its messages).
+    numpy's parser takes 20 ms for the bundled 65,000 Kepler-20 rows;
+    importing astropy's tables alone takes 0.3 s of every scan."""
+    lines = text.splitlines(keepends=True)
+    k = next((i for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")), None)
+    if k is None or '"' in text or "#" in "".join(lines[k:]):
+        return None
+    names = [h.strip() for h in lines[k].split(",")]
+    rows = lines[k + 1:]
+    if not all(names) or len({n.lower() for n in names}) != len(names) or not any(r.strip() for r in rows):
+        return None
+    try:
+        values = np.loadtxt(rows, delimiter=",", dtype=float, ndmin=2)
+    except ValueError:
+        return None
+    if values.shape[0] < 1 or values.shape[1] != len(names):
+        return None
+    return names, values
+
+
 def read_csv_columns(path: Path, columns: dict):
     """The columns of a light-curve CSV file (or gzip-compressed .csv.gz)
     with a header row: (time, flux, flux_err, quality, quarter, the flux
     column's name) as float arrays, NaN where a cell is empty; flux_err,
     quality and quarter are None when the file has no such column.
     ``columns`` maps roles (``COLUMN_ROLES``) to the file's names."""
-    from astropy.io.ascii import InconsistentTableError
-    from astropy.table import Table
-
     try:
         opener = gzip.open if path.name.lower().endswith(".gz") else open
         # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first name
@@ -283,16 +304,12 @@ def read_csv_columns(path: Path, columns: dict):
         raise ValueError(f"cannot read {path}: {err}") from err
     if not text.strip():
         raise ValueError(f"{path}: needs a header and at least one row")
-    try:
-        # astropy's CSV reader ('#' comment lines; empty cells masked,
-        # read as NaN below so that they are counted as dropped); given
-        # the text, because its fast reader does not decompress gzip
-        tab = Table.read(text, format="ascii.csv", comment="#", guess=False)
-    except (InconsistentTableError, ValueError) as err:
-        raise ValueError(f"cannot read {path}: {' '.join(str(err).split())[:300]}") from err
-    if len(tab) < 1:
-        raise ValueError(f"{path}: needs a header and at least one row")
-    names = list(tab.colnames)
+    plain = _plain_csv(text)
+    if plain is not None:
+        names, values = plain
+        cells = {name: values[:, j] for j, name in enumerate(names)}
+    else:
+        names, cells = _astropy_csv(path, text)
     header = [h.strip().lower() for h in names]
 
     def col(role, required=True):
@@ -312,7 +329,7 @@ def read_csv_columns(path: Path, columns: dict):
     idx = {r: col(r, r in ("time", "flux")) for r in COLUMN_ROLES}
 
     def read(role):
-        c = tab[names[idx[role]]]
+        c = cells[names[idx[role]]]
         try:
             return np.ma.filled(np.ma.asarray(c, dtype=float), np.nan)
         except (ValueError, TypeError):
@@ -326,6 +343,23 @@ def read_csv_columns(path: Path, columns: dict):
     q = None if idx["quality"] is None else read("quality")
     seg = None if idx["quarter"] is None else read("quarter")
     return t, f, e, q, seg, header[idx["flux"]]
+
+
+def _astropy_csv(path: Path, text: str):
+    """(the header's names, {name: column}) by astropy's CSV reader ('#'
+    comment lines; empty cells masked, read as NaN by the caller so that
+    they are counted as dropped); given the text, because its fast reader
+    does not decompress gzip."""
+    from astropy.io.ascii import InconsistentTableError
+    from astropy.table import Table
+
+    try:
+        tab = Table.read(text, format="ascii.csv", comment="#", guess=False)
+    except (InconsistentTableError, ValueError) as err:
+        raise ValueError(f"cannot read {path}: {' '.join(str(err).split())[:300]}") from err
+    if len(tab) < 1:
+        raise ValueError(f"{path}: needs a header and at least one row")
+    return list(tab.colnames), {name: tab[name] for name in tab.colnames}
 
 
 def read_fits_columns(path: Path, flux_column: str, mission: str | None):
