@@ -187,6 +187,10 @@ def test_non_physical_laws():
     warns; a numpy alpha <= 0 is refused like the Python scalar."""
     with pytest.raises(ValueError, match=r"Star.quadratic\(u1=3, u2=0\) has total flux F0 = 0"):
         jp.Star.quadratic(3, 0)
+    # zero to rounding: F0 = 3e-14 of pi was accepted, and its light curves
+    # were noise times 1e13
+    with pytest.raises(ValueError, match=r"has total flux F0 = 0 <= 0"):
+        jp.Star.quadratic(3.0 * (1.0 - 1e-14), 0.0)
     with pytest.raises(ValueError, match="total flux"):
         jp.Star.nonlinear(2.0, 2.0, 0.0, 0.0)
     with pytest.warns(UserWarning, match=r"u1=1.5, u2=0.5\) has negative intensity I\(mu=0\) = -1"):
