@@ -310,16 +310,14 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     say(f"{n} points, {k} free parameters; compiling the model")
     # from the Jacobian's program, which the minimum check compiles anyway
     # (a separate residual program would cost a compilation of its own)
-    jac_start, r_start = (np.asarray(v) for v in model.jacobian(theta))
-    chi2_start = float(np.sum(r_start**2))
+    chi2_start = float(np.sum(np.asarray(model.jacobian(theta)[1]) ** 2))
     if not np.isfinite(chi2_start):
         problems.append(f"chi^2 at the start is {chi2_start} (flux_err as small as {np.min(lightcurve.flux_err):.3g} "
                         "makes the residuals overflow float64, or the model is not finite)")
     if problems:
         return _failed_start(model, system, theta, chi2_start, n, problems)
     say(f"chi^2 at the start {chi2_start:.6g}")
-    model, theta, optx_problem, steps, verdict = _solve(model, theta, _column_scale(jac_start), max_steps, rtol, atol,
-                                                        say)
+    model, theta, optx_problem, steps, verdict = _solve(model, theta, max_steps, rtol, atol, say)
     if fold_inc:
         theta, verdict["cov_theta"] = _fold_inc(model, theta, verdict["cov_theta"])
     problems = ([optx_problem] if optx_problem else []) + verdict["problems"]
@@ -366,14 +364,7 @@ def least_squares_pass(theta, scale, data, rtol: float, atol: float, max_steps: 
     return sol.value, tuple(jax.tree_util.tree_leaves(sol.result)), sol.stats["num_steps"]
 
 
-def _column_scale(jac):
-    """The norms of the Jacobian's columns (the change of the residuals per
-    unit of each coordinate), ones where one is zero or not finite."""
-    c = np.sqrt(np.sum(np.asarray(jac) ** 2, axis=0))
-    return jnp.asarray(np.where(np.isfinite(c) & (c > 0), c, 1.0))
-
-
-def _solve(model: Model, theta, scale, max_steps: int, rtol: float, atol: float, say):
+def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
     """Levenberg-Marquardt passes until the solution is a minimum of a model
     whose frame sets cover it. Returns (model, theta, optimistix's failure
     message or None, steps, the ``_assess`` verdict).
@@ -389,6 +380,7 @@ def _solve(model: Model, theta, scale, max_steps: int, rtol: float, atol: float,
     import optimistix as optx
 
     steps, restarts = 0, 0
+    scale = jnp.ones_like(theta)
     verdict = None
     for stage in range(10):
         value, result, num_steps = least_squares_pass(theta, scale, model.data(), float(rtol), float(atol),
