@@ -15,7 +15,9 @@ and Table 6), drawn from plain data so that any scan driver can call them.
   ``event`` (``jaxppo.MultiTransit``), ``time`` [d], ``flux`` and
   ``flux_err`` (detrended, relative), ``exposure`` [d] or None (the models
   are averaged over the exposure when given);
-* ``cases``: the hemisphere cases, in order.
+* ``cases``: the hemisphere cases, in order;
+* ``which`` (optional): the figures to draw, names of ``FIGURES`` (default
+  all of them).
 """
 
 from __future__ import annotations
@@ -30,7 +32,12 @@ from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
 
-__all__ = ["scan_figures", "read_scan_csv"]
+__all__ = ["FIGURES", "scan_figures", "read_scan_csv"]
+
+FIGURES = ("fig4", "fig5", "fig6", "fig7", "probabilities")
+"""The figures ``scan_figures`` draws, in the order of its files:
+fig4_multitransits.png, fig5_delta_chi2.png, fig6_cutout.png,
+fig7_paths.png, probabilities.png."""
 
 _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")
 
@@ -71,13 +78,30 @@ def _ppo(summary: dict, case) -> dict:
 def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np.ndarray:
     """[alpha, time] flux, averaged over the exposure [d] when given, by the
     rule of the scan's chi^2 (``LightCurve.supersampled_times``): the
-    figures show the model whose chi^2 the scan reports."""
-    time = np.asarray(time, float)
+    figures show the model whose chi^2 the scan reports. ``time`` in any
+    order, with repeats."""
+    # a LightCurve sorts its times and drops repeated ones: the model at the
+    # distinct times, then back in the order given
+    distinct, back = np.unique(np.asarray(time, float), return_inverse=True)
     alphas = np.atleast_1d(np.asarray(alphas, float))
-    ones = np.ones_like(time)
-    tm, n = LightCurve(time, ones, ones, exposure or None).supersampled_times()
+    ones = np.ones_like(distinct)
+    tm, n = LightCurve(distinct, ones, ones, exposure or None).supersampled_times()
     f = sweep(system, tm, alphas, cases=(case,), no_overlap=no_overlap)[0]
-    return f.reshape(alphas.size, time.size, n).mean(-1)
+    return f.reshape(alphas.size, distinct.size, n).mean(-1)[:, back.ravel()]
+
+
+def _null_models(system, times, case, exposures) -> list:
+    """The no-PPO model (alpha = 0, disks never overlapping) at each array
+    of ``times``, with its exposure of ``exposures``: one sweep per distinct
+    exposure (one call of ``_model`` per array cost 30 ms each)."""
+    out = [None] * len(times)
+    for exposure in dict.fromkeys(exposures):
+        idx = [k for k, x in enumerate(exposures) if x == exposure]
+        flat = _model(system, np.concatenate([np.asarray(times[k], float) for k in idx]), [0.0], case, exposure,
+                      no_overlap=True)[0]
+        for k, part in zip(idx, np.split(flat, np.cumsum([np.size(times[k]) for k in idx])[:-1])):
+            out[k] = part
+    return out
 
 
 def _save(fig, path: Path) -> Path:
@@ -151,14 +175,16 @@ def _fig4(plt, out, summary, table, system, windows, cases):
     alphas = table[_key(case0)]["alpha"]
     fig, axes = plt.subplots(2, n, figsize=(2.5 * n + 0.6, 4.6), sharey="row",
                              gridspec_kw={"height_ratios": [3, 1]}, squeeze=False)
+    fine = [np.linspace(w.time.min(), w.time.max(), 300) for w in windows]
+    nulls = _null_models(system, [w.time for w in windows] + fine, case0, [w.exposure for w in windows] * 2)
     for i, w in enumerate(windows):
         e = w.event
-        t_fine = np.linspace(w.time.min(), w.time.max(), 300)
+        t_fine = fine[i]
         # only the alphas that give this transit a PPO differ from the no-PPO model
         ppo = _ppo(summary, case0)
         with_ppo = np.array([a for a in alphas if w.number in ppo.get(f"{a:g}", ())] or [0.0])
         models = _model(system, t_fine, with_ppo, case0, w.exposure)
-        null = _model(system, w.time, [0.0], case0, w.exposure, no_overlap=True)[0]
+        null = nulls[i]
         ax, rax = axes[0, i], axes[1, i]
         hours = lambda t: (t - e.mid) * 24.0
         ax.errorbar(hours(w.time), (w.flux - 1) * 1e6, yerr=w.flux_err * 1e6, fmt=".", ms=2, color="0.55", lw=0.4,
@@ -167,8 +193,7 @@ def _fig4(plt, out, summary, table, system, windows, cases):
         if np.any(hi - lo > 1e-9):
             ax.fill_between(hours(t_fine), (lo - 1) * 1e6, (hi - 1) * 1e6, color="tab:red", alpha=0.35, lw=0,
                             zorder=2, label="models over alpha")
-        ax.plot(hours(t_fine), (_model(system, t_fine, [0.0], case0, w.exposure, no_overlap=True)[0] - 1) * 1e6,
-                color="k", lw=0.8, zorder=3, label="no PPO")
+        ax.plot(hours(t_fine), (nulls[n + i] - 1) * 1e6, color="k", lw=0.8, zorder=3, label="no PPO")
         rax.errorbar(hours(w.time), (w.flux - null) * 1e6, yerr=w.flux_err * 1e6, fmt=".", ms=2, color="0.4", lw=0.3)
         rax.axhline(0, color="k", lw=0.5)
         ax.set_title(f"{w.number}: {'+'.join(e.planets)} BKJD {e.mid:.2f}", fontsize=7)
@@ -361,10 +386,11 @@ def _fig_probabilities(plt, out, summary, cases, colors):
     return _save(fig, out / "probabilities.png")
 
 
-def scan_figures(out, summary, table=None, system=None, windows=None, cases=None) -> list[str]:
+def scan_figures(out, summary, table=None, system=None, windows=None, cases=None, which=FIGURES) -> list[str]:
     """Write the scan's figures into ``out`` (see the module docstring for
     the arguments) and return their paths: fig4_multitransits.png,
-    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png.
+    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png
+    (those of ``which``, in this order).
     """
     import matplotlib
 
@@ -387,12 +413,16 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     windows = list(windows)
     if not windows:
         raise ValueError("windows must hold at least one multi-transit window")
+    unknown = [w for w in which if w not in FIGURES]
+    if unknown:
+        raise ValueError(f"which names unknown figures {unknown}; the figures are {list(FIGURES)}")
     colors = {_key(c): _CASE_COLORS[i % len(_CASE_COLORS)] for i, c in enumerate(cases)}
-    files = [
-        _fig4(plt, out, summary, table, system, windows, cases),
-        _fig5(plt, out, summary, table, system, cases, colors),
-        _fig6(plt, out, summary, table, system, windows, cases, colors),
-        _fig7(plt, out, summary, table, system, cases),
-        _fig_probabilities(plt, out, summary, cases, colors),
-    ]
+    draw = {
+        "fig4": lambda: _fig4(plt, out, summary, table, system, windows, cases),
+        "fig5": lambda: _fig5(plt, out, summary, table, system, cases, colors),
+        "fig6": lambda: _fig6(plt, out, summary, table, system, windows, cases, colors),
+        "fig7": lambda: _fig7(plt, out, summary, table, system, cases),
+        "probabilities": lambda: _fig_probabilities(plt, out, summary, cases, colors),
+    }
+    files = [draw[name]() for name in FIGURES if name in which]
     return [str(Path(f).resolve()) for f in files]  # absolute: summary.json is read from anywhere

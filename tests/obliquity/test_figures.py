@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
-from jaxppo.obliquity._figures import _model, read_scan_csv, scan_figures
+from jaxppo.obliquity._figures import _model, _null_models, read_scan_csv, scan_figures
 from jaxppo.model._kepler20 import kepler20_system, paper_multi_transits
 
 
@@ -94,6 +94,25 @@ def test_exposure_averaged_model_against_fine_integration():
     np.testing.assert_allclose(got, ref, atol=2e-7)
     inst = _model(system, t, [313.0], "same", None)[0]
     assert np.abs(inst - np.asarray(ref)).max() > 1e-5  # the average matters here
+
+
+def test_null_models_in_one_sweep_equal_one_call_per_array():
+    """Fig. 4's no-PPO models in one sweep per exposure: unsorted arrays that
+    share times (a LightCurve sorts and drops repeated times) come back in
+    their own order, each as its own call of ``_model`` gives it."""
+    system = kepler20_system(jp.Star.quadratic(0.495, 0.154))
+    a = np.array([670.49, 670.40, 670.46])
+    b = np.linspace(670.38, 670.52, 9)
+    c = np.array([670.46, 670.43])
+    times, exposures = [a, b, c, a], [0.0204336, 0.0204336, None, None]
+    got = _null_models(system, times, "same", exposures)
+    for t, e, g in zip(times, exposures, got):
+        order = np.argsort(t)
+        want = np.empty(t.size)  # the model at the sorted times (it returned them sorted, for any order given)
+        want[order] = _model(system, t[order], [0.0], "same", e, no_overlap=True)[0]
+        assert g.shape == t.shape
+        np.testing.assert_allclose(g, want, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(_model(system, t, [0.0], "same", e, no_overlap=True)[0], want, rtol=0, atol=1e-14)
 
 
 def test_figures_do_not_import_the_scan():
