@@ -20,17 +20,6 @@ os.environ.setdefault("JAXPPO_CACHE_DIR", tempfile.mkdtemp(prefix="jaxppo_test_c
 # tests/obliquity/test_worker.py, which compares both ways byte for byte
 os.environ["JAXPPO_DRAW_PROCESS"] = "0"
 
-# XLA's CPU compiler at its lowest optimisation level (LLVM -O0): most of
-# the suite's time is compiling programs that then run once on small
-# inputs (the same 51 tests: 183 s at XLA's default level, 154 s at 0).
-# Rounding is IEEE either way (no fast math at any level). The package sets
-# no level (commands, the Python API and the benchmarks use XLA's
-# defaults), and the tests that start processes of their own without
-# XLA_FLAGS run at the default level (tests/model/test_multiprocess.py,
-# tests/obliquity/test_processes.py).
-if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
-
 jax.config.update("jax_enable_x64", True)
 
 # tests/ mirrors the package (tests/core, tests/model, ...); their shared

@@ -64,8 +64,7 @@ def test_sharded_equals_unsharded(grid, tmp_path):
         t = np.load(r"{tmp_path / 't.npy'}"); a = np.load(r"{tmp_path / 'a.npy'}")
         np.save(r"{tmp_path / 'out.npy'}", jp.sweep(kepler20_system(), t, a, chunk=33))
     """)
-    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4",
-               JAX_PLATFORMS="cpu")
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=600)
     np.testing.assert_allclose(np.load(tmp_path / "out.npy"), ref, atol=1e-15, rtol=0)
 
