@@ -15,9 +15,7 @@ and Table 6), drawn from plain data so that any scan driver can call them.
   ``event`` (``jaxppo.MultiTransit``), ``time`` [d], ``flux`` and
   ``flux_err`` (detrended, relative), ``exposure`` [d] or None (the models
   are averaged over the exposure when given);
-* ``cases``: the hemisphere cases, in order;
-* ``which`` (optional): the figures to draw, names of ``FIGURES`` (default
-  all of them).
+* ``cases``: the hemisphere cases, in order.
 """
 
 from __future__ import annotations
@@ -32,12 +30,7 @@ from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
 
-__all__ = ["FIGURES", "scan_figures", "read_scan_csv"]
-
-FIGURES = ("fig4", "fig5", "fig6", "fig7", "probabilities")
-"""The figures ``scan_figures`` draws, in the order of its files:
-fig4_multitransits.png, fig5_delta_chi2.png, fig6_cutout.png,
-fig7_paths.png, probabilities.png."""
+__all__ = ["scan_figures", "read_scan_csv"]
 
 _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")
 
@@ -386,11 +379,10 @@ def _fig_probabilities(plt, out, summary, cases, colors):
     return _save(fig, out / "probabilities.png")
 
 
-def scan_figures(out, summary, table=None, system=None, windows=None, cases=None, which=FIGURES) -> list[str]:
+def scan_figures(out, summary, table=None, system=None, windows=None, cases=None) -> list[str]:
     """Write the scan's figures into ``out`` (see the module docstring for
     the arguments) and return their paths: fig4_multitransits.png,
-    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png
-    (those of ``which``, in this order).
+    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png.
     """
     import matplotlib
 
@@ -413,16 +405,12 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     windows = list(windows)
     if not windows:
         raise ValueError("windows must hold at least one multi-transit window")
-    unknown = [w for w in which if w not in FIGURES]
-    if unknown:
-        raise ValueError(f"which names unknown figures {unknown}; the figures are {list(FIGURES)}")
     colors = {_key(c): _CASE_COLORS[i % len(_CASE_COLORS)] for i, c in enumerate(cases)}
-    draw = {
-        "fig4": lambda: _fig4(plt, out, summary, table, system, windows, cases),
-        "fig5": lambda: _fig5(plt, out, summary, table, system, cases, colors),
-        "fig6": lambda: _fig6(plt, out, summary, table, system, windows, cases, colors),
-        "fig7": lambda: _fig7(plt, out, summary, table, system, cases),
-        "probabilities": lambda: _fig_probabilities(plt, out, summary, cases, colors),
-    }
-    files = [draw[name]() for name in FIGURES if name in which]
+    files = [
+        _fig4(plt, out, summary, table, system, windows, cases),
+        _fig5(plt, out, summary, table, system, cases, colors),
+        _fig6(plt, out, summary, table, system, windows, cases, colors),
+        _fig7(plt, out, summary, table, system, cases),
+        _fig_probabilities(plt, out, summary, cases, colors),
+    ]
     return [str(Path(f).resolve()) for f in files]  # absolute: summary.json is read from anywhere

@@ -44,7 +44,7 @@ from ..model._lightcurve import LightCurve
 from ..model._processes import is_writer, on_writer, process_info, read_once, share
 from ..model._sweep import sweep
 
-__all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "start_figures", "DRAWN_HERE", "scan_products", "with_summary",
+__all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "start_figures", "scan_products", "with_summary",
            "write_summary", "figures_current", "PROGRESS"]
 
 PROGRESS = "scan_progress.jsonl"
@@ -250,22 +250,11 @@ def start_figures(result: ScanResult, cfg: ScanConfig, out, drawer):
     drawing process, or this one): returns a callable that waits for the
     figures and returns the result with their paths recorded in
     summary.json (``figures``), as ``draw_figures`` does."""
-    from ._figures import FIGURES, scan_figures
+    from ._figures import scan_figures
 
-    args = (Path(out), result.summary, result.by_case(), cfg.system, result.windows, tuple(cfg.cases))
-    if not drawer.separate:
-        files = drawer.run(scan_figures, *args)
-        return lambda res: with_summary(out, res, figures=files())
-    # the drawing process takes the others; this one draws the multi-transits
-    # (about half of the drawing) when it is done with its own work
-    wait = drawer.run(scan_figures, *args, tuple(f for f in FIGURES if f not in DRAWN_HERE))
-
-    def finish(res):
-        here, there = scan_figures(*args, DRAWN_HERE), wait()
-        by_name = {Path(f).name: f for f in here + there}
-        return with_summary(out, res, figures=[by_name[name] for name in _FIGURE_NAMES if name in by_name])
-
-    return finish
+    wait = drawer.run(scan_figures, Path(out), result.summary, result.by_case(), cfg.system, result.windows,
+                      tuple(cfg.cases))
+    return lambda res: with_summary(out, res, figures=wait())
 
 
 def figures_current(result: ScanResult, out) -> bool:
@@ -356,9 +345,6 @@ def _clear_outputs(out: Path) -> None:
 
 # The figure files scan_figures writes (also removed by --restart when the old
 # summary.json is missing or unreadable).
-# the figures the command draws itself while its drawing process draws the
-# others (start_figures)
-DRAWN_HERE = ("fig4",)
 _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
