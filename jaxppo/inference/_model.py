@@ -266,18 +266,7 @@ class Model(eqx.Module):
     def physical(self, theta) -> jnp.ndarray:
         """The free parameters in physical units (days, degrees, R*;
         q1, q2; offset, jitter [relative flux], baseline coefficients)."""
-        sysm = self.to_system(theta)
-        out = []
-        for k, (owner, par) in enumerate(self.slots):
-            if par in ("q1", "q2"):
-                out.append(jax.nn.sigmoid(theta[k]))
-            elif par == "jitter":
-                out.append(jnp.exp(theta[k]))
-            elif owner == "lc":
-                out.append(theta[k])
-            else:
-                out.append(star_value(sysm, par) if owner == "star" else planet_value(sysm.planets[owner], par))
-        return jnp.stack(out)
+        return _physical(theta, self.to_system(theta), self.slots)
 
     def derived_names(self) -> tuple:
         """Quantities implied by the free parameters: "star.u1", "star.u2"
@@ -289,6 +278,12 @@ class Model(eqx.Module):
         if not self.derived_names():
             return jnp.zeros(0)
         return self.to_system(theta).star.params[:2]
+
+    def physical_jacobian(self, theta):
+        """(d q / d theta, q) of q = ``physical`` followed by ``derived``:
+        one stored program (eager differentiation cost 0.3 s of every new
+        process's fit)."""
+        return physical_jacobian(theta, self.data(), bool(self.derived_names()))
 
     # ---- model ----------------------------------------------------------------
     def data(self) -> "ModelData":
@@ -583,6 +578,35 @@ def chi2_batch(thetas, d: ModelData):
 def residuals_batch(thetas, d: ModelData):
     """Residuals at each row of ``thetas`` (lax.map)."""
     return jax.lax.map(lambda t: residuals(t, d), thetas)
+
+
+def _physical(theta, system: System, slots) -> jnp.ndarray:
+    """The free parameters in physical units (``Model.physical``) of
+    ``system``, the system at theta."""
+    out = []
+    for k, (owner, par) in enumerate(slots):
+        if par in ("q1", "q2"):
+            out.append(jax.nn.sigmoid(theta[k]))
+        elif par == "jitter":
+            out.append(jnp.exp(theta[k]))
+        elif owner == "lc":
+            out.append(theta[k])
+        else:
+            out.append(star_value(system, par) if owner == "star" else planet_value(system.planets[owner], par))
+    return jnp.stack(out)
+
+
+@stored(filtered=True)
+def physical_jacobian(theta, d: ModelData, derived: bool):
+    """(d q / d theta, q): q the free parameters in physical units, then
+    the star's u1, u2 where ``derived`` (Kipping's q1 or q2 free)."""
+    def values(th):
+        system = system_at(th, d.system, d.slots, d.eccentric)
+        q = _physical(th, system, d.slots)
+        q = jnp.concatenate([q, system.star.params[:2]]) if derived else q
+        return q, q
+
+    return jax.jacfwd(values, has_aux=True)(theta)
 
 
 @stored(filtered=True)

@@ -67,6 +67,23 @@ def test_bad_start_reports_failure_without_raising():
     assert not res.success and res.message.startswith("failed")
 
 
+def test_passes_cut_by_max_steps_end_where_the_minimum_check_accepts():
+    """Each pass ends with the minimum check, whatever optimistix's own
+    verdict: passes of 2 steps that stop at a point the check accepts give
+    a converged fit (within the check's 0.01 of the full fit's chi^2).
+    (Before, optimistix's "maximum number of steps" failed such a fit.)"""
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=11, noise=4e-4)
+    b = truth.planets[0]
+    start = truth.replace(planets=(b.replace(t0=b.t0 + 0.001, radius=0.019), truth.planets[1]))
+    full = jp.fit(start, lc, free=("b.t0", "b.radius"))
+    short = jp.fit(start, lc, free=("b.t0", "b.radius"), max_steps=2)
+    assert full.success and short.success, short.message
+    assert short.message.startswith("converged: Newton step would lower chi^2 by")
+    assert 0.0 <= short.chi2 - full.chi2 < 0.01
+    assert np.all(np.abs(short.values - full.values) < 0.2 * full.errors)
+
+
 def test_unknown_free_parameter():
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=1)

@@ -57,3 +57,28 @@ def test_union_frames_derivatives_equal_the_union_integrals():
     v = jnp.ones_like(x)
     np.testing.assert_allclose(float(jax.jvp(blocks, (x,), (v,))[1]), float(jax.jvp(whole, (x,), (v,))[1]),
                                rtol=1e-12)
+
+
+def test_physical_jacobian_equals_the_derivatives_of_physical_and_derived():
+    """The stored program of the fit's covariance: the values and forward
+    derivatives of ``Model.physical`` (then u1, u2 when q1 or q2 is free)
+    at a point off the start, for a circular and an eccentric planet."""
+    from jaxppo.inference._model import Model
+
+    truth = jp.kepler20_system()
+    b, c = truth.planets
+    system = truth.replace(star=jp.Star.quadratic(0.45, 0.2), planets=(b, c.replace(e=0.1, omega=40.0)))
+    lc = jp.simulate_kepler20(seed=3, noise=4e-4)
+    for free in (("b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.inc", "c.radius"),
+                 ("b.a", "b.inc", "star.q1", "star.q2")):
+        model = Model(system, lc, free)
+        theta = model.to_theta(system) + 0.01 * jnp.arange(len(model.free))
+        jac, q = (np.asarray(v) for v in model.physical_jacobian(theta))
+        k = len(model.free)
+        derived = bool(model.derived_names())
+        assert q.shape == (k + 2 * derived,) and jac.shape == (q.size, k)
+        np.testing.assert_allclose(q[:k], np.asarray(model.physical(theta)), rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(jac[:k], np.asarray(jax.jacfwd(model.physical)(theta)), rtol=1e-12, atol=1e-14)
+        if derived:
+            np.testing.assert_allclose(q[k:], np.asarray(model.derived(theta)), rtol=1e-14, atol=1e-14)
+            np.testing.assert_allclose(jac[k:], np.asarray(jax.jacfwd(model.derived)(theta)), rtol=1e-12, atol=1e-14)
