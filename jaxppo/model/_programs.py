@@ -14,9 +14,13 @@ everything the program is made from:
   file; hashed when jaxppo is imported, with the bytecode Python runs,
   and the store is turned off for the process if the files change
   afterwards, or a module-level value of jaxppo is set anew);
-* the versions of Python, numpy, JAX, jaxlib, equinox, optimistix and
-  lineax, and JAX's options that change a trace (float64, matmul
-  precision, dtype and rank promotion, NaN/Inf checks);
+* the versions of Python, numpy, JAX and jaxlib; of each library whose
+  code a program may trace (``TRACED_LIBRARIES``: equinox, optimistix,
+  lineax, jnkepler, numpyro) the version and where its files are, with
+  their sizes and modification times (an edited or another copy of
+  jnkepler gave the old N-body program before); and JAX's options that
+  change a trace (float64, matmul precision, dtype and rank promotion,
+  NaN/Inf checks);
 * the device (platform, kind, platform version, the CPU's instruction set);
 * the static arguments and the structure of the others (equinox Modules'
   static fields included), each leaf's shape, dtype and weak type.
@@ -65,7 +69,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-__all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "record_constants", "MAX_FILES"]
+__all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "record_constants", "MAX_FILES",
+           "TRACED_LIBRARIES", "library_stamp"]
 
 MAX_FILES = 512
 
@@ -235,18 +240,58 @@ def _unchanged() -> bool:
     return True
 
 
+# The libraries whose Python code a stored program may trace: equinox's
+# modules, optimistix's and lineax's solvers, jnkepler's N-body integrator
+# (imported where a system first integrates: after the key's first use),
+# numpyro's distributions. A program compiled with one copy of them must not
+# be loaded where another is imported (an upgrade, an edit of an editable
+# install, another copy first on sys.path).
+TRACED_LIBRARIES = ("equinox", "optimistix", "lineax", "jnkepler", "numpyro")
+
+
+def library_stamp(name: str) -> str:
+    """The version of library ``name`` and a digest of where its Python
+    files are, with their sizes and modification times (the copy an import
+    finds now: ``importlib.util.find_spec``, which imports nothing);
+    ``"<name>=none"`` where it is not installed."""
+    import importlib.util
+    from importlib import metadata
+
+    try:
+        spec = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        spec = None
+    if spec is None:
+        return f"{name}=none"
+    try:
+        version = metadata.version(name)
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    roots = [Path(p) for p in (spec.submodule_search_locations or [])] or [Path(str(spec.origin))]
+    h = hashlib.sha256()
+    for root in roots:
+        for path in (sorted(root.rglob("*.py")) if root.is_dir() else [root]):
+            try:
+                st = path.stat()
+            except OSError:
+                continue
+            h.update(f"{path}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+    return f"{name}={version}:{h.hexdigest()}"
+
+
 @functools.lru_cache(maxsize=None)
 def _environment(options: bytes) -> bytes:
-    """What every key shares: package, versions, device, XLA's flags, JAX's
-    options (``options``, encoded)."""
+    """What every key shares: package, versions (with ``library_stamp``
+    of each of ``TRACED_LIBRARIES``), device, XLA's flags, JAX's options
+    (``options``, encoded)."""
     from importlib import metadata
 
     versions = [sys.version, np.__version__, jax.__version__]
-    for dist in ("jaxlib", "equinox", "optimistix", "lineax"):
-        try:
-            versions.append(f"{dist}={metadata.version(dist)}")
-        except metadata.PackageNotFoundError:
-            versions.append(f"{dist}=none")
+    try:
+        versions.append(f"jaxlib={metadata.version('jaxlib')}")
+    except metadata.PackageNotFoundError:
+        versions.append("jaxlib=none")
+    versions += [library_stamp(name) for name in TRACED_LIBRARIES]
     dev = jax.devices()[0]
     device = [dev.platform, getattr(dev, "device_kind", ""), dev.client.platform_version, _cpu_flags()]
     flags = [os.environ.get(v, "") for v in ("XLA_FLAGS", "LIBTPU_INIT_ARGS", "NEURON_CC_FLAGS")]

@@ -265,6 +265,10 @@ def kepler_exposure(hdr) -> float | None:
     return None
 
 
+# characters other than \n and \r at which str.splitlines breaks a line
+_OTHER_BREAKS = ("\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029")
+
+
 def _plain_csv(text: str):
     """(the header's names, the values [rows, columns]) of a CSV text that
     holds only numbers: '#' comment lines, then a header row of distinct
@@ -273,6 +277,8 @@ def _plain_csv(text: str):
     numpy's parser takes 20 ms for the bundled 65,000 Kepler-20 rows,
     astropy's 54 ms plus 0.3 s to import its tables (where nothing else has:
     ``jaxppo scan`` imports them anyway to write scan.ecsv)."""
+    if any(c in text for c in _OTHER_BREAKS):  # str.splitlines breaks there; astropy's reader does not
+        return None
     lines = text.splitlines(keepends=True)
     k = next((i for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")), None)
     if k is None or '"' in text or "#" in "".join(lines[k:]):

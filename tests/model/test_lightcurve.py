@@ -401,6 +401,8 @@ def test_csv_with_a_byte_order_mark(tmp_path):
     "time,flux\n1,2 # x\n",  # not a number
     "time,flux\n\n",  # no rows
     'time,"flux"\n1,2\n',  # a quoted name
+    "time,flux\n1,2\x0b3,4\n",  # a vertical tab (str.splitlines broke the row in two; astropy refuses it)
+    "time,flux\n1,2\u20283,4\n",  # a Unicode line separator
 ])
 def test_csv_read_by_numpy_equals_astropy(tmp_path, text, monkeypatch):
     """Plain numeric CSV files are parsed by numpy (20 ms for the bundled

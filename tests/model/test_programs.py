@@ -241,6 +241,79 @@ def test_fit_identical_with_the_store_cold_and_warm(tmp_path):
     assert out["cold"] == out["off"] and out["warm"] == out["off"]
 
 
+LIBRARY = textwrap.dedent("""
+    import sys
+    sys.path.insert(0, sys.argv[2])
+    import jax, jax.numpy as jnp
+    jax.config.update("jax_enable_x64", True)
+    import jaxppo as jp
+    from jaxppo.model._programs import counts, stored
+    import jnkepler  # a stand-in first on sys.path: a library whose code a stored program traces
+    jp.compilation_cache(sys.argv[1])
+
+    @stored
+    def through_library(x):
+        return jnkepler.scale(x)
+
+    print(repr(float(through_library(jnp.arange(4.0)))), counts["loaded"], counts["compiled"])
+""")
+
+
+def test_a_traced_library_edited_or_replaced_is_compiled_again(tmp_path):
+    """Issue 26 review: a stored program that traces another library's code
+    (jaxppo's N-body programs trace jnkepler's integrator) is not loaded
+    where that library changed: edited in place, or another copy first on
+    sys.path (here a stand-in named jnkepler). Before, the key held no
+    version of jnkepler, and a process
+    with an edited jnkepler got the old program's chi^2 (45024.2 where its
+    own code gave 45012.4)."""
+    script = tmp_path / "run.py"
+    script.write_text(LIBRARY)
+    lib = tmp_path / "lib"
+    (lib / "jnkepler").mkdir(parents=True)
+    source = lib / "jnkepler" / "__init__.py"
+    other = tmp_path / "other"
+    (other / "jnkepler").mkdir(parents=True)
+    (other / "jnkepler" / "__init__.py").write_text("def scale(x):\n    return 5.0 * x.sum()\n")
+    env = dict(os.environ, JAXPPO_CACHE="1")
+
+    def run(path):
+        out = subprocess.run([sys.executable, str(script), str(tmp_path / "cache"), str(path)], env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        value, loaded, compiled = out.stdout.split()
+        return float(value), int(loaded), int(compiled)
+
+    source.write_text("def scale(x):\n    return 2.0 * x.sum()\n")
+    assert run(lib) == (12.0, 0, 1)
+    assert run(lib) == (12.0, 1, 0)  # the same library: loaded
+    source.write_text("def scale(x):\n    return 3.0 * x.sum()\n")  # edited in place
+    os.utime(source, ns=(source.stat().st_atime_ns, source.stat().st_mtime_ns + 10**9))
+    assert run(lib) == (18.0, 0, 1)
+    assert run(other) == (30.0, 0, 1)  # another copy first on sys.path
+    assert run(lib) == (18.0, 1, 0)
+
+
+def test_library_stamp_follows_version_place_and_files(tmp_path, monkeypatch):
+    """``library_stamp``: none where the library is not installed; a
+    different stamp for another copy or an edited file."""
+    assert _programs.library_stamp("no_such_library_here") == "no_such_library_here=none"
+    assert _programs.library_stamp("equinox").startswith("equinox=")
+    for name in ("a", "b"):
+        (tmp_path / name / "stamplib").mkdir(parents=True)
+        (tmp_path / name / "stamplib" / "__init__.py").write_text("X = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path / "a"))
+    first = _programs.library_stamp("stamplib")
+    assert _programs.library_stamp("stamplib") == first
+    (tmp_path / "a" / "stamplib" / "__init__.py").write_text("X = 22\n")
+    edited = _programs.library_stamp("stamplib")
+    assert edited != first
+    monkeypatch.syspath_prepend(str(tmp_path / "b"))
+    import importlib
+    importlib.invalidate_caches()
+    assert _programs.library_stamp("stamplib") not in (first, edited)
+
+
 SAME_CODE = textwrap.dedent("""
     import sys
     import jax, numpy as np
