@@ -324,7 +324,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     if fold_inc:
         theta, verdict["cov_theta"] = _fold_inc(model, theta, verdict["cov_theta"])
     problems = ([optx_problem] if optx_problem else []) + verdict["problems"]
-    problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, model.to_system(theta))]
+    solved = model.to_system(theta)
+    problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, solved)]
     ok = not problems
     message = ("converged: " + verdict["summary"]) if ok else "failed: " + "; ".join(problems)
     cov, derived, values = _physical_covariance(model, theta, verdict["cov_theta"])
@@ -335,7 +336,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     _warn_if_degenerate(model.free, verdict)
     chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
     say("done")
-    return FitResult(model.result_system(theta), verdict["chi2"], cov, ok, message, tuple(model.free),
+    return FitResult(model.result_system(theta, solved), verdict["chi2"], cov, ok, message, tuple(model.free),
                      values, errors, chi2_data / (n - k), steps, model.union_idx, derived,
                      verdict["condition"])
 

@@ -225,11 +225,12 @@ class Model(eqx.Module):
         """The System that theta describes (traceable)."""
         return system_at(theta, self.system, tuple(self.slots))
 
-    def result_system(self, theta) -> System:
+    def result_system(self, theta, system: System | None = None) -> System:
         """The System at theta as a result hands it to the user: an N-body
         system's integration span as the user gave it (the span this Model
-        fixed covers only the data; outside it a traced time gives NaN)."""
-        system = self.to_system(theta)
+        fixed covers only the data; outside it a traced time gives NaN).
+        ``system``: ``to_system(theta)`` where the caller has it already."""
+        system = self.to_system(theta) if system is None else system
         if system.orbits == "nbody" and system.span != self.user_span:
             system = system.replace(span=self.user_span)
         return system

@@ -86,11 +86,10 @@ def _check_profile(star: "Star", coefficients: str) -> "Star":
             "no physical star; "
             "check the coefficients"
         )
-    mu = _CHECK_MU
     if np.min(inten) < 0:
         j = int(np.argmin(inten))
         warnings.warn(
-            f"Star.{star.law}({coefficients}) has negative intensity I(mu={mu[j]:.3g}) = {inten[j]:.3g} "
+            f"Star.{star.law}({coefficients}) has negative intensity I(mu={_CHECK_MU[j]:.3g}) = {inten[j]:.3g} "
             "(relative to the centre): not a physical profile",
             UserWarning,
             stacklevel=3,
