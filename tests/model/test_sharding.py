@@ -118,7 +118,9 @@ def results(sharded: bool) -> dict:
 
 
 def test_four_devices_equal_one(tmp_path):
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    # (the XLA flags this process runs with, such as .ci/run's optimisation level, and four devices)
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu")
     path = tmp_path / "sharded.npz"
     here = os.path.dirname(os.path.abspath(__file__))
     subprocess.run([sys.executable, "-c", CODE, str(path), here, "4"], check=True, env=env, timeout=600)
