@@ -321,3 +321,16 @@ def pad_scenes(cfgs, k=3):
     y = np.array([list(c[1]) + [0.0] * (k - len(c[1])) for c in cfgs])
     r = np.array([list(c[2]) + [0.0] * (k - len(c[2])) for c in cfgs])
     return x, y, r
+
+
+def one_device_env(**extra) -> dict:
+    """This process's environment for a subprocess of one CPU device: its
+    XLA_FLAGS without a forced device count, so that the subprocess
+    compiles with the same flags (such as .ci/run's optimisation level,
+    which changes rounding) and its numbers equal this process's."""
+    import os
+
+    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_force_host_platform_device_count")]
+    env = dict(os.environ, JAX_PLATFORMS="cpu", **extra)
+    env["XLA_FLAGS"] = " ".join(flags)
+    return env

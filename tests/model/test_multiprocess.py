@@ -49,8 +49,9 @@ def _free_port() -> int:
 
 def test_two_processes_equal_one(tmp_path):
     here = os.path.dirname(os.path.abspath(__file__))
-    env = dict(os.environ, JAX_PLATFORMS="cpu")
-    env.pop("XLA_FLAGS", None)
+    from helpers import one_device_env
+
+    env = one_device_env()
     port = str(_free_port())
     procs = [subprocess.Popen([sys.executable, "-c", WORKER, str(tmp_path / f"p{i}.npz"), str(i), port, here],
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

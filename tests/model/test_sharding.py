@@ -118,9 +118,11 @@ def results(sharded: bool) -> dict:
 
 
 def test_four_devices_equal_one(tmp_path):
-    # (the XLA flags this process runs with, such as .ci/run's optimisation level, and four devices)
-    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
-    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu")
+    from helpers import one_device_env
+
+    # the XLA flags this process runs with (such as .ci/run's optimisation level), and four devices
+    env = one_device_env()
+    env["XLA_FLAGS"] = (env["XLA_FLAGS"] + " --xla_force_host_platform_device_count=4").strip()
     path = tmp_path / "sharded.npz"
     here = os.path.dirname(os.path.abspath(__file__))
     subprocess.run([sys.executable, "-c", CODE, str(path), here, "4"], check=True, env=env, timeout=600)

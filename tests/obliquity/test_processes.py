@@ -21,9 +21,9 @@ def _free_port() -> int:
 
 
 def _env(tmp_path, **extra):
-    env = dict(os.environ, JAX_PLATFORMS="cpu", JAXPPO_CACHE_DIR=str(tmp_path / "cache"), **extra)
-    env.pop("XLA_FLAGS", None)
-    return env
+    from helpers import one_device_env  # (here: the workers below import this module without tests/ on sys.path)
+
+    return one_device_env(JAXPPO_CACHE_DIR=str(tmp_path / "cache"), **extra)
 
 
 SCAN = [sys.executable, "-m", "jaxppo.cli", "scan", "--alpha", "0", "360", "2", "--quiet"]
