@@ -1,8 +1,8 @@
 """Fit and MCMC timings for Kepler-20 b + c over the seven double transits
 (about 2900 one-minute points), float64, this machine:
 
-* fit: optimistix Levenberg-Marquardt of b and c (t0, P, a, i, p), cold (incl.
-  compilation) and warm;
+* fit: jp.fit (Levenberg-Marquardt and its minimum check) of b and c (t0, P,
+  a, i, p), cold (incl. compilation) and warm;
 * NUTS: numpyro, --warmup + --samples (default 1000 + 1000), four free
   parameters;
 * gradient: the cost of jax.grad of chi^2 relative to one forward evaluation.

@@ -1,7 +1,8 @@
-"""Least-squares fits: optimistix Levenberg-Marquardt over the named free
-parameters of ``._params`` in the coordinates of ``Model``, with a
-check that the solution is a minimum (Hessian and Newton step) and the
-linearised covariance there.
+"""Least-squares fits: Levenberg-Marquardt (``._lm``) over the named free
+parameters of ``._params`` in the coordinates of ``Model``, with a check
+that the solution is a minimum (``._minimum``: Hessian and Newton step),
+trust-region steps of that Hessian where it is not, and the linearised
+covariance at the solution.
 """
 
 from __future__ import annotations
@@ -12,14 +13,14 @@ import sys
 import time
 import warnings
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..model._lightcurve import LightCurve
-from ..model._programs import stored
 from ..model._system import System
-from ._model import Model, scaled_residuals
+from ._lm import LM_STATUS, lm_pass, trust_region_steps
+from ._minimum import assess, chi2_at
+from ._model import Model
 from ._params import as_lightcurve, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -209,7 +210,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         fold_inc: bool = True) -> FitResult:
     """Fit the named free parameters to a light curve by least squares.
 
-    optimistix's Levenberg-Marquardt over the free parameters, in
+    Levenberg-Marquardt (Marquardt's scaling, Nielsen's damping; one
+    compiled program, ``jaxppo.inference._lm``) over the free parameters, in
     coordinates that keep the physics valid (a > 1, radius > 0, a transiting
     impact parameter; ``jaxppo.inference._params``); everything else
     stays at ``system``'s values. Limb darkening stays fixed unless named
@@ -224,10 +226,15 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     solution at which every planet with a free parameter transits in the
     data, a finite chi^2, and a solution that is a minimum: the Hessian of
     chi^2 there is positive definite and a Newton step from it would lower
-    chi^2 by less than 0.01. When optimistix stops elsewhere (its step
-    criteria are met where chi^2 is flat, e.g. from a start with a tiny
-    radius), the fit restarts from there in coordinates scaled by the
-    Jacobian's columns before it reports failure.
+    chi^2 by less than 0.01 (the Hessian by second differences, along the
+    parameters and along the combinations of them that the data determine
+    10 times or more worse than the parameters one by one). Where a pass
+    ends at a point the check refuses, the fit takes the best of 21
+    trust-region steps of the check's Hessian (the way along a bending
+    valley or off a saddle) and another pass, ten passes at most. Like
+    any local optimiser it ends in the local minimum its path leads to.
+    Errors from the linearised covariance are linearised: where the check
+    warns, ``jaxppo.sample`` gives the posterior.
 
     Parameters
     ----------
@@ -244,12 +251,13 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     max_steps : int, optional
         Most Levenberg-Marquardt steps per pass (default 200). Each pass
         ends with the minimum check: a pass that used them all at a point
-        the check accepts is a minimum; otherwise the fit takes another
-        pass (four on the same frames at most, ten in all).
+        the check accepts is a minimum; otherwise the fit goes on (ten
+        passes at most).
     rtol : float, optional
-        optimistix's relative tolerance (default 1e-6).
+        A pass ends where a step near Gauss-Newton's gained, and the next
+        one promises, less than atol + rtol chi^2 (default 1e-6).
     atol : float, optional
-        optimistix's absolute tolerance (default 1e-6).
+        See ``rtol`` (default 1e-6).
     progress : bool, optional
         Print one line per stage on stderr (default False).
     fold_inc : bool, optional
@@ -313,17 +321,17 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     say(f"{n} points, {k} free parameters; compiling the model")
     # from the Jacobian's program, which the minimum check compiles anyway
     # (a separate residual program would cost a compilation of its own)
-    chi2_start = float(np.sum(np.asarray(model.jacobian(theta)[1]) ** 2))
+    chi2_start = float(np.sum(np.asarray(lm_pass(theta, model.data())[2]) ** 2))
     if not np.isfinite(chi2_start):
         problems.append(f"chi^2 at the start is {chi2_start} (flux_err as small as {np.min(lightcurve.flux_err):.3g} "
                         "makes the residuals overflow float64, or the model is not finite)")
     if problems:
         return _failed_start(model, system, theta, chi2_start, n, problems)
     say(f"chi^2 at the start {chi2_start:.6g}")
-    model, theta, optx_problem, steps, verdict = _solve(model, theta, max_steps, rtol, atol, say)
+    model, theta, lm_problem, steps, verdict = _solve(model, theta, chi2_start, max_steps, rtol, atol, say)
     if fold_inc:
         theta, verdict["cov_theta"] = _fold_inc(model, theta, verdict["cov_theta"])
-    problems = ([optx_problem] if optx_problem else []) + verdict["problems"]
+    problems = ([lm_problem] if lm_problem else []) + verdict["problems"]
     solved = model.to_system(theta)
     problems += [p.replace("at the start", "at the solution") for p in _transit_problems(model, solved)]
     ok = not problems
@@ -355,64 +363,70 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
                      0, model.union_idx)
 
 
-@stored(filtered=True)
-def least_squares_pass(theta, scale, data, rtol: float, atol: float, max_steps: int):
-    """One Levenberg-Marquardt pass (optimistix) in z = (theta' - theta) *
-    scale from z = 0: (z at its end, the leaves of optimistix's result, its
-    steps). A stored program (outputs of arrays only): a new process loads
-    it instead of tracing the solver."""
-    import optimistix as optx
-
-    sol = optx.least_squares(scaled_residuals, optx.LevenbergMarquardt(rtol=rtol, atol=atol), jnp.zeros_like(theta),
-                             args=(theta, scale, data), max_steps=max_steps, throw=False)
-    return sol.value, tuple(jax.tree_util.tree_leaves(sol.result)), sol.stats["num_steps"]
+# passes of Levenberg-Marquardt (each ends with the minimum check) at most
+MAX_PASSES = 10
 
 
-def _solve(model: Model, theta, max_steps: int, rtol: float, atol: float, say):
+def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, say):
     """Levenberg-Marquardt passes until the solution is a minimum of a model
-    whose frame sets cover it. Returns (model, theta, optimistix's failure
-    message or None, steps, the ``_assess`` verdict).
+    whose frame sets cover it. Returns (model, theta, why the last pass
+    ended where that is a failure, or None; steps, the ``assess`` verdict).
 
+    Each pass ends with the check (``assess``), whatever ended it: a pass
+    that used its ``max_steps`` at a point the check accepts is a minimum,
+    and one that met its tolerance at a point the check refuses goes on.
+    From a refused point, the fit first tries trust-region steps of the
+    check's Hessian (``trust_region_steps``, chi^2 at all of them in one
+    batch): along a bending valley or off a saddle they go where
+    Levenberg-Marquardt's model, which has no negative curvature, crawls.
     The frames that take the union integral are fixed from the starting
     parameters (with a margin). If the solution brings disks together in
     other frames, those frames are added (a new Model with the same
-    programs while the frame counts stay in their buckets), the solution is
-    checked on it and refitted unless it is a minimum there. Each pass ends
-    with the check (``_assess``), whatever optimistix's verdict: a pass that
-    used its ``max_steps`` at a point the check accepts is a minimum, and
-    one that met its tolerances at a point the check refuses is refitted.
-    Levenberg-Marquardt damps with the
-    identity, so where chi^2 is nearly flat in theta (a radius of 1e-6 R*)
-    its steps are tiny and its step criteria are met far from the minimum;
-    then restart in theta scaled by the Jacobian's columns (same residual
-    function, so no recompilation)."""
-    import optimistix as optx
-
-    steps, restarts = 0, 0
-    scale = jnp.ones_like(theta)
-    verdict = None
-    for stage in range(10):
-        value, result, num_steps = least_squares_pass(theta, scale, model.data(), float(rtol), float(atol),
-                                                      int(max_steps))
-        result = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(optx.RESULTS.successful), result)
-        theta = theta + value / scale
-        steps += int(num_steps)
+    programs while the frame counts stay in their buckets) and the solution
+    is checked on it."""
+    steps, status, verdict = 0, 0, None
+    for stage in range(MAX_PASSES):
+        theta, jac, r, num_steps, status = lm_pass(theta, model.data(), max_steps, rtol, atol)
+        steps, status = steps + int(num_steps), int(status)
+        moved = chi2 - float(np.sum(np.asarray(r) ** 2))
         say(f"Levenberg-Marquardt pass {stage + 1}: {steps} steps in all")
         wider = model.widened([model.to_system(theta)])
         if wider is not None:
             model = wider
+            _, jac, r, _, _ = lm_pass(theta, model.data())
             say(f"the solution brings disks together or onto the star in new frames: checking it with "
                 f"{model.union_idx.size} union and {model.active_idx.size} computed frames")
-        verdict = _assess(model, theta)
-        say(f"checked the minimum: chi^2 {verdict['chi2']:.6g}"
-            + ("" if verdict["optimum"] else "; not a minimum yet" if verdict["scale"] is not None else ""))
-        if verdict["optimum"] or verdict["scale"] is None or restarts == 3:
+        verdict = assess(model, theta, jac, r)
+        chi2 = verdict["chi2"]
+        say(f"checked the minimum: chi^2 {chi2:.6g}" + ("" if verdict["optimum"] else "; not a minimum yet"))
+        if verdict["optimum"] or verdict["hessian"] is None or stage == MAX_PASSES - 1:
             break
-        scale, restarts = verdict["scale"], restarts + (wider is None)
-    failure = None  # a pass that ran out of steps ends at a minimum all the same where the check says so
-    if not verdict["optimum"] and not bool(result == optx.RESULTS.successful):
-        failure = str(optx.RESULTS[result]) if hasattr(optx.RESULTS, "__getitem__") else str(result)
+        step = _trust_region(model, np.asarray(theta), verdict)
+        if step is not None:
+            theta, chi2 = step
+            say(f"a trust-region step of the check's Hessian: chi^2 {chi2:.6g}")
+        elif wider is None and moved < _PROGRESS:
+            break  # neither Levenberg-Marquardt nor the Hessian's steps go lower
+    failure = None if verdict["optimum"] or status == 0 else "Levenberg-Marquardt stopped: " + LM_STATUS[status]
     return model, theta, failure, steps, verdict
+
+
+# a trust-region step is taken, and a pass counts as progress, when chi^2
+# falls by more than this (a hundredth of the minimum check's tolerance)
+_PROGRESS = 1e-4
+
+
+def _trust_region(model: Model, theta, verdict):
+    """(theta, chi^2) at the best of the trust-region steps of the check's
+    Hessian (``TRUST_RADII``), or None when none lowers chi^2 by more than
+    ``_PROGRESS``."""
+    c = verdict["scale"]
+    trial = theta + trust_region_steps(verdict["hessian"], verdict["grad"]) / c
+    chi2 = chi2_at(model, trial, 2 * c.size + 1)
+    best = int(np.argmin(np.where(np.isfinite(chi2), chi2, np.inf)))
+    if not chi2[best] < verdict["chi2"] - _PROGRESS:
+        return None
+    return trial[best], float(chi2[best])
 
 
 def _fold_inc(model: Model, theta, cov_theta):
@@ -485,181 +499,3 @@ def _start_problems(model: Model, system: System, n: int, k: int) -> list:
     if n <= k:
         out.append(f"{n} data points for {k} free parameters {model.free}: a fit needs more points than free parameters")
     return out + _transit_problems(model, system)
-
-
-
-def _assess(model: Model, theta) -> dict:
-    """Is theta a minimum of chi^2? From the residuals' Jacobian J and the
-    full Hessian H of chi^2, both with theta scaled by J's column norms (so
-    the verdict does not depend on units): H positive definite and the
-    Newton decrement g^T H^-1 g / 2 (the chi^2 a Newton step would gain)
-    below 0.01. Also the covariance (J^T J)^-1 in theta."""
-    jac, r = (np.asarray(v) for v in model.jacobian(theta))
-    chi2 = float(np.sum(r**2))
-    out = {"chi2": chi2, "problems": [], "optimum": False, "scale": None, "cov_theta": None, "summary": "",
-           "condition": np.nan, "weakest": "", "dchi2_1sigma": None, "residuals": r}
-    if not np.isfinite(chi2):
-        out["problems"].append(f"chi^2 at the solution is {chi2}")
-        return out
-    c = np.sqrt(np.sum(jac**2, axis=0))
-    flat = [n for n, ci in zip(model.free, c) if not ci > 0]
-    if flat or not np.all(np.isfinite(jac)):
-        out["problems"].append(f"the data do not constrain {flat} (zero or non-finite derivative at the solution)")
-        out["condition"], out["weakest"] = np.inf, f"{flat} alone"
-        return out
-    out["scale"] = jnp.asarray(c)
-    grad = 2.0 * (jac.T @ r) / c
-    jtj = (jac / c).T @ (jac / c)
-    jitter = any(par == "jitter" for _, par in model.slots)
-    try:
-        cov_gn = np.linalg.inv(jtj) / np.outer(c, c)
-    except np.linalg.LinAlgError:
-        cov_gn = None
-    # the centre and +-h along each axis: residual vectors, which say which
-    # parameters share data points (the others have no cross term)
-    axis_pts = np.asarray(_hessian_points(c.size, []))
-    res = np.asarray(model.residuals_batch(jnp.asarray(theta) + jnp.asarray(axis_pts) / c))
-    pairs = _coupled_pairs(res)
-    pts = _hessian_points(c.size, pairs)[len(axis_pts):]
-    # the same batch also evaluates chi^2 at +-1 sigma along the principal
-    # axes of the linearised covariance (see _axis_steps)
-    axes = None if jitter else _axis_steps(cov_gn)
-    if axes is not None:
-        pts += list(axes * c)
-    n_hess = len(axis_pts) + 4 * len(pairs)
-    f_pairs = _chi2_at(model, np.asarray(theta) + np.array(pts).reshape(-1, c.size) / c, len(axis_pts))
-    f = np.concatenate([np.sum(res**2, axis=1), f_pairs])
-    hess = _second_differences(f, pairs, c.size)
-    if not np.all(np.isfinite(hess)):
-        out["problems"].append("the Hessian of chi^2 at the solution is not finite")
-        return out
-    _judge_minimum(out, hess, grad)
-    _conditioning(out, jtj, model.free)
-    if not jitter:
-        out["cov_theta"] = cov_gn
-        if axes is not None:
-            out["dchi2_1sigma"] = f[n_hess:] - chi2
-        return out
-    return _laplace_with_jitter(out, model, theta, hess, c, len(axis_pts))
-
-
-def _chi2_at(model: Model, thetas, rows: int) -> np.ndarray:
-    """chi^2 at each row of ``thetas``: the residuals program of the
-    Hessian's axis points (``rows`` rows, the last batch padded with its first
-    row) run batch by batch, summed here. One program for every point of
-    ``_assess``: a chi^2 program of its own cost a second compilation (1.3 s
-    on the Kepler-20 b + c benchmark), and each batch size another."""
-    out = []
-    for lo in range(0, len(thetas), rows):
-        batch = thetas[lo:lo + rows]
-        batch = np.concatenate([batch, np.repeat(batch[:1], rows - len(batch), axis=0)])
-        out.append(np.sum(np.asarray(model.residuals_batch(jnp.asarray(batch))) ** 2, axis=1)[:len(thetas) - lo])
-    return np.concatenate(out) if out else np.zeros(0)
-
-
-# Hessian of chi^2 in the scaled coordinates by second differences of chi^2
-# itself (2 k^2 forward evaluations in one program; a traced jax.hessian
-# costs ~8 s of compilation here). The step is a fraction of the scale on
-# which chi^2 changes by 1: the light curve's second derivative jumps at
-# contact points, and differences of the gradient over tiny steps read a
-# 10-parameter Kepler-20 minimum as a saddle.
-_HESSIAN_STEP = 0.3
-
-
-def _hessian_points(k: int, pairs) -> list:
-    """Points in the scaled coordinates: the centre, +-h along each axis,
-    (+-h, +-h) in each of the ``pairs`` of axes (i, j), i < j."""
-    h = _HESSIAN_STEP
-    eye = np.eye(k) * h
-    pts = [np.zeros(k)] + [s * eye[i] for i in range(k) for s in (1.0, -1.0)]
-    pts += [si * eye[i] + sj * eye[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
-    return pts
-
-
-def _coupled_pairs(res) -> list:
-    """The pairs (i, j), i < j, of parameters that move a common residual
-    (``res``: the residuals at the centre and at +-h along each axis, the
-    rows of ``_hessian_points`` without pairs). Parameters that move
-    disjoint sets of points (the transit times of different transits, the
-    baselines of different windows) add separately to chi^2: their cross
-    derivative is zero, and skipping those pairs turns the 2 k^2 chi^2
-    evaluations of a fit of many transit times into a few per transit."""
-    moved = np.abs(res[1:] - res[0]) > 0
-    moved = moved[0::2] | moved[1::2]  # [k, n]: the points parameter i moves
-    share = (moved.astype(np.int32) @ moved.T.astype(np.int32)) > 0
-    k = share.shape[0]
-    return [(i, j) for i in range(k) for j in range(i + 1, k) if share[i, j]]
-
-
-def _second_differences(f, pairs, k: int) -> np.ndarray:
-    """The Hessian from chi^2 ``f`` at the points of ``_hessian_points``
-    (zero for the pairs not listed)."""
-    h = _HESSIAN_STEP
-    hess = np.zeros((k, k))
-    for i in range(k):
-        hess[i, i] = (f[1 + 2 * i] - 2 * f[0] + f[2 + 2 * i]) / h**2
-    base = 1 + 2 * k
-    for n, (i, j) in enumerate(pairs):
-        fpp, fpm, fmp, fmm = f[base + 4 * n: base + 4 * n + 4]
-        hess[i, j] = hess[j, i] = (fpp - fpm - fmp + fmm) / (4 * h**2)
-    return hess
-
-
-def _judge_minimum(out: dict, hess, grad) -> None:
-    """Positive definite Hessian and a Newton decrement below 0.01: sets
-    ``out["optimum"]``, ``"summary"`` or adds to ``"problems"``."""
-    w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
-    # scaled so that the Gauss-Newton part has unit diagonal: eigenvalues
-    # near 2 for well-determined parameters; 1e-9 of that is degenerate
-    if w[0] <= 2e-9 * max(w[-1], 1.0):
-        out["problems"].append(f"not a minimum: the Hessian of chi^2 is not positive definite (scaled eigenvalues "
-                               f"{w[0]:.3g} .. {w[-1]:.3g}, gradient norm {np.linalg.norm(grad):.3g}); the free parameters are "
-                               "degenerate, or the fit stopped on a slope or a saddle")
-        return
-    decrement = 0.5 * float(grad @ np.linalg.solve(hess, grad))
-    out["summary"] = f"Newton step would lower chi^2 by {decrement:.2g}"
-    if decrement > 0.01:
-        out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
-    else:
-        out["optimum"] = True
-
-
-def _conditioning(out: dict, jtj, free) -> None:
-    """Condition number of the scaled Fisher matrix (unit diagonal) and its
-    most degenerate combination: its smallest eigenvalue is 1 / (the
-    variance inflation of the worst-determined combination of parameters
-    over the parameters one at a time)."""
-    wj, vj = np.linalg.eigh(jtj)
-    out["condition"] = float(wj[-1] / wj[0]) if wj[0] > 0 else np.inf
-    v0 = vj[:, 0]
-    top = np.argsort(-np.abs(v0))[:3]
-    out["weakest"] = " ".join(f"{v0[i]:+.2f} {free[i]}" for i in top if abs(v0[i]) > 0.1)
-
-
-def _laplace_with_jitter(out: dict, model: Model, theta, hess, c, n_batch: int) -> dict:
-    """With a free jitter, the Laplace covariance: -2 ln L ~ const +
-    dtheta^T H dtheta, cov = 2 H^-1 (in scaled coordinates, back to theta
-    by the column scales ``c``); the Gauss-Newton form of the augmented
-    residuals misses the jitter's curvature. Then chi^2 at its 1 sigma
-    (``_chi2_at`` in batches of ``n_batch``)."""
-    try:
-        out["cov_theta"] = 2.0 * np.linalg.inv(0.5 * (hess + hess.T)) / np.outer(c, c)
-    except np.linalg.LinAlgError:
-        return out
-    axes = _axis_steps(out["cov_theta"])
-    if axes is not None:
-        out["dchi2_1sigma"] = _chi2_at(model, np.asarray(theta) + axes, n_batch) - out["chi2"]
-    return out
-
-
-def _axis_steps(cov_theta):
-    """Steps in theta to +-1 sigma along each principal axis of the
-    linearised covariance, where chi^2 - chi^2_min is exactly 1 if the
-    Laplace approximation holds; None without a finite, positive-definite
-    covariance."""
-    if cov_theta is None or not np.all(np.isfinite(cov_theta)):
-        return None
-    w, v = np.linalg.eigh(0.5 * (cov_theta + cov_theta.T))
-    if w[0] <= 0:
-        return None
-    return np.array([s * np.sqrt(w[i]) * v[:, i] for i in range(w.size) for s in (1.0, -1.0)])

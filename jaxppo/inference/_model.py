@@ -27,8 +27,8 @@ from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitt
 # moon elements whose coordinate is the logarithm (the others: identity)
 _MOON_LOG = ("period", "a", "radius", "mass_ratio")
 
-__all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals", "scaled_residuals",
-           "pointwise_loglike", "chi2_batch", "residuals_batch", "jacobian"]
+__all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals",
+           "pointwise_loglike", "chi2_batch", "residuals_batch"]
 
 UNION_MARGIN = 0.05
 """[R*] Two disks within this distance of touching at the start run the
@@ -312,12 +312,6 @@ class Model(eqx.Module):
         Model's (alpha is traced: one compilation serves every tilt)."""
         return residuals(theta, eqx.tree_at(lambda d: d.alpha, self.data(), jnp.asarray(alpha, float)))
 
-    def scaled_residuals(self, z, args) -> jnp.ndarray:
-        """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
-        scale)``."""
-        theta_ref, scale = args
-        return residuals(theta_ref + z / scale, self.data())
-
     def chi2_batch(self, thetas):
         """chi^2 at each row of ``thetas`` (one compiled program)."""
         return chi2_batch(thetas, self.data())
@@ -325,10 +319,6 @@ class Model(eqx.Module):
     def residuals_batch(self, thetas):
         """``residuals`` at each row of ``thetas`` (one compiled program)."""
         return residuals_batch(thetas, self.data())
-
-    def jacobian(self, theta):
-        """(d residuals / d theta, residuals), compiled once per structure."""
-        return jacobian(theta, self.data())
 
 
 def _build(model: "Model") -> "ModelData":
@@ -560,15 +550,6 @@ def pointwise_loglike(theta, d: ModelData) -> jnp.ndarray:
     return -0.5 * r**2 / var - 0.5 * jnp.log(2.0 * jnp.pi * var)
 
 
-def scaled_residuals(z, args) -> jnp.ndarray:
-    """Residuals at theta = theta_ref + z / scale, ``args = (theta_ref,
-    scale, data)``: a module-level function with the data as traced inputs,
-    so optimistix compiles it once per model structure and frame counts
-    (not once per fit, restart or Model)."""
-    theta_ref, scale, d = args
-    return residuals(theta_ref + z / scale, d)
-
-
 @stored(filtered=True)
 def chi2_batch(thetas, d: ModelData):
     """Sum of squared residuals at each row of ``thetas`` (lax.map)."""
@@ -608,11 +589,3 @@ def physical_jacobian(theta, d: ModelData, derived: bool):
         return q, q
 
     return jax.jacfwd(values, has_aux=True)(theta)
-
-
-@stored(filtered=True)
-def jacobian(theta, d: ModelData):
-    """(d residuals / d theta, residuals) by forward differentiation."""
-    return jax.jacfwd(lambda th: (residuals(th, d),) * 2, has_aux=True)(theta)
-
-

@@ -1,4 +1,4 @@
-"""Fits (optimistix) and MCMC (numpyro) on synthetic and real Kepler data."""
+"""Fits (jp.fit) and MCMC (numpyro) on synthetic and real Kepler data."""
 
 import warnings
 
@@ -68,8 +68,8 @@ def test_bad_start_reports_failure_without_raising():
 
 
 def test_passes_cut_by_max_steps_end_where_the_minimum_check_accepts():
-    """Each pass ends with the minimum check, whatever optimistix's own
-    verdict: passes of 2 steps that stop at a point the check accepts give
+    """Each pass ends with the minimum check, whatever ended the pass:
+    passes of 2 steps that stop at a point the check accepts give
     a converged fit (within the check's 0.01 of the full fit's chi^2).
     (Before, optimistix's "maximum number of steps" failed such a fit.)"""
     truth = jp.kepler20_system()
@@ -178,7 +178,7 @@ def test_fit_reports_what_went_wrong():
 def test_fit_flags_a_point_that_is_not_a_minimum():
     """A fit stopped after two steps from a shifted start is not at a
     minimum: the Newton decrement says so even if the optimiser did not."""
-    from jaxppo.inference._fit import _assess
+    from jaxppo.inference._minimum import assess
     from jaxppo.inference._model import Model
 
     truth = jp.kepler20_system()
@@ -186,9 +186,9 @@ def test_fit_flags_a_point_that_is_not_a_minimum():
     b, c = truth.planets
     model = Model(truth, lc, ("b.t0", "b.radius"))
     shifted = truth.replace(planets=(b.replace(t0=b.t0 + 0.0003, radius=0.0178), c))
-    verdict = _assess(model, model.to_theta(shifted))
+    verdict = assess(model, model.to_theta(shifted))
     assert not verdict["optimum"] and "Newton step would lower chi^2" in verdict["problems"][0], verdict["problems"]
-    assert _assess(model, model.to_theta(jp.fit(truth, lc, free=model.free).system))["optimum"]
+    assert assess(model, model.to_theta(jp.fit(truth, lc, free=model.free).system))["optimum"]
 
 
 def test_fit_computes_every_frame_the_solution_transits():

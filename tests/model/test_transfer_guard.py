@@ -1,7 +1,8 @@
 """No host round trip inside the compiled paths (what runs on a GPU in the
 hot loops): with inputs already on the device, jax.transfer_guard
 ("disallow") lets the jitted flux, its gradient, a jitted System.flux and
-the fit / NUTS model's residuals and Jacobian run. The eager "auto" path
+the fit / NUTS model's residuals and Jacobian and the fit's whole
+Levenberg-Marquardt pass run. The eager "auto" path
 plans on the host (which frames need which rule, docs/methods.md), so it
 moves data by design, and the guard sees that too."""
 
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 import jaxppo as jp
+from jaxppo.inference._lm import levenberg_marquardt
 from jaxppo.inference._model import Model
 
 
@@ -53,10 +55,17 @@ def test_jitted_system_flux_and_model_residuals_stay_on_the_device():
     res, jac = jax.jit(model.residuals), jax.jit(jax.jacfwd(model.residuals))
     res(theta).block_until_ready()
     jac(theta).block_until_ready()
+    start = jnp.asarray(theta) + jnp.asarray([1e-3, 0.0, 0.0])
+    numbers = (jnp.asarray(50, jnp.int32), jnp.asarray(1e-6), jnp.asarray(1e-6))
+    data = model.data()
+    jax.block_until_ready(levenberg_marquardt(start, data, *numbers))
     with jax.transfer_guard("disallow"):
         f = flux(t, alpha)
         r = res(theta)
         J = jac(theta)
         J.block_until_ready()
+        lm = levenberg_marquardt(start, data, *numbers)
+        jax.block_until_ready(lm)
     assert np.all(np.isfinite(np.asarray(f))) and np.all(np.isfinite(np.asarray(r)))
     assert np.asarray(J).shape == (np.asarray(r).size, 3)
+    assert int(lm[3]) > 0 and np.sum(np.asarray(lm[2]) ** 2) < np.sum(np.asarray(res(start)) ** 2)

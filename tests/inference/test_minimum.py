@@ -1,0 +1,158 @@
+"""The fit's minimum check (jaxppo.inference._minimum) and its steps
+(jaxppo.inference._lm) against independent references: curvature measured
+directly along a direction, a Hessian assembled in another basis,
+optimistix's Levenberg-Marquardt, jax.jacfwd and brute force."""
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxppo as jp
+from jaxppo.inference._lm import LM_STATUS, lm_pass, trust_region_steps
+from jaxppo.inference._minimum import WEAK, assess, chi2_at
+from jaxppo.inference._model import Model
+
+FREE10 = ("b.t0", "b.period", "b.a", "b.inc", "b.radius", "c.t0", "c.period", "c.a", "c.inc", "c.radius")
+
+
+def _curvature(model, theta, c, u, h):
+    """d^2 chi^2 / ds^2 along the unit direction u of the scaled
+    coordinates (theta * c), by a second difference of step h."""
+    pts = np.array([theta + s * h * u / c for s in (-1.0, 0.0, 1.0)])
+    f = chi2_at(model, pts, 2 * c.size + 1)
+    return (f[0] - 2 * f[1] + f[2]) / h**2
+
+
+def _rotated_hessian(model, theta, c, basis, h):
+    """The Hessian of chi^2 (scaled coordinates) from second differences
+    along every column of ``basis`` and every pair of them, back in the
+    axes: a reference assembled in another basis than the check's."""
+    k = c.size
+    cols = basis.T * h
+    pts = [np.zeros(k)] + [s * cols[i] for i in range(k) for s in (1.0, -1.0)]
+    pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
+    pts += [si * cols[i] + sj * cols[j] for i, j in pairs for si in (1.0, -1.0) for sj in (1.0, -1.0)]
+    f = chi2_at(model, theta + np.array(pts) / c, 2 * k + 1)
+    hb = np.zeros((k, k))
+    for i in range(k):
+        hb[i, i] = (f[1 + 2 * i] - 2 * f[0] + f[2 + 2 * i]) / h**2
+    for n, (i, j) in enumerate(pairs):
+        a = f[1 + 2 * k + 4 * n: 1 + 2 * k + 4 * n + 4]
+        hb[i, j] = hb[j, i] = (a[0] - a[1] - a[2] + a[3]) / (4 * h**2)
+    return basis @ hb @ basis.T
+
+
+@pytest.fixture(scope="module")
+def kepler20_ten():
+    """Kepler-20 b + c, 10 free parameters, at the end of the first
+    Levenberg-Marquardt pass of the benchmark (benchmarks/fit_timing.py):
+    c's a and inc combine into a direction the data determine ~3000 times
+    worse than either, and chi^2 is smooth along it (the same curvature
+    from second differences of steps 0.03 to 1)."""
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=7, noise=4e-4)
+    b, c = truth.planets
+    at = truth.replace(planets=(
+        b.replace(t0=134.50039510709655, period=3.6961235896059965, a=10.393264587748197, inc=87.81820902882286,
+                  radius=0.01764424809727347),
+        c.replace(t0=138.60845749707423, period=10.854088205768265, a=21.674920597925897, inc=89.13433350563157,
+                  radius=0.0294136954741203)))
+    model = Model(at, lc, FREE10, union_floor=128)
+    return model, np.asarray(model.to_theta(at))
+
+
+def test_the_hessian_measures_weak_combinations_along_themselves(kepler20_ten):
+    """The check's Hessian had its curvature along c's a-inc combination
+    as the small difference of second differences along the axes: here
+    -0.09 where chi^2 curves by +0.0014 along it, so the check called this
+    point a saddle ("not positive definite") and the fit took hundreds of
+    steps more. Now the curvature along each weak combination agrees with
+    a second difference along it at another step, the smallest eigenvalue
+    with a Hessian assembled in the Gauss-Newton eigenbasis, and the point
+    is a minimum (the Newton step would gain less than 0.01)."""
+    model, theta = kepler20_ten
+    verdict = assess(model, theta)
+    c, hess = verdict["scale"], verdict["hessian"]
+    jac, _ = (np.asarray(v) for v in lm_pass(theta, model.data())[1:3])
+    jtj = (jac / c).T @ (jac / c)
+    w, v = np.linalg.eigh(jtj)
+    assert np.sum(w < WEAK) == 2, w  # the test's premise: weak combinations
+    for i in np.flatnonzero(w < WEAK):
+        u = v[:, i]
+        direct = _curvature(model, theta, c, u, 0.1)
+        assert direct > 0
+        assert abs(u @ hess @ u - direct) < 0.1 * direct + 1e-4, (u @ hess @ u, direct)
+    ref = _rotated_hessian(model, theta, c, v, 0.1)
+    lo, lo_ref = np.linalg.eigvalsh(hess)[0], np.linalg.eigvalsh(ref)[0]
+    assert lo > 0 and abs(lo - lo_ref) < 0.2 * lo_ref, (lo, lo_ref)
+    assert verdict["optimum"], verdict["problems"]
+
+
+def test_lm_pass_of_no_steps_is_the_jacobian(kepler20_ten):
+    model, theta = kepler20_ten
+    th, jac, r, steps, status = lm_pass(theta, model.data())
+    ref_jac = jax.jacfwd(model.residuals)(jnp.asarray(theta))
+    assert int(steps) == 0 and LM_STATUS[int(status)].startswith("it used all")
+    assert np.array_equal(np.asarray(th), theta)
+    np.testing.assert_allclose(np.asarray(r), np.asarray(model.residuals(jnp.asarray(theta))), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(jac), np.asarray(ref_jac), rtol=1e-12, atol=1e-9)
+
+
+def test_lm_reaches_optimistix_minimum():
+    """Where the minimum is well determined (b's t0 and radius), the pass
+    ends where optimistix's Levenberg-Marquardt ends with tight
+    tolerances, in far fewer steps than the default pass allows."""
+    import optimistix as optx
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=11, noise=4e-4)
+    b, c = truth.planets
+    start = truth.replace(planets=(b.replace(t0=b.t0 + 0.002, radius=0.0195), c))
+    model = Model(start, lc, ("b.t0", "b.radius"))
+    theta = model.to_theta(start)
+    th, jac, r, steps, status = lm_pass(theta, model.data(), 200, 1e-12, 1e-12)
+    ref = optx.least_squares(lambda x, _: model.residuals(x), optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12),
+                             theta, max_steps=500, throw=False)
+    cov = np.linalg.inv(np.asarray(jac).T @ np.asarray(jac))
+    assert int(steps) < 40 and int(status) == 0, (int(steps), LM_STATUS[int(status)])
+    assert np.all(np.abs(np.asarray(th) - np.asarray(ref.value)) < 1e-4 * np.sqrt(np.diag(cov)))
+
+
+def test_trust_region_steps_solve_the_constrained_quadratic():
+    """Against brute force on the circle |s| = radius (and the Newton step
+    inside it), for a positive-definite and an indefinite Hessian."""
+    g = np.array([0.7, -0.3])
+    angles = np.linspace(0.0, 2 * np.pi, 200001)
+    for hess in (np.array([[2.0, 0.5], [0.5, 1.0]]), np.array([[1.0, 0.3], [0.3, -0.5]])):
+        model = lambda s: s @ g + 0.5 * np.einsum("...i,ij,...j->...", s, hess, s)  # noqa: E731
+        newton = -np.linalg.solve(hess, g)
+        for radius in (0.05, 0.3, 1.0, 5.0):
+            s = trust_region_steps(hess, g, [radius])[0]
+            circle = radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+            best = np.min(model(circle))
+            if np.all(np.linalg.eigvalsh(hess) > 0) and np.linalg.norm(newton) <= radius:
+                np.testing.assert_allclose(s, newton, rtol=1e-12)
+            else:
+                assert abs(np.linalg.norm(s) - radius) < 1e-9 * radius
+                assert model(s) <= best + 1e-9, (model(s), best)
+
+
+def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps():
+    """The benchmark of benchmarks/fit_timing.py (10 free parameters):
+    optimistix's Levenberg-Marquardt took 451 steps and two restarts; the
+    fit must end at a point its check accepts, in under 150 steps, with
+    chi^2 below chi^2 at the true parameters."""
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=7, noise=4e-4)
+    b, c = truth.planets
+    start = truth.replace(planets=(b.replace(t0=b.t0 + 0.002, radius=0.019, a=10.0, inc=87.9),
+                                   c.replace(t0=c.t0 - 0.001, radius=0.028)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the a-inc degeneracy's covariance warning
+        res = jp.fit(start, lc, free=FREE10)
+    chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
+    assert res.success, res.message
+    assert res.steps < 150 and res.chi2 < chi2_truth, (res.steps, res.chi2, chi2_truth)
