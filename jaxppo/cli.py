@@ -453,7 +453,7 @@ def _add_scan(sub) -> None:
 
 def _add_fit_sample(sub) -> None:
     """The ``fit`` and ``sample`` subcommands."""
-    for name, func, helptext in (("fit", cmd_fit, "least-squares fit (optimistix) of a config's planets to its data"),
+    for name, func, helptext in (("fit", cmd_fit, "least-squares fit (Levenberg-Marquardt, jp.fit) of a config's planets to its data"),
                                  ("sample", cmd_sample, "MCMC (numpyro NUTS) of a config's planets")):
         p = sub.add_parser(name, help=helptext, description=helptext + ". Free parameters: PLANET.t0 [d], "
                            "PLANET.period [d], PLANET.a [R*], PLANET.inc [deg], PLANET.radius [R*]; star.<coefficient> "

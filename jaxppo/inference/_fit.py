@@ -18,7 +18,7 @@ import numpy as np
 
 from ..model._lightcurve import LightCurve
 from ..model._system import System
-from ._lm import LM_STATUS, lm_pass, trust_region_steps
+from ._lm import LM_STATUS, check_settings, lm_pass, trust_region_steps
 from ._minimum import assess, chi2_at
 from ._model import Model
 from ._params import as_lightcurve, planet_value, star_value
@@ -278,8 +278,9 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     ValueError
         When a name in ``free`` is unknown or names a parameter twice (or
         names degenerate pairs, such as "lc.offset" with "lc.baseline", or
-        u1/u2 with q1/q2), or ``lightcurve`` is neither a jaxppo nor a
-        lightkurve LightCurve.
+        u1/u2 with q1/q2), ``lightcurve`` is neither a jaxppo nor a
+        lightkurve LightCurve, ``max_steps`` is not a whole number >= 0, or
+        ``rtol`` or ``atol`` is not finite and >= 0.
 
     Warns
     -----
@@ -313,6 +314,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         if progress:
             print(f"fit: {text} ({time.perf_counter() - clock:.1f} s)", file=sys.stderr, flush=True)
 
+    check_settings(max_steps, rtol, atol)
     lightcurve = as_lightcurve(lightcurve)
     model = Model(system, lightcurve, free, alpha, case, union_floor=128)
     theta = model.to_theta(system)

@@ -8,7 +8,7 @@ than others (t0 in days against a in R*) its steps crawl. On the
 benchmark of ``benchmarks/fit_timing.py`` (Kepler-20 b + c, 10 free
 parameters) it took 451 steps and two restarts in Jacobian-scaled
 coordinates; with the damping scaled by the diagonal of J^T J (Marquardt
-1963) and Nielsen's (1999) update of the damping, 35. The program also
+1963) and Nielsen's (1999) update of the damping, 34. The program also
 returns the Jacobian and the residuals at its end, which the minimum check
 needs: one compiled program serves the steps, the start's chi^2 and the
 check (before, two: 3.2 s and 4.8 s to compile).
@@ -23,7 +23,7 @@ import numpy as np
 from ..model._programs import stored
 from ._model import ModelData, residuals
 
-__all__ = ["levenberg_marquardt", "lm_pass", "LM_STATUS", "trust_region_steps", "TRUST_RADII"]
+__all__ = ["levenberg_marquardt", "lm_pass", "check_settings", "LM_STATUS", "trust_region_steps", "TRUST_RADII"]
 
 # what ended a pass (the last output of levenberg_marquardt)
 LM_STATUS = ("a step lowered chi^2 by less than atol + rtol chi^2", "it used all its max_steps steps",
@@ -45,7 +45,8 @@ def levenberg_marquardt(theta, d: ModelData, max_steps, rtol, atol):
     end, the residuals' Jacobian there, the residuals there, the steps
     taken, what ended it: an index into ``LM_STATUS``).
 
-    Each step solves (J^T J + lambda diag(J^T J)) delta = -J^T r and is
+    Each step solves (J^T J + lambda D) delta = -J^T r, D the largest
+    diagonal of J^T J met in the pass (Moré 1978), and is
     taken when it lowers chi^2 = r^T r; lambda follows Nielsen's rule
     (times max(1/3, 1 - (2 rho - 1)^3) on a taken step, rho the actual over
     the predicted decrease; times 2, 4, 8, ... on a refused one). The pass
@@ -61,18 +62,22 @@ def levenberg_marquardt(theta, d: ModelData, max_steps, rtol, atol):
     dtype = theta.dtype
     jac0 = jnp.zeros((n_res, theta.shape[0]), dtype)
     state = (theta, jac0, jnp.zeros(n_res, dtype), jnp.asarray(jnp.inf, dtype), jnp.asarray(1e-3, dtype),
-             jnp.asarray(2.0, dtype), jnp.asarray(-1, jnp.int32), jnp.asarray(1, jnp.int32), jnp.asarray(False))
+             jnp.asarray(2.0, dtype), jnp.asarray(-1, jnp.int32), jnp.asarray(1, jnp.int32), jnp.asarray(False),
+             jnp.zeros(theta.shape[0], dtype))
 
     def running(s):
         return (s[6] < max_steps) & (s[7] == 1)
 
     def step(s):
-        th, jac, r, f, lam, nu, n, _, small = s
+        th, jac, r, f, lam, nu, n, _, small, scale = s
         first = n < 0
         jtj = jac.T @ jac
         g = jac.T @ r
-        diag = jnp.diag(jtj)
-        diag = jnp.maximum(diag, 1e-12 * jnp.max(diag))
+        # Moré's scaling: the largest diagonal of J^T J met so far, so that
+        # a column that vanishes on the way (the inclination's at b = 0,
+        # where the flux depends on b^2) keeps its damping
+        scale = jnp.maximum(scale, jnp.diag(jtj))
+        diag = jnp.maximum(scale, 1e-12 * jnp.max(scale))
         solvable = jtj + lam * jnp.diag(jnp.where(first, 1.0, diag))
         delta = jnp.where(first, 0.0, -jnp.linalg.solve(solvable, g))
         jac_new, r_new = _jacobian(th + delta, d)
@@ -94,16 +99,27 @@ def levenberg_marquardt(theta, d: ModelData, max_steps, rtol, atol):
         status = jnp.where(met, 0, jnp.where(lam > 1e16, 2, 1)).astype(jnp.int32)
         pick = lambda new, old: jnp.where(taken, new, old)  # noqa: E731
         return (pick(th + delta, th), pick(jac_new, jac), pick(r_new, r), pick(f_new, f), lam, nu, n + 1, status,
-                small)
+                small, scale)
 
-    th, jac, r, _, _, _, n, status, _ = jax.lax.while_loop(running, step, state)
+    th, jac, r, _, _, _, n, status, _, _ = jax.lax.while_loop(running, step, state)
     return th, jac, r, n, status  # status 1 ("running") at the end: it ran out of steps
+
+
+def check_settings(max_steps, rtol, atol) -> None:
+    """ValueError naming the parameter unless ``max_steps`` is a whole
+    number >= 0 and ``rtol``, ``atol`` are finite and >= 0."""
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 0:
+        raise ValueError(f"max_steps must be a whole number >= 0, got {max_steps!r}")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if isinstance(value, bool) or not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
 
 
 def lm_pass(theta, d: ModelData, max_steps: int = 0, rtol: float = 0.0, atol: float = 0.0):
     """``levenberg_marquardt`` with its numbers as traced arrays (one
     compiled program for every value): by default no step, which gives
     (theta, the Jacobian, the residuals, 0, 1) at ``theta``."""
+    check_settings(max_steps, rtol, atol)
     return levenberg_marquardt(jnp.asarray(theta), d, jnp.asarray(int(max_steps), jnp.int32),
                                jnp.asarray(float(rtol)), jnp.asarray(float(atol)))
 

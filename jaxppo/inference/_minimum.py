@@ -49,18 +49,22 @@ def assess(model: Model, theta, jac=None, r=None) -> dict:
         out["problems"].append(f"the data do not constrain {flat} (zero or non-finite derivative at the solution)")
         out["condition"], out["weakest"] = np.inf, f"{flat} alone"
         return out
-    out["scale"] = c
-    grad = 2.0 * (jac.T @ r) / c
-    jtj = (jac / c).T @ (jac / c)
+    jtj = (jac / c).T @ (jac / c)  # unit diagonal
     jitter = any(par == "jitter" for _, par in model.slots)
     try:
         cov_gn = np.linalg.inv(jtj) / np.outer(c, c)
     except np.linalg.LinAlgError:
         cov_gn = None
+    # the Hessian, gradient and trust-region steps in theta * c, c the
+    # column norms where they give the scale of chi^2's curvature
+    c = _step_scales(model, np.asarray(theta), c, chi2)
+    out["scale"] = c
+    grad = 2.0 * (jac.T @ r) / c
     # chi^2 at +-1 sigma along the principal axes of the linearised
     # covariance (see _axis_steps), in the same batches as the Hessian's
     axes = None if jitter else _axis_steps(cov_gn)
-    hess, f_axes = _hessian(model, np.asarray(theta), c, jtj, [] if axes is None else list(axes * c))
+    hess, f_axes = _hessian(model, np.asarray(theta), c, (jac / c).T @ (jac / c),
+                            [] if axes is None else list(axes * c))
     if not np.all(np.isfinite(hess)):
         out["problems"].append("the Hessian of chi^2 at the solution is not finite")
         return out
@@ -73,6 +77,28 @@ def assess(model: Model, theta, jac=None, r=None) -> dict:
             out["dchi2_1sigma"] = f_axes - chi2
         return out
     return _laplace_with_jitter(out, model, theta, hess, c, 2 * c.size + 1)
+
+
+def _step_scales(model: Model, theta, c, chi2: float) -> np.ndarray:
+    """The Jacobian's column norms ``c``, made larger where chi^2 curves
+    far more along an axis than the Gauss-Newton part says (2 in the
+    scaled coordinates): where a column nearly vanishes (the inclination
+    at an impact parameter b ~ 0, where the flux depends on b^2) a step of
+    ``_HESSIAN_STEP`` in theta * c swings b from 0 to grazing, and the
+    second differences read curvatures 1e4 times too large. Such an axis
+    is rescaled by sqrt(curvature / 2) until its curvature is within a
+    factor 4 of 2 (three times at most)."""
+    c = np.array(c, float)
+    h = _HESSIAN_STEP
+    for _ in range(3):
+        pts = np.concatenate([theta + h * np.diag(1.0 / c), theta - h * np.diag(1.0 / c)])
+        f = chi2_at(model, pts, 2 * c.size + 1)
+        curv = (f[:c.size] + f[c.size:] - 2.0 * chi2) / h**2
+        steep = np.isfinite(curv) & (curv > 8.0) | ~np.isfinite(curv)
+        if not np.any(steep):
+            break
+        c = np.where(steep, c * np.sqrt(np.where(np.isfinite(curv), curv, 1e8) / 2.0), c)
+    return c
 
 
 def _hessian(model: Model, theta, c, jtj, extra) -> tuple:
@@ -108,8 +134,10 @@ def _hessian(model: Model, theta, c, jtj, extra) -> tuple:
 
 def _weak_basis(jtj) -> tuple:
     """(B, replaced): the identity with each combination of the free
-    parameters weaker than WEAK (an eigenvector of the unit-diagonal
-    ``jtj`` with eigenvalue < WEAK) in place of one axis; the axes are
+    parameters weaker than WEAK (an eigenvector of ``jtj`` with
+    eigenvalue < WEAK; its diagonal is 1 but on the axes ``_step_scales``
+    rescaled, which are weak by their own small diagonal and so measured
+    along themselves) in place of one axis; the axes are
     chosen by elimination with pivoting on the largest component (B stays
     well conditioned). ``replaced`` lists the axes replaced."""
     w, v = np.linalg.eigh(jtj)

