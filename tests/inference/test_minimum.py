@@ -156,3 +156,47 @@ def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps():
     chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
     assert res.success, res.message
     assert res.steps < 200 and res.chi2 < chi2_truth, (res.steps, res.chi2, chi2_truth)
+
+
+def _central_transit_fit():
+    """b's a and inc from a start 0.003 d and 10 % in radius off: the fit
+    ends at b ~ 0 (inc 89.9994), where chi^2's slope in the inclination
+    vanishes (the flux depends on b^2) and so does its Jacobian column."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    t = np.concatenate([np.linspace(-0.15, 0.15, 200), np.linspace(2.85, 3.15, 200)])
+    lc = jp.simulate(truth, t, noise=1e-3, seed=1)
+    start = jp.System(star, [jp.Planet(period=3.0, t0=0.003, a=10.0, inc=89.0, radius=0.09, name="b")])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # inc's linearised error is degenerate at b = 0
+        return jp.fit(start, lc, free=("b.a", "b.inc")), lc
+
+
+def test_fit_reaches_a_central_transit_minimum():
+    """With the damping scaled by the current diagonal of J^T J, the
+    inclination's vanishing column was barely damped: its steps were
+    refused until lambda ~ 1e9, and the fit crawled and failed at chi^2
+    980.2 after 400 steps. chi^2 along a at inc = 90 deg has its minimum
+    968.30 at a = 9.75 (scanned by hand)."""
+    res, _ = _central_transit_fit()
+    assert res.success, res.message
+    assert res.chi2 < 968.31 and abs(res.values[0] - 9.75) < 0.05, (res.chi2, res.values)
+
+
+def test_the_hessian_at_a_vanishing_column_is_the_curvature():
+    """The difference step along an axis was 0.3 / (its column norm): at b
+    ~ 0 a step of ~14 in the inclination's coordinate, which swung b from
+    0 to grazing and read a curvature 1e4 times too large (a Kepler-20 fit
+    passed a point 0.19 above a lower one as a minimum). The check's
+    d^2 chi^2 / dtheta_inc^2 must equal a second difference of chi^2 over
+    a small step of its own choosing."""
+    res, lc = _central_transit_fit()
+    model = Model(res.system, lc, ("b.a", "b.inc"))
+    theta = np.asarray(model.to_theta(res.system))
+    verdict = assess(model, theta)
+    c = verdict["scale"]
+    hess_theta = verdict["hessian"] * np.outer(c, c)  # d^2 chi^2 / dtheta^2
+    step = 1e-3
+    f = chi2_at(model, np.array([theta + s * step * np.array([0.0, 1.0]) for s in (-1.0, 0.0, 1.0)]), 5)
+    direct = (f[0] - 2 * f[1] + f[2]) / step**2
+    assert abs(hess_theta[1, 1] - direct) < 0.05 * direct, (hess_theta[1, 1], direct)
