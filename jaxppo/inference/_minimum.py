@@ -57,13 +57,13 @@ def assess(model: Model, theta, jac=None, r=None) -> dict:
         cov_gn = None
     # the Hessian, gradient and trust-region steps in theta * c, c the
     # column norms where they give the scale of chi^2's curvature
-    c = _step_scales(model, np.asarray(theta), c, chi2)
+    c, axis_res = _step_scales(model, np.asarray(theta), c)
     out["scale"] = c
     grad = 2.0 * (jac.T @ r) / c
     # chi^2 at +-1 sigma along the principal axes of the linearised
     # covariance (see _axis_steps), in the same batches as the Hessian's
     axes = None if jitter else _axis_steps(cov_gn)
-    hess, f_axes = _hessian(model, np.asarray(theta), c, (jac / c).T @ (jac / c),
+    hess, f_axes = _hessian(model, np.asarray(theta), c, axis_res, (jac / c).T @ (jac / c),
                             [] if axes is None else list(axes * c))
     if not np.all(np.isfinite(hess)):
         out["problems"].append("the Hessian of chi^2 at the solution is not finite")
@@ -79,40 +79,40 @@ def assess(model: Model, theta, jac=None, r=None) -> dict:
     return _laplace_with_jitter(out, model, theta, hess, c, 2 * c.size + 1)
 
 
-def _step_scales(model: Model, theta, c, chi2: float) -> np.ndarray:
-    """The Jacobian's column norms ``c``, made larger where chi^2 curves
-    far more along an axis than the Gauss-Newton part says (2 in the
-    scaled coordinates): where a column nearly vanishes (the inclination
-    at an impact parameter b ~ 0, where the flux depends on b^2) a step of
-    ``_HESSIAN_STEP`` in theta * c swings b from 0 to grazing, and the
-    second differences read curvatures 1e4 times too large. Such an axis
-    is rescaled by sqrt(curvature / 2) until its curvature is within a
-    factor 4 of 2 (three times at most)."""
+def _step_scales(model: Model, theta, c) -> tuple:
+    """(scales, residual vectors at the centre and +-h along each axis at
+    those scales: the rows of ``_hessian_points`` without pairs). The
+    scales are the Jacobian's column norms ``c``, made larger where chi^2
+    curves far more along an axis than the Gauss-Newton part says (2 in
+    the scaled coordinates): where a column nearly vanishes (the
+    inclination at an impact parameter b ~ 0, where the flux depends on
+    b^2) a step of ``_HESSIAN_STEP`` in theta * c swings b from 0 to
+    grazing, and the second differences read curvatures 1e4 times too
+    large. Such an axis is rescaled by sqrt(curvature / 2) until its
+    curvature is within a factor 4 of 2 (three times at most)."""
     c = np.array(c, float)
     h = _HESSIAN_STEP
-    for _ in range(3):
-        pts = np.concatenate([theta + h * np.diag(1.0 / c), theta - h * np.diag(1.0 / c)])
-        f = chi2_at(model, pts, 2 * c.size + 1)
-        curv = (f[:c.size] + f[c.size:] - 2.0 * chi2) / h**2
+    axes = _hessian_points(np.eye(c.size), [])[0]
+    for attempt in range(4):
+        res = _residual_rows(model, theta + axes / c, len(axes))
+        f = np.sum(res**2, axis=1)
+        curv = (f[1::2] + f[2::2] - 2.0 * f[0]) / h**2
         steep = np.isfinite(curv) & (curv > 8.0) | ~np.isfinite(curv)
-        if not np.any(steep):
-            break
+        if not np.any(steep) or attempt == 3:
+            return c, res
         c = np.where(steep, c * np.sqrt(np.where(np.isfinite(curv), curv, 1e8) / 2.0), c)
-    return c
 
 
-def _hessian(model: Model, theta, c, jtj, extra) -> tuple:
+def _hessian(model: Model, theta, c, axis_res, jtj, extra) -> tuple:
     """(Hessian of chi^2 in the scaled coordinates z = theta * c, chi^2 at
     the scaled steps ``extra``). Second differences in a basis B whose
     columns are the parameters' axes, except that the combinations weaker
     than WEAK replace the axes they lean on most (``_weak_basis``): H_B =
-    B^T H B, H = B^-T H_B B^-1. First the centre and +-h along each axis:
-    their residual vectors say which parameters share data points (the
-    others have no cross term)."""
+    B^T H B, H = B^-T H_B B^-1. ``axis_res``: the residual vectors at the
+    centre and +-h along each axis (``_step_scales``), which say which
+    parameters share data points (the others have no cross term)."""
     k = c.size
     rows = 2 * k + 1
-    eye = np.eye(k)
-    axis_res = np.asarray(model.residuals_batch(jnp.asarray(theta + _hessian_points(eye, [])[0] / c)))
     share = _sharing(axis_res)
     basis, replaced = _weak_basis(jtj)
     if replaced:
