@@ -1,8 +1,8 @@
 """Least-squares fits: Levenberg-Marquardt (``._lm``) over the named free
 parameters of ``._params`` in the coordinates of ``Model``, with a check
 that the solution is a minimum (``._minimum``: Hessian and Newton step),
-trust-region steps of that Hessian where it is not, and the linearised
-covariance at the solution.
+trust-region steps of that Hessian (carried between checks by secant
+updates) where it is not, and the linearised covariance at the solution.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..model._lightcurve import LightCurve
 from ..model._system import System
-from ._lm import LM_STATUS, check_settings, lm_pass, trust_region_steps
+from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region_steps
 from ._minimum import assess, chi2_at
 from ._model import Model
 from ._params import as_lightcurve, planet_value, star_value
@@ -228,11 +228,15 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     chi^2 there is positive definite and a Newton step from it would lower
     chi^2 by less than 0.01 (the Hessian by second differences, along the
     parameters and along the combinations of them that the data determine
-    10 times or more worse than the parameters one by one). Where a pass
-    ends at a point the check refuses, the fit takes the best of 21
-    trust-region steps of the check's Hessian (the way along a bending
-    valley or off a saddle) and another pass, ten passes at most. Like
-    any local optimiser it ends in the local minimum its path leads to.
+    10 times or more worse than the parameters one by one; the lowest
+    curvature measured along its own direction). Where a pass ends at a
+    point that is not yet a minimum, the fit takes the best of 21
+    trust-region steps of the Hessian (the way along a bending valley or
+    off a saddle) and another pass. Between checks it carries the last
+    check's Hessian along by secant updates (as NL2SOL does), and checks
+    again where that Hessian sees a minimum: 20 passes and 10 checks at
+    most. Like any local optimiser it ends in the local minimum its path
+    leads to.
     Errors from the linearised covariance are linearised: where the check
     warns, ``jaxppo.sample`` gives the posterior.
 
@@ -249,10 +253,9 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     case : str or tuple of int, optional
         Hemisphere case (default "same"; see ``System.flux``).
     max_steps : int, optional
-        Most Levenberg-Marquardt steps per pass (default 200). Each pass
-        ends with the minimum check: a pass that used them all at a point
-        the check accepts is a minimum; otherwise the fit goes on (ten
-        passes at most).
+        Most Levenberg-Marquardt steps per pass (default 200). A pass
+        that used them all at a point the minimum check accepts is a
+        minimum; otherwise the fit goes on (20 passes at most).
     rtol : float, optional
         A pass ends where a step near Gauss-Newton's gained, and the next
         one promises, less than atol + rtol chi^2 (default 1e-6).
@@ -365,8 +368,10 @@ def _failed_start(model: Model, system: System, theta, chi2_start: float, n: int
                      0, model.union_idx)
 
 
-# passes of Levenberg-Marquardt (each ends with the minimum check) at most
-MAX_PASSES = 10
+# passes of Levenberg-Marquardt at most, and minimum checks (``assess``)
+# among them
+MAX_PASSES = 20
+MAX_CHECKS = 10
 
 
 def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, say):
@@ -374,40 +379,63 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
     whose frame sets cover it. Returns (model, theta, why the last pass
     ended where that is a failure, or None; steps, the ``assess`` verdict).
 
-    Each pass ends with the check (``assess``), whatever ended it: a pass
-    that used its ``max_steps`` at a point the check accepts is a minimum,
-    and one that met its tolerance at a point the check refuses goes on.
-    From a refused point, the fit first tries trust-region steps of the
-    check's Hessian (``trust_region_steps``, chi^2 at all of them in one
-    batch): along a bending valley or off a saddle they go where
-    Levenberg-Marquardt's model, which has no negative curvature, crawls.
-    The frames that take the union integral are fixed from the starting
-    parameters (with a margin). If the solution brings disks together in
-    other frames, those frames are added (a new Model with the same
-    programs while the frame counts stay in their buckets) and the solution
-    is checked on it."""
-    steps, status, verdict = 0, 0, None
+    After a pass the fit decides with the check's Hessian whether the point
+    is a minimum. The check (``assess``, second differences: a few hundred
+    residual vectors) costs as much as 30-40 steps; between checks the fit
+    carries its Hessian along as a model, H = 2 J^T J + S with J the
+    Jacobian at the current point and S (the curvature that Gauss-Newton's
+    2 J^T J misses) from the last check, updated by the secant condition
+    over each pass (``secant_update``, as NL2SOL does). A pass ends with
+    the check where that model sees a minimum (positive definite, Newton
+    decrement below 0.01) or where its trust-region steps went nowhere; so
+    only the check declares a minimum.
+    From a point not yet a minimum the fit takes the best of the
+    trust-region steps of the Hessian (``trust_region_steps``, chi^2 at all
+    of them in one batch): along a bending valley or off a saddle they go
+    where Levenberg-Marquardt's model, which has no negative curvature,
+    crawls. The frames that take the union integral are fixed from the
+    starting parameters (with a margin). If the solution brings disks
+    together in other frames, those frames are added (a new Model with the
+    same programs while the frame counts stay in their buckets) and the
+    solution is checked on it."""
+    steps, status, verdict, checks = 0, 0, None, 0
+    curv = None  # the Hessian model between checks: (scale, S, theta, scaled Jacobian, gradient) there
+    stalled = False
     for stage in range(MAX_PASSES):
         theta, jac, r, num_steps, status = lm_pass(theta, model.data(), max_steps, rtol, atol)
         steps, status = steps + int(num_steps), int(status)
-        moved = chi2 - float(np.sum(np.asarray(r) ** 2))
+        jac, r = np.asarray(jac), np.asarray(r)
+        moved = chi2 - float(r @ r)
         say(f"Levenberg-Marquardt pass {stage + 1}: {steps} steps in all")
         wider = model.widened([model.to_system(theta)])
         if wider is not None:
             model = wider
             _, jac, r, _, _ = lm_pass(theta, model.data())
-            say(f"the solution brings disks together or onto the star in new frames: checking it with "
+            jac, r = np.asarray(jac), np.asarray(r)
+            say(f"the solution brings disks together or onto the star in new frames: the model has now "
                 f"{model.union_idx.size} union and {model.active_idx.size} computed frames")
-        verdict = assess(model, theta, jac, r)
-        chi2 = verdict["chi2"]
-        say(f"checked the minimum: chi^2 {chi2:.6g}" + ("" if verdict["optimum"] else "; not a minimum yet"))
-        if verdict["optimum"] or verdict["hessian"] is None or stage == MAX_PASSES - 1:
-            break
-        step = _trust_region(model, np.asarray(theta), verdict)
+        chi2 = float(r @ r)
+        check = curv is None or stalled or stage == MAX_PASSES - 1
+        if not check:
+            curv = _carry(curv, np.asarray(theta), jac, r)
+            hess, grad = _model_hessian(curv)
+            check = _looks_like_minimum(hess, grad)
+        if check:
+            verdict = assess(model, theta, jac, r)
+            checks += 1
+            chi2 = verdict["chi2"]
+            say(f"checked the minimum: chi^2 {chi2:.6g}" + ("" if verdict["optimum"] else "; not a minimum yet"))
+            if verdict["optimum"] or verdict["hessian"] is None or checks == MAX_CHECKS or stage == MAX_PASSES - 1:
+                break
+            jz = jac / verdict["scale"]
+            curv = (verdict["scale"], verdict["hessian"] - 2.0 * jz.T @ jz, np.asarray(theta), jz, verdict["grad"])
+            hess, grad = verdict["hessian"], verdict["grad"]
+        step = _trust_region(model, np.asarray(theta), curv[0], hess, grad, chi2)
+        stalled = step is None
         if step is not None:
             theta, chi2 = step
-            say(f"a trust-region step of the check's Hessian: chi^2 {chi2:.6g}")
-        elif wider is None and moved < _PROGRESS:
+            say(f"a trust-region step of the {'check' if check else 'carried'} Hessian: chi^2 {chi2:.6g}")
+        elif check and wider is None and moved < _PROGRESS:
             break  # neither Levenberg-Marquardt nor the Hessian's steps go lower
     failure = None if verdict["optimum"] or status == 0 else "Levenberg-Marquardt stopped: " + LM_STATUS[status]
     return model, theta, failure, steps, verdict
@@ -418,17 +446,41 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
 _PROGRESS = 1e-4
 
 
-def _trust_region(model: Model, theta, verdict):
-    """(theta, chi^2) at the best of the trust-region steps of the check's
-    Hessian (``TRUST_RADII``), or None when none lowers chi^2 by more than
-    ``_PROGRESS``."""
-    c = verdict["scale"]
-    trial = theta + trust_region_steps(verdict["hessian"], verdict["grad"]) / c
-    chi2 = chi2_at(model, trial, 2 * c.size + 1)
-    best = int(np.argmin(np.where(np.isfinite(chi2), chi2, np.inf)))
-    if not chi2[best] < verdict["chi2"] - _PROGRESS:
+def _carry(curv, theta, jac, r):
+    """The Hessian model ``curv`` moved to ``theta`` (Jacobian ``jac``,
+    residuals ``r`` there): S updated by the secant condition over the
+    move (``secant_update``)."""
+    c, s_mat, theta_old, jz_old, grad_old = curv
+    jz = jac / c
+    grad = 2.0 * jz.T @ r
+    s_mat = secant_update(s_mat, (theta - theta_old) * c, grad - grad_old, 2.0 * (jz - jz_old).T @ r)
+    return c, s_mat, theta, jz, grad
+
+
+def _model_hessian(curv):
+    """(Hessian, gradient) of chi^2 in the scaled coordinates of the
+    carried model: 2 J^T J + S."""
+    c, s_mat, _, jz, grad = curv
+    return 2.0 * jz.T @ jz + s_mat, grad
+
+
+def _looks_like_minimum(hess, grad) -> bool:
+    """Whether the carried Hessian sees a minimum: positive definite and a
+    Newton decrement below the check's 0.01 (then the check decides)."""
+    w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
+    return bool(w[0] > 0 and 0.5 * float(grad @ np.linalg.solve(hess, grad)) < 0.01)
+
+
+def _trust_region(model: Model, theta, c, hess, grad, chi2: float):
+    """(theta, chi^2) at the best of the trust-region steps of ``hess``
+    (``TRUST_RADII``; in the coordinates theta * c), or None when none
+    lowers chi^2 by more than ``_PROGRESS``."""
+    trial = theta + trust_region_steps(hess, grad) / c
+    f = chi2_at(model, trial, 2 * c.size + 1)
+    best = int(np.argmin(np.where(np.isfinite(f), f, np.inf)))
+    if not f[best] < chi2 - _PROGRESS:
         return None
-    return trial[best], float(chi2[best])
+    return trial[best], float(f[best])
 
 
 def _fold_inc(model: Model, theta, cov_theta):

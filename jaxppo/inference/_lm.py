@@ -23,7 +23,8 @@ import numpy as np
 from ..model._programs import stored
 from ._model import ModelData, residuals
 
-__all__ = ["levenberg_marquardt", "lm_pass", "check_settings", "LM_STATUS", "trust_region_steps", "TRUST_RADII"]
+__all__ = ["levenberg_marquardt", "lm_pass", "check_settings", "LM_STATUS", "trust_region_steps", "TRUST_RADII",
+           "secant_update"]
 
 # what ended a pass (the last output of levenberg_marquardt)
 LM_STATUS = ("a step lowered chi^2 by less than atol + rtol chi^2", "it used all its max_steps steps",
@@ -154,3 +155,18 @@ def trust_region_steps(hess, grad, radii=TRUST_RADII) -> np.ndarray:
             lo, hi = (mid, hi) if size(mid) > radius else (lo, mid)
         out.append(-v @ (gt / (w + hi)))
     return np.array(out)
+
+
+def secant_update(s_mat, step, dgrad, dgrad_sharp):
+    """Dennis, Gay and Welsch's (1981; NL2SOL) update of S, the part of
+    chi^2's Hessian that Gauss-Newton's 2 J^T J misses, over a move
+    ``step``: the symmetric rank-two change of least weight for which
+    2 J^T J + S maps the step to the change of the gradient ``dgrad``,
+    given that S is to map it to ``dgrad_sharp`` = 2 (J_new - J_old)^T
+    r_new. Unchanged where the step and ``dgrad`` are nearly orthogonal
+    (y^T s <= 1e-12 |y| |s|: the update would divide by ~0)."""
+    ys = float(dgrad @ step)
+    if not ys > 1e-12 * np.linalg.norm(dgrad) * np.linalg.norm(step):
+        return s_mat
+    u = dgrad_sharp - s_mat @ step
+    return s_mat + (np.outer(u, dgrad) + np.outer(dgrad, u)) / ys - float(u @ step) * np.outer(dgrad, dgrad) / ys**2
