@@ -229,13 +229,13 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     chi^2 by less than 0.01 (the Hessian by second differences, along the
     parameters and along the combinations of them that the data determine
     10 times or more worse than the parameters one by one; the lowest
-    curvature measured along its own direction). Where a pass ends at a
+    curvatures measured along their own directions). Where a pass ends at a
     point that is not yet a minimum, the fit takes the best of 21
     trust-region steps of the Hessian (the way along a bending valley or
     off a saddle) and another pass. Between checks it carries the last
     check's Hessian along by secant updates (as NL2SOL does), and checks
-    again where that Hessian sees a minimum: 20 passes and 10 checks at
-    most. Like any local optimiser it ends in the local minimum its path
+    again where that Hessian sees a minimum or its steps go nowhere: 20
+    passes and 10 checks at most. Like any local optimiser it ends in the local minimum its path
     leads to.
     Errors from the linearised covariance are linearised: where the check
     warns, ``jaxppo.sample`` gives the posterior.
@@ -381,13 +381,13 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
 
     After a pass the fit decides with the check's Hessian whether the point
     is a minimum. The check (``assess``, second differences: a few hundred
-    residual vectors) costs as much as 30-40 steps; between checks the fit
+    residual vectors) costs as much as ~65 steps; between checks the fit
     carries its Hessian along as a model, H = 2 J^T J + S with J the
     Jacobian at the current point and S (the curvature that Gauss-Newton's
     2 J^T J misses) from the last check, updated by the secant condition
     over each pass (``secant_update``, as NL2SOL does). A pass ends with
     the check where that model sees a minimum (positive definite, Newton
-    decrement below 0.01) or where its trust-region steps went nowhere; so
+    decrement below 0.01) or where its trust-region steps go nowhere; so
     only the check declares a minimum.
     From a point not yet a minimum the fit takes the best of the
     trust-region steps of the Hessian (``trust_region_steps``, chi^2 at all
@@ -397,10 +397,9 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
     starting parameters (with a margin). If the solution brings disks
     together in other frames, those frames are added (a new Model with the
     same programs while the frame counts stay in their buckets) and the
-    solution is checked on it."""
+    fit goes on with it: the check that ends the fit is on that model."""
     steps, status, verdict, checks = 0, 0, None, 0
     curv = None  # the Hessian model between checks: (scale, S, theta, scaled Jacobian, gradient) there
-    stalled = False
     for stage in range(MAX_PASSES):
         theta, jac, r, num_steps, status = lm_pass(theta, model.data(), max_steps, rtol, atol)
         steps, status = steps + int(num_steps), int(status)
@@ -415,12 +414,14 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
             say(f"the solution brings disks together or onto the star in new frames: the model has now "
                 f"{model.union_idx.size} union and {model.active_idx.size} computed frames")
         chi2 = float(r @ r)
-        check = curv is None or stalled or stage == MAX_PASSES - 1
-        if not check:
-            curv = _carry(curv, np.asarray(theta), jac, r)
+        step, source = None, "carried"
+        if curv is not None and stage < MAX_PASSES - 1:
+            curv = _carry(curv, np.asarray(theta), jac, r, learn=wider is None)
             hess, grad = _model_hessian(curv)
-            check = _looks_like_minimum(hess, grad)
-        if check:
+            if not _looks_like_minimum(hess, grad):
+                # None: the carried Hessian's steps go nowhere, and the check measures it anew here
+                step = _trust_region(model, np.asarray(theta), curv[0], hess, grad, chi2)
+        if step is None:
             verdict = assess(model, theta, jac, r)
             checks += 1
             chi2 = verdict["chi2"]
@@ -429,16 +430,21 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
                 break
             jz = jac / verdict["scale"]
             curv = (verdict["scale"], verdict["hessian"] - 2.0 * jz.T @ jz, np.asarray(theta), jz, verdict["grad"])
-            hess, grad = verdict["hessian"], verdict["grad"]
-        step = _trust_region(model, np.asarray(theta), curv[0], hess, grad, chi2)
-        stalled = step is None
+            step, source = _trust_region(model, np.asarray(theta), curv[0], verdict["hessian"], verdict["grad"],
+                                         chi2), "check"
+            if step is None and wider is None and moved < _PROGRESS:
+                break  # neither Levenberg-Marquardt nor the Hessian's steps go lower
         if step is not None:
             theta, chi2 = step
-            say(f"a trust-region step of the {'check' if check else 'carried'} Hessian: chi^2 {chi2:.6g}")
-        elif check and wider is None and moved < _PROGRESS:
-            break  # neither Levenberg-Marquardt nor the Hessian's steps go lower
-    failure = None if verdict["optimum"] or status == 0 else "Levenberg-Marquardt stopped: " + LM_STATUS[status]
-    return model, theta, failure, steps, verdict
+            say(f"a trust-region step of the {source} Hessian: chi^2 {chi2:.6g}")
+    failure = []
+    if not verdict["optimum"]:
+        if status != 0:
+            failure.append("Levenberg-Marquardt stopped: " + LM_STATUS[status])
+        if checks == MAX_CHECKS or stage == MAX_PASSES - 1:
+            failure.append(f"the fit stopped after {stage + 1} passes and {checks} minimum checks (at most "
+                           f"{MAX_PASSES} and {MAX_CHECKS})")
+    return model, theta, "; ".join(failure) or None, steps, verdict
 
 
 # a trust-region step is taken, and a pass counts as progress, when chi^2
@@ -446,14 +452,17 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
 _PROGRESS = 1e-4
 
 
-def _carry(curv, theta, jac, r):
+def _carry(curv, theta, jac, r, learn: bool = True):
     """The Hessian model ``curv`` moved to ``theta`` (Jacobian ``jac``,
     residuals ``r`` there): S updated by the secant condition over the
-    move (``secant_update``)."""
+    move (``secant_update``), unless not ``learn``: across a widening of
+    the frames the gradients at the two ends are of different models, and
+    their difference is not a curvature."""
     c, s_mat, theta_old, jz_old, grad_old = curv
     jz = jac / c
     grad = 2.0 * jz.T @ r
-    s_mat = secant_update(s_mat, (theta - theta_old) * c, grad - grad_old, 2.0 * (jz - jz_old).T @ r)
+    if learn:
+        s_mat = secant_update(s_mat, (theta - theta_old) * c, grad - grad_old, 2.0 * (jz - jz_old).T @ r)
     return c, s_mat, theta, jz, grad
 
 

@@ -5,17 +5,21 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._times import TIMES_COLUMNS, linear_ephemeris
+
+if TYPE_CHECKING:  # astropy is imported where a table is read
+    from astropy.table import Table
 
 __all__ = ["read_times", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
 
 MINUTES = 1440.0
 
 
-def read_times(path) -> "Table":  # noqa: F821
+def read_times(path) -> "Table":
     """A table of transit times (columns planet, epoch, tc [d], tc_err [d];
     CSV or, by its suffix, ECSV), as ``measure_transit_times`` writes
     it. Raises ValueError naming the file and what is missing."""

@@ -158,16 +158,45 @@ def _benchmark_fit(seed, capsys=None):
 def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps(capsys):
     """The benchmark of benchmarks/fit_timing.py (10 free parameters):
     optimistix's Levenberg-Marquardt took 451 steps and two restarts; the
-    fit must end at a point its check accepts, in under 200 steps, with
-    chi^2 below chi^2 at the true parameters. With the Hessian carried
-    between checks (secant updates), at most 6 checks (a check after
-    every pass ran 9, 0.2 s each)."""
+    fit must end at a point its check accepts, with chi^2 below chi^2 at
+    the true parameters, at a cost below 500 steps: a minimum check (0.2
+    s) costs as much as ~65 steps (3 ms each) on this problem. A check
+    after every pass cost 151 steps and 9 checks (736); with the Hessian
+    carried between checks by secant updates, 213 steps and 3 checks."""
     res, lc, checks = _benchmark_fit(7, capsys)
     truth = jp.kepler20_system()
     chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
     assert res.success, res.message
-    assert res.steps < 200 and res.chi2 < chi2_truth, (res.steps, res.chi2, chi2_truth)
-    assert checks <= 6, checks
+    assert res.chi2 < chi2_truth, (res.chi2, chi2_truth)
+    assert res.steps + 65 * checks < 500, (res.steps, checks)
+
+
+def test_the_fit_gives_up_after_its_checks_and_says_so(monkeypatch):
+    """With one check allowed, the benchmark stops at the first (which
+    refuses the point) and the message says the fit stopped at its
+    limit."""
+    import jaxppo.inference._fit as fit_module
+
+    monkeypatch.setattr(fit_module, "MAX_CHECKS", 1)
+    res, _, _ = _benchmark_fit(7)
+    assert not res.success and "the fit stopped after 1 passes and 1 minimum checks" in res.message, res.message
+
+
+def test_a_stalled_carried_hessian_is_checked_at_once():
+    """t0, radius, a and inc of one planet, the solution at b ~ 0: after
+    the second pass the carried Hessian's trust-region steps go nowhere.
+    Running another pass before checking, Levenberg-Marquardt crept
+    toward inc = 90 deg for all its 200 steps (229 in all); checked at
+    once, the point is a minimum (29 steps, as with a check after every
+    pass)."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    lc = jp.simulate(truth, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    start = jp.System(star, [jp.Planet(period=3.0, t0=0.003, a=12.0, inc=88.0, radius=0.09, name="b")])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # inc's linearised error is degenerate at b = 0
+        res = jp.fit(start, lc, free=("b.t0", "b.radius", "b.a", "b.inc"))
+    assert res.success and res.steps < 100, (res.steps, res.message)
 
 
 def test_the_lowest_curvature_is_measured_along_its_direction():
