@@ -19,7 +19,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region_steps
-from ._minimum import assess, chi2_at
+from ._minimum import DECREMENT, assess, chi2_at, newton_decrement
 from ._model import Model
 from ._params import as_lightcurve, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
@@ -418,7 +418,7 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
         if curv is not None and stage < MAX_PASSES - 1:
             curv = _carry(curv, np.asarray(theta), jac, r, learn=wider is None)
             hess, grad = _model_hessian(curv)
-            if not _looks_like_minimum(hess, grad):
+            if not newton_decrement(hess, grad) < DECREMENT:  # else the check decides
                 # None: the carried Hessian's steps go nowhere, and the check measures it anew here
                 step = _trust_region(model, np.asarray(theta), curv[0], hess, grad, chi2)
         if step is None:
@@ -471,13 +471,6 @@ def _model_hessian(curv):
     carried model: 2 J^T J + S."""
     c, s_mat, _, jz, grad = curv
     return 2.0 * jz.T @ jz + s_mat, grad
-
-
-def _looks_like_minimum(hess, grad) -> bool:
-    """Whether the carried Hessian sees a minimum: positive definite and a
-    Newton decrement below the check's 0.01 (then the check decides)."""
-    w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
-    return bool(w[0] > 0 and 0.5 * float(grad @ np.linalg.solve(hess, grad)) < 0.01)
 
 
 def _trust_region(model: Model, theta, c, hess, grad, chi2: float):

@@ -13,7 +13,7 @@ import numpy as np
 from ._lm import lm_pass
 from ._model import Model
 
-__all__ = ["assess", "chi2_at", "WEAK"]
+__all__ = ["assess", "chi2_at", "WEAK", "newton_decrement", "DECREMENT"]
 
 # A combination of the free parameters whose Gauss-Newton curvature
 # (eigenvalue of J^T J with J's columns scaled to unit norm) is below WEAK is
@@ -256,20 +256,36 @@ def _second_differences(f, pairs, k: int) -> np.ndarray:
     return hess
 
 
-def _judge_minimum(out: dict, hess, grad) -> None:
-    """Positive definite Hessian and a Newton decrement below 0.01: sets
-    ``out["optimum"]``, ``"summary"`` or adds to ``"problems"``."""
+def newton_decrement(hess, grad) -> float:
+    """The chi^2 a Newton step would gain, g^T H^-1 g / 2 (scaled
+    coordinates), or inf where ``hess`` is not positive definite (its
+    lowest eigenvalue at most 2e-9 of the largest, or of 1): the number
+    the minimum check judges against ``DECREMENT``, and the fit's carried
+    Hessian too."""
     w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
     # scaled so that the Gauss-Newton part has unit diagonal: eigenvalues
     # near 2 for well-determined parameters; 1e-9 of that is degenerate
-    if w[0] <= 2e-9 * max(w[-1], 1.0):
+    if not w[0] > 2e-9 * max(w[-1], 1.0):
+        return np.inf
+    return 0.5 * float(grad @ np.linalg.solve(hess, grad))
+
+
+# a point is a minimum where the Newton decrement is at most this
+DECREMENT = 0.01
+
+
+def _judge_minimum(out: dict, hess, grad) -> None:
+    """Positive definite Hessian and a Newton decrement below ``DECREMENT``:
+    sets ``out["optimum"]``, ``"summary"`` or adds to ``"problems"``."""
+    decrement = newton_decrement(hess, grad)
+    if not np.isfinite(decrement):
+        w = np.linalg.eigvalsh(0.5 * (hess + hess.T))
         out["problems"].append(f"not a minimum: the Hessian of chi^2 is not positive definite (scaled eigenvalues "
                                f"{w[0]:.3g} .. {w[-1]:.3g}, gradient norm {np.linalg.norm(grad):.3g}); the free parameters are "
                                "degenerate, or the fit stopped on a slope or a saddle")
         return
-    decrement = 0.5 * float(grad @ np.linalg.solve(hess, grad))
     out["summary"] = f"Newton step would lower chi^2 by {decrement:.2g}"
-    if decrement > 0.01:
+    if decrement > DECREMENT:
         out["problems"].append(f"not a minimum: a Newton step would lower chi^2 by {decrement:.3g}")
     else:
         out["optimum"] = True
