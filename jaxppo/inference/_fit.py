@@ -19,7 +19,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region_steps
-from ._minimum import DECREMENT, assess, chi2_at, newton_decrement
+from ._minimum import DECREMENT, assess, chi2_at, newton_decrement, precompile
 from ._model import Model
 from ._params import as_lightcurve, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
@@ -258,7 +258,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         minimum; otherwise the fit goes on (20 passes at most).
     rtol : float, optional
         A pass ends where a step near Gauss-Newton's gained, and the next
-        one promises, less than atol + rtol chi^2 (default 1e-6).
+        one promises, less than atol + rtol chi^2 (default 1e-6), or where
+        10 steps in a row gained less than that together.
     atol : float, optional
         See ``rtol`` (default 1e-6).
     progress : bool, optional
@@ -324,6 +325,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     n, k = lightcurve.time.size, len(model.free)
     problems = _start_problems(model, system, n, k)
     say(f"{n} points, {k} free parameters; compiling the model")
+    if not problems:
+        precompile(model, theta)
     # from the Jacobian's program, which the minimum check compiles anyway
     # (a separate residual program would cost a compilation of its own)
     chi2_start = float(np.sum(np.asarray(lm_pass(theta, model.data())[2]) ** 2))

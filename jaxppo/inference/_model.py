@@ -28,7 +28,7 @@ from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitt
 _MOON_LOG = ("period", "a", "radius", "mass_ratio")
 
 __all__ = ["UNION_MARGIN", "ACTIVE_MARGIN", "Model", "ModelData", "system_at", "residuals",
-           "pointwise_loglike", "chi2_batch", "residuals_batch"]
+           "pointwise_loglike", "chi2_batch", "residuals_batch", "physical_jacobian"]
 
 UNION_MARGIN = 0.05
 """[R*] Two disks within this distance of touching at the start run the

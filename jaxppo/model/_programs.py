@@ -52,6 +52,7 @@ folder must be the user's own, not one others can write to.
 
 from __future__ import annotations
 
+import concurrent.futures
 import enum
 import functools
 import hashlib
@@ -345,6 +346,7 @@ class _Stored:
             except (OSError, TypeError):  # no file (python -c, a notebook): never stored
                 self._name = None
         self._loaded = {}
+        self._pending = {}  # key: the Future of a program ``precompile`` compiles
         functools.update_wrapper(self, fn)
 
     def __getattr__(self, name):  # lower, trace, eval_shape, ... of the jitted function
@@ -365,10 +367,13 @@ class _Stored:
             fixed.append(None if traced[-1] else leaf)
         return traced, tuple(fixed)
 
-    def __call__(self, *args, **kwargs):
+    def _plan(self, args, kwargs):
+        """(key, folder, traced inputs, (treedef, traced, fixed), statics)
+        of this call, or None where the store cannot serve it (off, not
+        usable, or an argument the key cannot describe exactly)."""
         folder = _state["folder"]
         if folder is None or self._name is None or not _usable():
-            return self._jit(*args, **kwargs)
+            return None
         bound = self._sig.bind(*args, **kwargs)
         bound.apply_defaults()
         statics = {k: v for k, v in bound.arguments.items() if k in self._static}
@@ -388,13 +393,29 @@ class _Stored:
                 _environment(_stable(_options())) + _stable(self._name)
                 + _stable(statics) + _treedef_key(treedef) + _stable(fixed) + _stable(avals)).hexdigest()
         except _Unstable:
+            return None
+        return key, folder, inputs, (treedef, traced, fixed), statics
+
+    def __call__(self, *args, **kwargs):
+        plan = self._plan(args, kwargs)
+        if plan is None:
             return self._jit(*args, **kwargs)
+        key, folder, inputs, structure, statics = plan
         compiled = self._loaded.get(key)
         if compiled is not None:
             return compiled(*inputs)
+        pending = self._pending.pop(key, None)
+        if pending is not None:  # compiled by ``precompile``'s thread (the same key: the same program)
+            try:
+                compiled = pending.result()
+            except Exception:  # noqa: BLE001 - compiled again below, where the error shows as jit's
+                compiled = None
+            if compiled is not None:
+                self._loaded[key] = compiled
+                return compiled(*inputs)
         if not _unchanged():
             return self._jit(*args, **kwargs)
-        compiled, from_file = self._load_or_compile(folder, key, inputs, (treedef, traced, fixed), statics)
+        compiled, from_file = self._load_or_compile(folder, key, inputs, structure, statics)
         if not from_file:
             self._loaded[key] = compiled
             return compiled(*inputs)
@@ -409,6 +430,36 @@ class _Stored:
             return self._jit(*args, **kwargs)
         self._loaded[key] = compiled
         return out
+
+    def precompile(self, *args, **kwargs) -> None:
+        """Compile the program of a call with these arguments' shapes in a
+        thread of its own, traced and lowered here: XLA's compilation runs
+        without Python's lock, beside what this thread does next (the
+        fit's Levenberg-Marquardt program traces while its minimum check's
+        program compiles). The call with those shapes takes that program
+        (waiting for it if need be). Nothing happens where the store is
+        off or cannot serve the call, or the program is loaded, pending or
+        in the store already (loading it costs little)."""
+        plan = self._plan(args, kwargs)
+        if plan is None:
+            return
+        key, folder, inputs, structure, statics = plan
+        path = folder / f"{key}.exe"
+        if key in self._loaded or key in self._pending or path.exists() or not _unchanged():
+            return
+        lowered = self._lower(key, inputs, structure, statics)
+        pending = concurrent.futures.Future()
+        self._pending[key] = pending
+
+        def work():
+            try:
+                pending.set_result(self._finish(folder, path, lowered)[0])
+            except BaseException as err:  # noqa: BLE001 - the call compiles it again
+                pending.set_exception(err)
+
+        # not a daemon: a process that ends meanwhile waits for it (a compiler
+        # stopped halfway through at exit can crash the interpreter)
+        threading.Thread(target=work, name=f"jaxppo-precompile-{self._fn.__qualname__}").start()
 
     def _load_or_compile(self, folder: Path, key: str, inputs, structure, statics):
         """(the program of ``key``, whether it was read from the store): read
@@ -433,6 +484,10 @@ class _Stored:
             pass
         except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again
             pass
+        return self._finish(folder, path, self._lower(key, inputs, structure, statics))
+
+    def _lower(self, key: str, inputs, structure, statics):
+        """The program of ``key`` traced and lowered (not compiled)."""
         fn = self._fn
         treedef, traced, fixed = structure
 
@@ -447,10 +502,17 @@ class _Stored:
         # serialization lacked its kernels ("Function ... not found" when
         # loaded in a new process)
         flat.__name__ = flat.__qualname__ = f"stored_{key[:20]}_{os.getpid()}_{next(_NONCE)}"
-        lowered = jax.jit(flat).lower(*inputs)
+        return jax.jit(flat).lower(*inputs)
+
+    def _finish(self, folder: Path, path: Path, lowered):
+        """(``lowered`` compiled, False), written to the store at ``path``
+        where it can be loaded in another process."""
+        from jax.experimental import serialize_executable as se
+
         targets = custom_call_targets(lowered.as_text())
         compiled = lowered.compile()
-        counts["compiled"] += 1
+        with _lock:
+            counts["compiled"] += 1
         if any(not t.startswith("lapack_") for t in targets):
             return compiled, False  # a host callback or another library's kernel: never reloaded
         if not _builtin(compiled.out_tree):

@@ -156,19 +156,40 @@ def _benchmark_fit(seed, capsys=None):
 
 
 def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps(capsys):
-    """The benchmark of benchmarks/fit_timing.py (10 free parameters):
-    optimistix's Levenberg-Marquardt took 451 steps and two restarts; the
-    fit must end at a point its check accepts, with chi^2 below chi^2 at
-    the true parameters, at a cost below 500 steps: a minimum check (0.2
-    s) costs as much as ~65 steps (3 ms each) on this problem. A check
-    after every pass cost 151 steps and 9 checks (736); with the Hessian
-    carried between checks by secant updates, 213 steps and 3 checks."""
-    res, lc, checks = _benchmark_fit(7, capsys)
-    truth = jp.kepler20_system()
-    chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
-    assert res.success, res.message
-    assert res.chi2 < chi2_truth, (res.chi2, chi2_truth)
-    assert res.steps + 65 * checks < 500, (res.steps, checks)
+    """The benchmark of benchmarks/fit_timing.py (10 free parameters) on
+    the data of seeds 7-11: optimistix's Levenberg-Marquardt took 451
+    steps and two restarts on seed 7; each fit must end at a point its
+    check accepts, with chi^2 below chi^2 at the true parameters, and the
+    five together cost below 1250 steps, a minimum check (0.2 s) counted
+    as ~65 steps (3 ms each) on this problem. A check after every pass
+    cost 1584 (seed 7 alone 736: 151 steps, 9 checks); with the Hessian
+    carried between checks by secant updates, 1028, and with passes that
+    end where Levenberg-Marquardt stalls, 1143 (942 at XLA's optimisation
+    level 0). Several data sets, because one fit's path turns on the last
+    digit of its data (seed 7: 408 with one rounding of the light curve,
+    517 and 523 with another). No pass crawls through all its 200 steps:
+    one did (gaining 0.0006 of chi^2) before a pass ended where 10 steps in
+    a row gained less than atol + rtol chi^2 together."""
+    import jaxppo.inference._fit as fit_module
+
+    passes, original = [], fit_module.lm_pass
+
+    def recorded(*args):
+        out = original(*args)
+        passes.append((int(out[3]), int(out[4])))
+        return out
+
+    truth, cost = jp.kepler20_system(), 0
+    for seed in range(7, 12):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(fit_module, "lm_pass", recorded)
+            res, lc, checks = _benchmark_fit(seed, capsys)
+        chi2_truth = float(np.sum(((lc.flux - np.asarray(truth.flux(lc.time, 0.0))) / lc.flux_err) ** 2))
+        assert res.success, (seed, res.message)
+        assert res.chi2 < chi2_truth, (seed, res.chi2, chi2_truth)
+        cost += res.steps + 65 * checks
+    assert cost < 1250, cost
+    assert all(steps < 200 for steps, _ in passes), passes
 
 
 def test_the_fit_gives_up_after_its_checks_and_says_so(monkeypatch):

@@ -418,3 +418,51 @@ def test_damaged_payload_is_never_loaded(store):
     before = dict(counts)
     assert float(_programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)) == 14.0
     assert counts["loaded"] == before["loaded"] and counts["compiled"] == before["compiled"] + 1
+
+
+def test_precompile_compiles_in_a_thread_and_the_call_takes_that_program(store):
+    """``precompile`` compiles the program of a call's shapes beside the
+    caller (in a thread of its own): the call with those shapes runs that
+    program (one compilation in all, jit's numbers, one file); a call of
+    other shapes compiles its own; a program already loaded or stored is
+    not compiled again; with the store off nothing happens."""
+    moment = _programs._Stored(_moment.__wrapped__, ("power",))
+    x = jnp.linspace(0.0, 1.0, 7)
+    before = counts["compiled"]
+    moment.precompile(x, 2.0, power=3)
+    assert len(moment._pending) == 1
+    out = moment(x, 2.0, power=3)
+    assert counts["compiled"] - before == 1 and not moment._pending
+    assert float(out) == float(jax.jit(_moment.__wrapped__, static_argnames=("power",))(x, 2.0, power=3))
+    assert len(list(store.glob("*.exe"))) == 1
+    moment.precompile(x, 5.0, power=3)  # loaded in memory: the same program
+    fresh = _programs._Stored(_moment.__wrapped__, ("power",))
+    fresh.precompile(x, 2.0, power=3)  # in the store: loaded by the call
+    assert not moment._pending and not fresh._pending and counts["compiled"] - before == 1
+    assert float(fresh(x, 2.0, power=3)) == float(out)
+    moment.precompile(x, 2.0, power=2)  # another static value: another program
+    assert float(moment(x, 2.0, power=2)) == pytest.approx(float(jnp.sum((2.0 * x) ** 2)), rel=1e-15)
+    assert counts["compiled"] - before == 2
+    set_store(None)
+    moment.precompile(x[:3], 2.0, power=3)
+    assert not moment._pending
+
+
+def test_a_precompile_that_fails_leaves_the_call_to_compile(store, monkeypatch):
+    """An error in ``precompile``'s thread costs only time: the call
+    compiles the program itself and answers as jit does."""
+    moment = _programs._Stored(_moment.__wrapped__, ("power",))
+    real = _programs._Stored._finish
+    calls = []
+
+    def failing_once(self, *args):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("compiler crashed")
+        return real(self, *args)
+
+    monkeypatch.setattr(_programs._Stored, "_finish", failing_once)
+    x = jnp.arange(4.0)
+    moment.precompile(x, 1.0, power=2)
+    assert float(moment(x, 1.0, power=2)) == 14.0
+    assert len(calls) == 2 and not moment._pending

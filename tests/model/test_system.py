@@ -498,3 +498,42 @@ def test_clear_refusals_of_odd_inputs():
     one = system.replace(planets=system.planets[:1])
     with pytest.raises(ValueError, match="two or more planets"):
         scan_cases(one, ("same", "opposite"))
+
+
+def test_flux_positions_program_matches_the_positions_and_is_compiled_once(system, tmp_path):
+    """``System.flux`` takes the sky positions from one stored program
+    (``_sky_positions``): the positions of ``System.positions`` op by op to
+    rounding (circular, eccentric, rotated node, listed transit times, an
+    alpha grid, the hemisphere cases; 1e-11 R*: orbital phases of ~600 rad
+    two years after t0 hold ~1e-13 rad of rounding, times a = 23 R*; the
+    fluxes agree to 1e-14), and the planets' values
+    are its inputs, not part of it: other values, the same program."""
+    from jaxppo.model import _programs
+    from jaxppo.model._system import _positions_program, _sky_positions
+
+    b, c = system.planets
+    ecc = system.replace(planets=(b.replace(e=0.15, omega=40.0), c.replace(lnode=3.0)))
+    ttv = system.replace(planets=(b, c.replace(transit_times=[c.t0 + 0.01 + n * c.period for n in range(20)])))
+    t = jnp.linspace(330.0, 340.0, 2001)
+    grid = (t[None], jnp.linspace(0.0, 350.0, 8)[:, None])
+    for sys_, (tt, alpha), case in [(system, (t, 0.0), "same"), (system, grid, "opposite"), (ecc, (t, 20.0), "same"),
+                                    (ecc, grid, (-1,)), (ttv, (t, 5.0), "same")]:
+        direct = sys_.positions(tt, alpha, case)
+        program = _sky_positions(sys_, tt, jnp.asarray(alpha, float), case)
+        for a, p in zip(direct, program):
+            assert a.shape == p.shape
+            np.testing.assert_allclose(np.asarray(p), np.asarray(a), rtol=0, atol=1e-11)
+    _programs.set_store(tmp_path / "programs")
+    try:
+        f1 = system.flux(t)
+        programs = len(_positions_program._loaded)
+        other = system.replace(planets=(b.replace(t0=b.t0 + 0.01, radius=0.02), c.replace(a=c.a + 0.5)))
+        f2 = other.flux(t)
+        assert len(_positions_program._loaded) == programs >= 1
+        system.replace(planets=(b.replace(e=0.1, omega=10.0), c)).flux(t)  # a concrete e != 0: its own program
+        assert len(_positions_program._loaded) == programs + 1
+    finally:
+        _programs.set_store(None)
+    assert not np.allclose(np.asarray(f1), np.asarray(f2))
+    np.testing.assert_allclose(np.asarray(f1), np.asarray(jp.occultation_flux(system.star, *system.positions(t))),
+                               rtol=0, atol=1e-14)
