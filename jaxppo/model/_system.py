@@ -254,30 +254,11 @@ class System(eqx.Module):
             from ._nbody import system_positions
 
             return system_positions(self, t, alpha, signs, xp)
-        alpha_rad = xp.deg2rad(alpha)
-        shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
-        xs, ys, rs, zs = [], [], [], []
-        for i, pl in enumerate(self.planets):
-            x, y, z = pl.position(t, xp)
-            # |cos i| instead of cos i: the sign of b is not observable
-            y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
-            if i != self.tilted and signs[i] < 0:
-                y = -y
-            node = xp.deg2rad(xp.asarray(pl.lnode))
-            if i == self.tilted:
-                node = node + alpha_rad
-            if i == self.tilted or isinstance(pl.lnode, jax.core.Tracer) or np.any(np.asarray(pl.lnode)):
-                ca, sa = xp.cos(node), xp.sin(node)
-                x, y = x * ca + y * sa, -x * sa + y * ca
-            xs.append(xp.broadcast_to(x, shape))
-            ys.append(xp.broadcast_to(y, shape))
-            rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
-            zs.append(xp.broadcast_to(z, shape))
-        x, y, r = xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
+        x, y, r, z = _kepler_positions(self.planets, self.tilted, signs, t, alpha, xp)
         if any(pl.moons for pl in self.planets):
             from ._moon import add_moons
 
-            x, y, r = add_moons(self, t, alpha, signs, (x, y, xp.stack(zs, -1)), xp, kepler=True)
+            x, y, r = add_moons(self, t, alpha, signs, (x, y, z), xp, kepler=True)
         return x, y, r
 
     def flux(self, t: ArrayLike, alpha: ArrayLike = 0.0, case="same", method: str = "auto", **kwargs) -> Array:
@@ -427,6 +408,33 @@ class System(eqx.Module):
         return transit_times(self, t_start, t_end)
 
 
+def _kepler_positions(planets, tilted: int, signs, t, alpha, xp):
+    """(x, y, r, z) [R*] of Keplerian ``planets`` (last axis) at times t and
+    tilt alpha [deg] (broadcast): ``System.positions`` without moons, with
+    the hemisphere signs of ``case_signs``."""
+    alpha_rad = xp.deg2rad(alpha)
+    shape = np.broadcast_shapes(t.shape, alpha_rad.shape)
+    xs, ys, rs, zs = [], [], [], []
+    for i, pl in enumerate(planets):
+        x, y, z = pl.position(t, xp)
+        # |cos i| instead of cos i: the sign of b is not observable
+        y = xp.where(xp.cos(xp.deg2rad(xp.asarray(pl.inc))) < 0, -y, y)
+        if i != tilted and signs[i] < 0:
+            y = -y
+        node = xp.deg2rad(xp.asarray(pl.lnode))
+        if i == tilted:
+            node = node + alpha_rad
+        if i == tilted or isinstance(pl.lnode, jax.core.Tracer) or np.any(np.asarray(pl.lnode)):
+            ca, sa = xp.cos(node), xp.sin(node)
+            x, y = x * ca + y * sa, -x * sa + y * ca
+        xs.append(xp.broadcast_to(x, shape))
+        ys.append(xp.broadcast_to(y, shape))
+        rs.append(xp.broadcast_to(xp.where(z > 0, xp.asarray(pl.radius), 0.0), shape))
+        zs.append(xp.broadcast_to(z, shape))
+    x, y, r = xp.stack(xs, -1), xp.stack(ys, -1), xp.stack(rs, -1)
+    return x, y, r, xp.stack(zs, -1)
+
+
 def _sky_positions(system: System, t, alpha, case):
     """``system.positions(t, alpha, case)``; with concrete inputs, Keplerian
     orbits and no moons, as one stored program (``_positions_program``)
@@ -435,18 +443,26 @@ def _sky_positions(system: System, t, alpha, case):
     if (system.orbits == "nbody" or any(pl.moons for pl in system.planets)
             or any(isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves((system, t, alpha)))):
         return system.positions(t, alpha, case)
-    # concrete zeros stay concrete in the program: a circular orbit keeps its
-    # own equations and an unrotated node its skipped rotation, as here
-    zeros = tuple((not np.any(np.asarray(pl.e)), not np.any(np.asarray(pl.lnode))) for pl in system.planets)
-    case = case if isinstance(case, str) else tuple(int(c) for c in case)
-    return _positions_program(system, t, alpha, case, zeros)
+    signs = tuple(int(v) for v in case_signs(len(system.planets), system.tilted, case))  # its errors, as positions'
+    # the program's inputs are the planets' orbital values (not the star, not
+    # the names: one program for every system of the same planets and
+    # shapes); a concrete e = 0 or lnode = 0 is left out and so stays the
+    # constructor's concrete 0 inside it: a circular orbit keeps its own
+    # equations and an unrotated node its skipped rotation, as here
+    orbits = []
+    for pl in system.planets:
+        values = {k: getattr(pl, k) for k in ("period", "t0", "a", "inc", "radius", "transit_times", "transit_epochs")}
+        if np.any(np.asarray(pl.e)):
+            values.update(e=pl.e, omega=pl.omega)
+        if np.any(np.asarray(pl.lnode)):
+            values["lnode"] = pl.lnode
+        orbits.append(values)
+    x, y, r, _ = _positions_program(tuple(orbits), system.tilted, signs, jnp.asarray(t), jnp.asarray(alpha))
+    return x, y, r
 
 
-@stored(filtered=True, static_argnames=("case", "zeros"))
-def _positions_program(system: System, t, alpha, case, zeros):
-    """``positions`` of ``system`` with the planets' e and lnode set to a
-    concrete 0 where ``zeros`` says (the traced values are 0 there)."""
-    planets = [eqx.tree_at(lambda p: (p.e, p.lnode), pl, (np.float64(0.0) if ze else pl.e,
-                                                           np.float64(0.0) if zl else pl.lnode))
-               for pl, (ze, zl) in zip(system.planets, zeros)]
-    return eqx.tree_at(lambda s: s.planets, system, tuple(planets)).positions(t, alpha, case)
+@stored(filtered=True, static_argnames=("tilted", "signs"))
+def _positions_program(orbits, tilted, signs, t, alpha):
+    """``_kepler_positions`` of the planets made from ``orbits`` (each a
+    dict of Planet's arguments)."""
+    return _kepler_positions([Planet(**values) for values in orbits], tilted, signs, t, alpha, jnp)

@@ -530,6 +530,9 @@ def test_flux_positions_program_matches_the_positions_and_is_compiled_once(syste
         other = system.replace(planets=(b.replace(t0=b.t0 + 0.01, radius=0.02), c.replace(a=c.a + 0.5)))
         f2 = other.flux(t)
         assert len(_positions_program._loaded) == programs >= 1
+        renamed = system.replace(planets=(b.replace(name="first"), c.replace(name="second")))
+        np.testing.assert_array_equal(np.asarray(renamed.flux(t)), np.asarray(f1))
+        assert len(_positions_program._loaded) == programs  # names (and the star) are not in the program
         system.replace(planets=(b.replace(e=0.1, omega=10.0), c)).flux(t)  # a concrete e != 0: its own program
         assert len(_positions_program._loaded) == programs + 1
     finally:
@@ -537,3 +540,15 @@ def test_flux_positions_program_matches_the_positions_and_is_compiled_once(syste
     assert not np.allclose(np.asarray(f1), np.asarray(f2))
     np.testing.assert_allclose(np.asarray(f1), np.asarray(jp.occultation_flux(system.star, *system.positions(t))),
                                rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("case", [(1.5,), (-1.5,), (True,), ("1",), ("+",), (float("nan"),), (0.9,), 1, None, (1, 1)])
+def test_flux_refuses_a_bad_case_as_positions_does(system, case):
+    """A case that ``positions`` refuses, ``flux`` refuses with the same
+    message (never rounded to a valid sign: (1.5,) is not (1,))."""
+    t = jnp.linspace(334.0, 334.1, 5)
+    with pytest.raises(ValueError) as direct:
+        system.positions(t, 0.0, case)
+    with pytest.raises(ValueError) as via_flux:
+        system.flux(t, 0.0, case)
+    assert str(via_flux.value) == str(direct.value)
