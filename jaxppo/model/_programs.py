@@ -11,9 +11,10 @@ everything the program is made from:
 
 * the function (module and qualified name) and the whole jaxppo package
   (the content of every source file, the size and time of every data
-  file; hashed when jaxppo is imported, with the bytecode Python runs,
-  and the store is turned off for the process if the files change
-  afterwards, or a module-level value of jaxppo is set anew);
+  file; hashed when jaxppo is imported, with the bytecode Python runs
+  where it may not be the source's, and the store is turned off for the
+  process if the files change afterwards (not the bytecode Python writes
+  as it imports them), or a module-level value of jaxppo is set anew);
 * the versions of Python, numpy, JAX and jaxlib; of each library whose
   code a program may trace (``TRACED_LIBRARIES``: equinox, optimistix,
   lineax, jnkepler, numpyro) the version and where its files are, with
@@ -150,12 +151,11 @@ def _treedef_key(treedef) -> bytes:
 
 def _package_hash(root=None) -> str:
     """sha256 of the installed jaxppo package (or the folder ``root``):
-    every source file by its content and that of its bytecode for this
-    Python (``__pycache__``: what Python runs where it holds the source's
-    size and time, even if the source was edited since), every other file
-    (data) by its size and modification time."""
-    import importlib.util
-
+    every source file by its content, every other file (data) by its size
+    and modification time. Bytecode counts only where Python would run it
+    instead of its source's content (``_stale_bytecode``): the ``.pyc``
+    files Python writes as it imports the package change no key (else a new
+    install's second run found none of its first run's programs)."""
     root = Path(__file__).resolve().parents[1] if root is None else Path(root)
     h = hashlib.sha256()
     for path in sorted(root.rglob("*")):
@@ -164,14 +164,39 @@ def _package_hash(root=None) -> str:
         h.update(str(path.relative_to(root)).encode() + b"\0")
         if path.suffix == ".py":
             h.update(path.read_bytes() + b"\0")
-            try:
-                h.update(Path(importlib.util.cache_from_source(str(path))).read_bytes() + b"\0")
-            except (OSError, NotImplementedError):
-                h.update(b"no bytecode\0")
+            stale = _stale_bytecode(path)
+            if stale is not None:
+                h.update(b"stale bytecode\0" + stale + b"\0")
         else:
             st = path.stat()
             h.update(f"{st.st_size}:{st.st_mtime_ns}\0".encode())
     return h.hexdigest()
+
+
+def _stale_bytecode(source: Path) -> bytes | None:
+    """The bytecode Python runs for ``source`` where it may not be the
+    source's: a ``.pyc`` whose header matches the source's time (whole
+    seconds) and size but which was written before the source's last
+    change (an edit within the same second that kept the size), or an
+    unchecked hash-based ``.pyc`` (never compared with its source). None
+    where Python runs the source's own code."""
+    import importlib.util
+
+    try:
+        cached = Path(importlib.util.cache_from_source(str(source)))
+        with open(cached, "rb") as fh:
+            head = fh.read(16)
+        pyc, src = cached.stat(), source.stat()
+    except (OSError, NotImplementedError, ValueError):
+        return None
+    if len(head) < 16 or head[:4] != importlib.util.MAGIC_NUMBER:
+        return None  # not this Python's: it compiles the source
+    flags = int.from_bytes(head[4:8], "little")
+    if flags & 0b1:  # hash-based: checked against the source (bit 1) or never
+        return None if flags & 0b10 else cached.read_bytes()
+    stamp, size = int.from_bytes(head[8:12], "little"), int.from_bytes(head[12:16], "little")
+    matches = stamp == (int(src.st_mtime) & 0xFFFFFFFF) and size == (src.st_size & 0xFFFFFFFF)
+    return cached.read_bytes() if matches and pyc.st_mtime_ns < src.st_mtime_ns else None
 
 
 def _cpu_flags() -> str:
@@ -187,11 +212,13 @@ def _cpu_flags() -> str:
 
 
 def _stamp(root: Path) -> tuple:
-    """(path, size, modification time) of every file of the package, its
-    bytecode included."""
+    """(path, size, modification time) of every file of the package but its
+    bytecode (which Python writes as it imports modules, the first time
+    and for modules imported later)."""
     out = []
     for path in sorted(root.rglob("*")):
-        if path.is_file() and not path.name.endswith(".tmp"):
+        if (path.is_file() and not path.name.endswith(".tmp") and "__pycache__" not in path.parts
+                and path.suffix not in (".pyc", ".pyo")):
             st = path.stat()
             out.append((str(path), st.st_size, st.st_mtime_ns))
     return tuple(out)

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -466,3 +467,65 @@ def test_a_precompile_that_fails_leaves_the_call_to_compile(store, monkeypatch):
     moment.precompile(x, 1.0, power=2)
     assert float(moment(x, 1.0, power=2)) == 14.0
     assert len(calls) == 2 and not moment._pending
+
+
+FRESH_INSTALL = textwrap.dedent("""
+    import sys
+    sys.path.insert(0, sys.argv[2])
+    import jax, numpy as np
+    jax.config.update("jax_enable_x64", True)
+    import jaxppo as jp
+    from jaxppo.model._programs import counts, store_folder
+    assert jp.__file__.startswith(sys.argv[2]), jp.__file__
+    jp.compilation_cache(sys.argv[1])
+    flux = jp.kepler20_system().flux(np.linspace(334.0, 335.0, 100))
+    print(repr(float(np.sum(flux))), counts["loaded"], counts["compiled"], store_folder() is not None)
+""")
+
+
+def test_a_new_install_second_run_loads_the_first_runs_programs(tmp_path):
+    """A package without bytecode (a new install): its first run writes the
+    .pyc files as it imports, which neither turns the store off nor changes
+    the key; the second run loads every program the first compiled. (The
+    first run's store turned itself off, and the second, whose key held the
+    new bytecode, compiled everything again.)"""
+    import shutil
+
+    copy = tmp_path / "site"
+    shutil.copytree(os.path.dirname(jp.__file__), copy / "jaxppo", ignore=shutil.ignore_patterns("__pycache__"))
+    script = tmp_path / "run.py"
+    script.write_text(FRESH_INSTALL)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["JAXPPO_CACHE"] = "1"
+    runs = [subprocess.run([sys.executable, str(script), str(tmp_path / "cache"), str(copy)], env=env,
+                           capture_output=True, text=True, timeout=300) for _ in range(2)]
+    for run in runs:
+        assert run.returncode == 0, run.stderr[-2000:]
+    first, second = (run.stdout.split() for run in runs)
+    assert list((copy / "jaxppo").rglob("*.pyc"))  # the first run wrote its bytecode
+    assert first[3] == "True" and int(first[2]) >= 2 and first[1] == "0", first
+    assert second[0] == first[0] and second[1:] == [first[2], "0", "True"], (first, second)
+
+
+def test_stale_bytecode_counts_only_where_python_runs_it(tmp_path):
+    """A .pyc written after its source changed is the source's own code (no
+    part of the key); one whose header matches a source edited later within
+    the same second, keeping its size, is what Python runs: it enters the
+    key."""
+    import importlib.util
+    import py_compile
+
+    src = tmp_path / "kernel.py"
+    src.write_text("SCALE = 1.0\n")
+    assert _programs._stale_bytecode(src) is None  # no bytecode
+    py_compile.compile(str(src))
+    assert _programs._stale_bytecode(src) is None  # written after the source
+    pyc = Path(importlib.util.cache_from_source(str(src)))
+    st = src.stat()
+    src.write_text("SCALE = 2.0\n")  # same size
+    os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns))  # the same second as the bytecode's header
+    os.utime(pyc, ns=(st.st_mtime_ns - 1, st.st_mtime_ns - 1))  # written before that edit
+    assert _programs._stale_bytecode(src) == pyc.read_bytes()
+    h = _programs._package_hash(tmp_path)
+    pyc.unlink()
+    assert _programs._package_hash(tmp_path) != h
