@@ -31,8 +31,9 @@ def precompile(model: Model, theta) -> None:
     points, k free parameters) and of the fit's covariance (the physical
     parameters' Jacobian) in a thread, while the caller traces the
     Levenberg-Marquardt program (``_programs.stored.precompile``: where
-    the program store is on; 1.3 s less of a new process's first fit of
-    Kepler-20 b + c)."""
+    the program store is on; 0.3-0.4 s less of a new process's first fit
+    of Kepler-20 b + c: XLA's compiler already keeps both cores of a
+    2-core CPU busy, so it overlaps with the tracing only)."""
     theta = jnp.asarray(theta)
     k = theta.shape[0]
     residuals_batch.precompile(jnp.zeros((2 * k + 1, k), theta.dtype), model.data())

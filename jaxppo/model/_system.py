@@ -452,7 +452,7 @@ def _sky_positions(system: System, t, alpha, case):
     orbits = []
     for pl in system.planets:
         values = {k: getattr(pl, k) for k in ("period", "t0", "a", "inc", "radius", "transit_times", "transit_epochs")}
-        if np.any(np.asarray(pl.e)):
+        if not pl.circular:
             values.update(e=pl.e, omega=pl.omega)
         if np.any(np.asarray(pl.lnode)):
             values["lnode"] = pl.lnode
