@@ -36,7 +36,7 @@ def precompile(model: Model, theta) -> None:
     2-core CPU busy, so it overlaps with the tracing only)."""
     theta = jnp.asarray(theta)
     k = theta.shape[0]
-    residuals_batch.precompile(jnp.zeros((2 * k + 1, k), theta.dtype), model.data())
+    residuals_batch.precompile(jnp.zeros((2 * k + 1, k), theta.dtype), model.data(), jnp.asarray(0, jnp.int32))
     physical_jacobian.precompile(theta, model.data(), bool(model.derived_names()))
 
 
@@ -203,14 +203,17 @@ def _weak_basis(jtj) -> tuple:
 
 def _residual_rows(model: Model, thetas, rows: int) -> np.ndarray:
     """The residual vectors at each row of ``thetas`` (the residuals program
-    of ``rows`` rows, run batch by batch; the last batch padded with its
-    first row)."""
-    out = []
+    of ``rows`` rows, run batch by batch, several at a time:
+    ``map_to_host``; the last batch padded, the program stops at its
+    last row)."""
+    calls = []
     for lo in range(0, len(thetas), rows):
         batch = thetas[lo:lo + rows]
+        count = jnp.asarray(len(batch), jnp.int32)
         batch = np.concatenate([batch, np.repeat(batch[:1], rows - len(batch), axis=0)])
-        out.append(np.asarray(model.residuals_batch(jnp.asarray(batch)))[:len(thetas) - lo])
-    return np.concatenate(out) if out else np.zeros((0, 0))
+        calls.append((jnp.asarray(batch), model.data(), count))
+    out = residuals_batch.map_to_host(calls)
+    return np.concatenate(out)[:len(thetas)] if out else np.zeros((0, 0))
 
 
 def chi2_at(model: Model, thetas, rows: int) -> np.ndarray:

@@ -316,9 +316,13 @@ class Model(eqx.Module):
         """chi^2 at each row of ``thetas`` (one compiled program)."""
         return chi2_batch(thetas, self.data())
 
-    def residuals_batch(self, thetas):
-        """``residuals`` at each row of ``thetas`` (one compiled program)."""
-        return residuals_batch(thetas, self.data())
+    def residuals_batch(self, thetas, count=None):
+        """``residuals`` at each row of ``thetas`` (one compiled program for
+        every ``count``): at its first ``count`` rows only (the others
+        zero; all by default)."""
+        thetas = jnp.asarray(thetas)
+        count = thetas.shape[0] if count is None else count
+        return residuals_batch(thetas, self.data(), jnp.asarray(count, jnp.int32))
 
 
 def _build(model: "Model") -> "ModelData":
@@ -557,9 +561,14 @@ def chi2_batch(thetas, d: ModelData):
 
 
 @stored(filtered=True)
-def residuals_batch(thetas, d: ModelData):
-    """Residuals at each row of ``thetas`` (lax.map)."""
-    return jax.lax.map(lambda t: residuals(t, d), thetas)
+def residuals_batch(thetas, d: ModelData, count):
+    """Residuals at the first ``count`` rows of ``thetas``, the other rows
+    zero (a loop that stops there: a batch padded to the program's rows
+    costs only its own)."""
+    shape = jax.eval_shape(lambda t: residuals(t, d), thetas[0])
+    out = jnp.zeros((thetas.shape[0],) + shape.shape, shape.dtype)
+    return jax.lax.fori_loop(0, jnp.minimum(count, thetas.shape[0]),
+                             lambda i, acc: acc.at[i].set(residuals(thetas[i], d)), out)
 
 
 def _physical(theta, system: System, slots) -> jnp.ndarray:

@@ -72,7 +72,7 @@ import jax
 import numpy as np
 
 __all__ = ["stored", "set_store", "store_folder", "custom_call_targets", "counts", "record_constants", "MAX_FILES",
-           "TRACED_LIBRARIES", "library_stamp"]
+           "TRACED_LIBRARIES", "library_stamp", "threads"]
 
 MAX_FILES = 512
 
@@ -338,12 +338,40 @@ def _options() -> tuple:
                  if name not in _NOT_OPTIONS)
 
 
+# the last options seen and their encoding (encoding them took 1 ms of each call)
+_OPTIONS_SEEN = [(None, b"")]
+
+
+def _options_key() -> bytes:
+    """``_options()`` encoded (``_stable``); encoded again only when an
+    option's value changed since the last call."""
+    options = _options()
+    seen, encoded = _OPTIONS_SEEN[0]
+    try:
+        same = bool(options == seen)
+    except Exception:  # noqa: BLE001 - a value that does not compare: encoded anew
+        same = False
+    if not same:
+        encoded = _stable(options)
+        _OPTIONS_SEEN[0] = (options, encoded)
+    return encoded
+
+
 def _usable() -> bool:
     """One device, one process, jit enabled, no NaN/Inf checks (jit re-runs
     a failing program op by op to name the operation; a compiled one
     cannot): where a stored program is what jit would run."""
     return (jax.process_count() == 1 and len(jax.devices()) == 1 and not jax.config.jax_disable_jit
             and not jax.config.jax_debug_nans and not jax.config.jax_debug_infs)
+
+
+def _aval(leaf) -> tuple:
+    """(shape, dtype, weak type) of an array argument, as the key has it."""
+    try:
+        aval = jax.typeof(leaf)
+    except TypeError as err:  # a big-endian numpy array: jit converts it, the key cannot
+        raise _Unstable(str(err)) from None
+    return aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False))
 
 
 class _Stored:
@@ -409,15 +437,9 @@ class _Stored:
         try:
             traced, fixed = self._split(leaves)
             inputs = [leaf for leaf, t in zip(leaves, traced) if t]
-            avals = []
-            for leaf in inputs:
-                try:
-                    aval = jax.typeof(leaf)
-                except TypeError as err:  # a big-endian numpy array: jit converts it, the key cannot
-                    raise _Unstable(str(err)) from None
-                avals.append((aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False))))
+            avals = [_aval(leaf) for leaf in inputs]
             key = hashlib.sha256(
-                _environment(_stable(_options())) + _stable(self._name)
+                _environment(_options_key()) + _stable(self._name)
                 + _stable(statics) + _treedef_key(treedef) + _stable(fixed) + _stable(avals)).hexdigest()
         except _Unstable:
             return None
@@ -488,6 +510,54 @@ class _Stored:
         # stopped halfway through at exit can crash the interpreter)
         threading.Thread(target=work, name=f"jaxppo-precompile-{self._fn.__qualname__}").start()
 
+    def map_to_host(self, calls) -> list:
+        """``[self(*args) for args in calls]`` with every output a numpy
+        array, the calls run ``threads()`` at a time: a
+        2-core CPU runs two calls of a program like the fit's residuals in
+        2/3 of the time it runs them one by one (XLA keeps the second core
+        busy a quarter of the time). Each call's program is chosen here,
+        as ``__call__`` does (JAX's options can be set per thread: the
+        threads only run it); where the store cannot serve a call, all run
+        here, one by one."""
+        host = functools.partial(jax.tree_util.tree_map, np.asarray)
+        calls = [tuple(args) for args in calls]
+        plans = [self._plan(calls[0], {})] if calls else []
+        plans += [self._plan_like(args, calls[0], plans[0]) for args in calls[1:]]
+        first = []
+        if plans and plans[0] is not None and plans[0][0] not in self._loaded:
+            first = [host(self(*calls[0]))]  # read from the store or compiled, here
+        jobs = [None if plan is None else (self._loaded.get(plan[0]), plan[2]) for plan in plans[len(first):]]
+        if threads() < 2 or len(jobs) < 2 or any(job is None or job[0] is None for job in jobs):
+            return first + [host(self(*args)) for args in calls[len(first):]]
+        # numbers and numpy arrays become JAX arrays here, under this thread's options (dtype)
+        jobs = [(compiled, [x if isinstance(x, jax.Array) else jax.device_put(x) for x in inputs])
+                for compiled, inputs in jobs]
+        return first + list(_pool().map(lambda job: host(job[0](*job[1])), jobs))
+
+    def _plan_like(self, args, first, plan):
+        """``_plan(args)``, from ``plan`` (the plan of the arguments
+        ``first``) where each of ``args`` is the very object of ``first``
+        or an array of the same shape, dtype and weak type: the same
+        program (encoding the key took 1.6 ms a call)."""
+        if plan is None or len(args) != len(first):
+            return self._plan(args, {})
+        for a, b in zip(args, first):
+            if a is b:
+                continue
+            arrays = (jax.Array, np.ndarray)
+            try:
+                same = (isinstance(a, arrays) and isinstance(b, arrays) and not isinstance(a, jax.core.Tracer)
+                        and _aval(a) == _aval(b))
+            except _Unstable:
+                same = False
+            if not same:
+                return self._plan(args, {})
+        key, folder, _, structure, statics = plan
+        bound = self._sig.bind(*args)
+        bound.apply_defaults()
+        leaves = jax.tree_util.tree_leaves({k: v for k, v in bound.arguments.items() if k not in self._static})
+        return key, folder, [leaf for leaf, t in zip(leaves, structure[1]) if t], structure, statics
+
     def _load_or_compile(self, folder: Path, key: str, inputs, structure, statics):
         """(the program of ``key``, whether it was read from the store): read
         from the store, else compiled (and written there). A file that does
@@ -551,6 +621,22 @@ class _Stored:
             return compiled, False
         _write(folder, path, blob)
         return compiled, False
+
+
+def threads() -> int:
+    """How many calls ``map_to_host`` runs at once: the CPUs this process
+    may use, at most 4 (XLA's own threads use the others)."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, 4))
+
+
+@functools.lru_cache(maxsize=None)
+def _pool() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads of ``map_to_host`` (started at its first use)."""
+    return concurrent.futures.ThreadPoolExecutor(threads(), thread_name_prefix="jaxppo-program")
 
 
 def _builtin(treedef) -> bool:

@@ -82,3 +82,23 @@ def test_physical_jacobian_equals_the_derivatives_of_physical_and_derived():
         if derived:
             np.testing.assert_allclose(q[k:], np.asarray(model.derived(theta)), rtol=1e-14, atol=1e-14)
             np.testing.assert_allclose(jac[k:], np.asarray(jax.jacfwd(model.derived)(theta)), rtol=1e-12, atol=1e-14)
+
+
+def test_residuals_batch_stops_at_its_count():
+    """The residuals program of a batch computes its first ``count`` rows,
+    each equal (bit for bit) to the residuals at that row alone, and
+    leaves the padding rows zero; by default every row."""
+    from jaxppo.inference._model import Model, residuals
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=3, noise=4e-4)
+    model = Model(truth, lc, ("b.t0", "b.a", "c.radius"))
+    theta = np.asarray(model.to_theta(truth))
+    thetas = theta + 1e-3 * np.arange(15.0).reshape(5, 3)
+    one = jax.jit(residuals)
+    want = np.stack([np.asarray(one(jnp.asarray(t), model.data())) for t in thetas])
+    assert np.all(np.any(want[1:] != want[0], axis=1))  # the rows differ
+    part = np.asarray(model.residuals_batch(thetas, count=3))
+    np.testing.assert_array_equal(part[:3], want[:3])
+    assert np.all(part[3:] == 0.0)
+    np.testing.assert_array_equal(np.asarray(model.residuals_batch(thetas)), want)

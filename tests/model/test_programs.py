@@ -2,6 +2,7 @@
 function's numbers, a new process loads them instead of compiling, and the
 key changes with everything a program is made from."""
 
+import concurrent.futures
 import json
 import os
 import subprocess
@@ -529,3 +530,51 @@ def test_stale_bytecode_counts_only_where_python_runs_it(tmp_path):
     h = _programs._package_hash(tmp_path)
     pyc.unlink()
     assert _programs._package_hash(tmp_path) != h
+
+
+def test_map_to_host_runs_the_callers_programs_in_threads(store, monkeypatch):
+    """``map_to_host`` gives each call's outputs as the call itself does
+    (bit for bit, as numpy arrays), the calls spread over the threads; the
+    program is chosen in the caller's thread, whose JAX options may be its
+    own (under ``jax.enable_x64(False)`` the threads would otherwise run
+    the float64 program); an argument that is not the first call's object
+    or an array of its shape is planned afresh; with the store off every
+    call runs in the caller's thread."""
+    moment = _programs._Stored(_moment.__wrapped__, ("power",))
+    xs = [jnp.linspace(0.0, 1.0 + i, 7) for i in range(5)]
+    scale = 2.0
+    used = []
+    real_map = concurrent.futures.ThreadPoolExecutor.map
+
+    def spy(pool, fn, jobs):
+        jobs = list(jobs)
+        used.append((pool._thread_name_prefix, len(jobs)))
+        return real_map(pool, fn, jobs)
+
+    # (jaxppo's own names are left alone: setting one turns the store off)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(concurrent.futures.ThreadPoolExecutor, "map", spy)
+    assert _programs.threads() == 2
+    calls = [(x, scale, 3) for x in xs]
+    out = moment.map_to_host(calls)
+    assert used == [("jaxppo-program", 4)]  # the first call loaded the program here
+    for got, args in zip(out, calls):
+        assert isinstance(got, np.ndarray) and got.dtype == np.float64
+        np.testing.assert_array_equal(got, np.asarray(moment(*args)))
+    with jax.enable_x64(False):
+        calls32 = [(jnp.linspace(0.0, 1.0 + i, 7), scale, 3) for i in range(3)]
+        out32 = moment.map_to_host(calls32)
+        want32 = [np.asarray(moment(*args)) for args in calls32]
+    assert used[1:] == [("jaxppo-program", 2)]
+    assert all(got.dtype == np.float32 for got in out32)
+    for got, want in zip(out32, want32):
+        np.testing.assert_array_equal(got, want)
+    # another static value in one call: planned on its own, its own program
+    mixed = moment.map_to_host([(xs[0], scale, 3), (xs[1], scale, 2)])
+    assert float(mixed[1]) == pytest.approx(float(jnp.sum((scale * xs[1]) ** 2)), rel=1e-15)
+    set_store(None)
+    used.clear()
+    plain = moment.map_to_host(calls)
+    assert used == []
+    for got, want in zip(plain, out):
+        np.testing.assert_array_equal(got, want)
