@@ -384,7 +384,7 @@ def _solve(model: Model, theta, chi2, max_steps: int, rtol: float, atol: float, 
 
     After a pass the fit decides with the check's Hessian whether the point
     is a minimum. The check (``assess``, second differences: a few hundred
-    residual vectors) costs as much as ~65 steps; between checks the fit
+    residual vectors) costs as much as 35-50 steps; between checks the fit
     carries its Hessian along as a model, H = 2 J^T J + S with J the
     Jacobian at the current point and S (the curvature that Gauss-Newton's
     2 J^T J misses) from the last check, updated by the secant condition

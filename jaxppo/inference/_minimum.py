@@ -133,14 +133,13 @@ def _hessian(model: Model, theta, c, axis_res, jtj, extra) -> tuple:
     if replaced:
         moves = (np.abs(basis) > 0).T.astype(np.int32)  # [k, k]: the parameters each direction moves
         share = (moves @ share.astype(np.int32) @ moves.T) > 0
-        axis_pts, _ = _hessian_points(basis, [])
-        centre_and_axes = _residual_rows(model, theta + axis_pts / c, rows)
-    else:
-        centre_and_axes = axis_res
     pairs = [(i, j) for i in range(k) for j in range(i + 1, k) if share[i, j]]
-    pts = _hessian_points(basis, pairs)[1] + list(extra)
-    f_rest = chi2_at(model, theta + np.array(pts).reshape(-1, k) / c, rows)
-    f = np.concatenate([np.sum(centre_and_axes**2, axis=1), f_rest])
+    pts = np.array(_hessian_points(basis, pairs)[1] + list(extra)).reshape(-1, k)
+    if replaced:  # the centre and the new axes in the same batches as the pairs
+        pts = np.concatenate([_hessian_points(basis, [])[0], pts])
+        f = np.sum(_residual_rows(model, theta + pts / c, rows) ** 2, axis=1)
+    else:
+        f = np.concatenate([np.sum(axis_res**2, axis=1), chi2_at(model, theta + pts / c, rows)])
     hess_b = _second_differences(f, pairs, k)
     inv = np.linalg.inv(basis)
     hess = inv.T @ hess_b @ inv
