@@ -319,9 +319,15 @@ class Model(eqx.Module):
     def residuals_batch(self, thetas, count=None):
         """``residuals`` at each row of ``thetas`` (one compiled program for
         every ``count``): at its first ``count`` rows only (the others
-        zero; all by default)."""
+        zero; all by default). Forward-mode derivatives only (``jvp``,
+        ``jacfwd``; the loop stops at a traced count). ValueError unless
+        ``count`` is a whole number from 0 to the number of rows."""
         thetas = jnp.asarray(thetas)
-        count = thetas.shape[0] if count is None else count
+        rows = thetas.shape[0]
+        if count is None:
+            count = rows
+        elif isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 0 <= count <= rows:
+            raise ValueError(f"count must be a whole number from 0 to the {rows} rows of thetas, got {count!r}")
         return residuals_batch(thetas, self.data(), jnp.asarray(count, jnp.int32))
 
 

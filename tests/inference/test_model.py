@@ -5,6 +5,7 @@ derivatives of the union integral on every frame."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxppo as jp
 from jaxppo.inference._model import UNION_BLOCK, union_frames
@@ -102,3 +103,7 @@ def test_residuals_batch_stops_at_its_count():
     np.testing.assert_array_equal(part[:3], want[:3])
     assert np.all(part[3:] == 0.0)
     np.testing.assert_array_equal(np.asarray(model.residuals_batch(thetas)), want)
+    np.testing.assert_array_equal(np.asarray(model.residuals_batch(thetas, count=np.int64(5))), want)
+    for bad in (2.9, True, -1, 6, np.array([2]), "3"):
+        with pytest.raises(ValueError, match="count must be a whole number from 0 to the 5 rows"):
+            model.residuals_batch(thetas, count=bad)
