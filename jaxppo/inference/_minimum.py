@@ -10,6 +10,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from ..model._programs import threads
 from ._lm import lm_pass
 from ._model import Model, physical_jacobian, residuals_batch
 
@@ -201,18 +202,22 @@ def _weak_basis(jtj) -> tuple:
 
 
 def _residual_rows(model: Model, thetas, rows: int) -> np.ndarray:
-    """The residual vectors at each row of ``thetas`` (the residuals program
-    of ``rows`` rows, run batch by batch, several at a time:
-    ``map_to_host``; the last batch padded, the program stops at its
-    last row)."""
-    calls = []
-    for lo in range(0, len(thetas), rows):
-        batch = thetas[lo:lo + rows]
-        count = jnp.asarray(len(batch), jnp.int32)
+    """The residual vectors at each row of ``thetas``: the residuals program
+    of ``rows`` rows, in as many batches as it takes, and at least one per
+    thread (``threads()``), the points shared evenly among them; the
+    batches run several at a time (``map_to_host``), each padded to
+    ``rows`` rows, the program stopping at its last real row."""
+    n = len(thetas)
+    if n == 0:
+        return np.zeros((0, 0))
+    size = -(-n // max(-(-n // rows), min(threads(), n)))
+    calls, sizes = [], []
+    for lo in range(0, n, size):
+        batch = thetas[lo:lo + size]
+        sizes.append(len(batch))
         batch = np.concatenate([batch, np.repeat(batch[:1], rows - len(batch), axis=0)])
-        calls.append((jnp.asarray(batch), model.data(), count))
-    out = residuals_batch.map_to_host(calls)
-    return np.concatenate(out)[:len(thetas)] if out else np.zeros((0, 0))
+        calls.append((jnp.asarray(batch), model.data(), jnp.asarray(sizes[-1], jnp.int32)))
+    return np.concatenate([out[:m] for out, m in zip(residuals_batch.map_to_host(calls), sizes)])
 
 
 def chi2_at(model: Model, thetas, rows: int) -> np.ndarray:

@@ -308,3 +308,36 @@ def test_the_hessian_at_a_vanishing_column_is_the_curvature():
     f = chi2_at(model, np.array([theta + s * step * np.array([0.0, 1.0]) for s in (-1.0, 0.0, 1.0)]), 5)
     direct = (f[0] - 2 * f[1] + f[2]) / step**2
     assert abs(hess_theta[1, 1] - direct) < 0.05 * direct, (hess_theta[1, 1], direct)
+
+
+@pytest.mark.parametrize("cpus", [1, 2, 4])
+def test_residual_rows_are_each_points_residuals_in_any_batching(kepler20_ten, tmp_path, monkeypatch, cpus):
+    """The check's residual vectors, batched as many ways as there are
+    point counts and threads (batches shared evenly among the threads, the
+    last padded, the program stopping at each batch's count; the store on,
+    where the batches run on the threads, and off): row for row, bit for
+    bit, the residuals at that point alone (a batch's padding rows read
+    back as residuals summed the fit's chi^2 with zeros)."""
+    import os
+
+    from jaxppo.inference._minimum import _residual_rows
+    from jaxppo.inference._model import residuals
+    from jaxppo.model._programs import set_store, threads
+
+    model, theta = kepler20_ten
+    k = theta.size
+    rng = np.random.default_rng(5)
+    points = theta + 1e-3 * rng.standard_normal((50, k))
+    one = jax.jit(residuals)
+    want = np.stack([np.asarray(one(jnp.asarray(p), model.data())) for p in points])
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cpus)), raising=False)
+    assert threads() == cpus
+    for store in (tmp_path / "programs", None):
+        set_store(store)
+        try:
+            for n in (1, 2, 5, 21, 22, 43, 50):
+                got = _residual_rows(model, points[:n], 2 * k + 1)
+                assert got.shape == (n, want.shape[1])
+                np.testing.assert_array_equal(got, want[:n])
+        finally:
+            set_store(None)
