@@ -124,6 +124,7 @@ class Model(eqx.Module):
         self.y = jnp.asarray(lc.flux)
         self.sigma = jnp.asarray(lc.flux_err)
         self.model_data = _build(self)
+        _check_precision(self.model_data, lc)
 
     def _positions(self, system: System, t=None):
         t = np.asarray(self.t_model if t is None else t)
@@ -329,6 +330,22 @@ class Model(eqx.Module):
         elif isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 0 <= count <= rows:
             raise ValueError(f"count must be a whole number from 0 to the {rows} rows of thetas, got {count!r}")
         return residuals_batch(thetas, self.data(), jnp.asarray(count, jnp.int32))
+
+
+def _check_precision(d: "ModelData", lc: LightCurve) -> None:
+    """RuntimeError where float64 data became float32 arrays with JAX's
+    float64 on: JAX 0.10's ``jax.enable_x64`` context in one thread leaks
+    into others (``jnp.asarray`` of a float64 array gave float32 in ~30 %
+    of the calls of a thread beside one inside ``enable_x64(False)``), and a
+    fit of those arrays converged, "successfully", to another point."""
+    if not jax.config.jax_enable_x64:
+        return
+    for name, data, arr in (("flux", lc.flux, d.y), ("flux_err", lc.flux_err, d.sigma), ("time", lc.time, d.t)):
+        if np.asarray(data).dtype == np.float64 and arr.dtype != jnp.float64:
+            raise RuntimeError(
+                f"the light curve's {name} (float64) became a {arr.dtype} array although JAX's float64 is on: "
+                "another thread inside a jax.enable_x64 context changes this thread's arrays (a JAX bug); "
+                "run float32 and float64 work in separate processes")
 
 
 def _build(model: "Model") -> "ModelData":

@@ -107,3 +107,29 @@ def test_residuals_batch_stops_at_its_count():
     for bad in (2.9, True, -1, 6, np.array([2]), "3"):
         with pytest.raises(ValueError, match="count must be a whole number from 0 to the 5 rows"):
             model.residuals_batch(thetas, count=bad)
+
+
+def test_float64_data_turned_float32_is_an_error(monkeypatch):
+    """With JAX's float64 on, a light curve's float64 arrays that come out
+    of ``jnp.asarray`` as float32 (JAX 0.10's ``jax.enable_x64`` context in
+    another thread does this to ~30 % of a thread's conversions; a fit of
+    such data converged "successfully" to another point) stop the Model
+    with an error naming the array, not a float32 fit."""
+    from jaxppo.inference._model import Model
+
+    truth = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=3, noise=4e-4)
+    real = jnp.asarray
+    n = len(lc.flux)
+
+    def leaky(a, *args, **kwargs):
+        out = real(a, *args, **kwargs)
+        if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == (n,) and not args and not kwargs:
+            return out.astype(jnp.float32)
+        return out
+
+    monkeypatch.setattr(jnp, "asarray", leaky)
+    with pytest.raises(RuntimeError, match=r"light curve's flux \(float64\) became a float32 array"):
+        Model(truth, lc, ("b.t0", "b.radius"))
+    monkeypatch.undo()
+    assert Model(truth, lc, ("b.t0", "b.radius")).data().y.dtype == jnp.float64
