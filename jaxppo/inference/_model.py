@@ -344,8 +344,8 @@ def _check_precision(d: "ModelData", lc: LightCurve) -> None:
         if np.asarray(data).dtype == np.float64 and arr.dtype != jnp.float64:
             raise RuntimeError(
                 f"the light curve's {name} (float64) became a {arr.dtype} array although JAX's float64 is on: "
-                "another thread inside a jax.enable_x64 context changes this thread's arrays (a JAX bug); "
-                "run float32 and float64 work in separate processes")
+                "most likely another thread inside a jax.enable_x64 context changed this thread's arrays (JAX's "
+                "context leaks into other threads); run float32 and float64 work in separate processes")
 
 
 def _build(model: "Model") -> "ModelData":
