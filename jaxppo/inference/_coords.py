@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._system import System
-from ._params import is_moon, is_tc, planet_value, star_value
+from ._params import inc_sign_matters, is_moon, is_tc, planet_value, star_value
 
 __all__ = ["Coordinates", "default_priors", "start_q", "a_from_density", "density_from_a", "check_density",
            "default_density"]
@@ -204,7 +204,9 @@ class Coordinates:
     entry per slot. ``priors``: one numpyro distribution per slot
     (``default_priors``); a tied a's entry is not used. ``user``: the free
     names whose prior the user gave (a user prior on a keeps plain
-    coordinates for that planet). ``fold``: the inclination's q is |s|.
+    coordinates for that planet). ``fold``: the inclination's q is |s|
+    (except where the sign of cos i changes the light curve:
+    ``inc_sign_matters``).
     ``density``: (mean, sd) [g/cm^3] of a Gaussian prior (truncated at 0)
     on rho*, which then sets every free a/R*."""
 
@@ -226,7 +228,8 @@ class Coordinates:
         self.duration = {o for o in both if self.index[(o, "a")] not in self.user}
         self.plain = sorted(both - self.duration)
         self.maps = [biject_to(pr.support) for pr in priors]
-        self.folded = [k for k, (_, par) in enumerate(self.slots) if par == "inc"] if fold else []
+        self.folded = [k for k, (owner, par) in enumerate(self.slots)
+                       if fold and par == "inc" and not inc_sign_matters(model.system, owner)]
         self.priors = list(priors)
         self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
                       if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}

@@ -21,7 +21,7 @@ from ..model._system import System
 from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region_steps
 from ._minimum import DECREMENT, assess, chi2_at, newton_decrement, precompile
 from ._model import Model
-from ._params import as_lightcurve, planet_value, star_value
+from ._params import as_lightcurve, inc_sign_matters, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["fit", "FitResult", "CONDITION_WARN"]
@@ -269,7 +269,9 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         measured, docs/conventions.md), so a fitted inclination is reported
         folded into [0, 90] deg (the same chi^2 and errors; the correlations
         of inc change sign). False keeps the side of 90 deg the fit ended on.
-        Default True.
+        Default True. N-body planets and planets with moons are never
+        folded: for them the sign of cos i changes the light curve (mutual
+        inclinations; moons' orbits given on the sky).
 
     Returns
     -------
@@ -490,8 +492,11 @@ def _trust_region(model: Model, theta, c, hess, grad, chi2: float):
 
 def _fold_inc(model: Model, theta, cov_theta):
     """(theta, cov_theta) with every inclination's coordinate (b = (1 + p)
-    tanh theta) made >= 0: i -> 180 deg - i, the identical light curve."""
-    flip = np.array([-1.0 if par == "inc" and float(theta[k]) < 0 else 1.0 for k, (_, par) in enumerate(model.slots)])
+    tanh theta) made >= 0: i -> 180 deg - i, the identical light curve;
+    not where the sign of cos i changes it (``inc_sign_matters``: N-body
+    orbits, moons)."""
+    flip = np.array([-1.0 if par == "inc" and float(theta[k]) < 0 and not inc_sign_matters(model.system, owner)
+                     else 1.0 for k, (owner, par) in enumerate(model.slots)])
     if cov_theta is not None:
         cov_theta = cov_theta * np.outer(flip, flip)
     return jnp.asarray(theta) * jnp.asarray(flip), cov_theta

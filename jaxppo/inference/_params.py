@@ -34,7 +34,7 @@ from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
 
-__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "expand_tc", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
@@ -173,6 +173,16 @@ def star_value(system: System, par):
     if par in NBODY_PARAMS["star"]:
         return system.star_mass if par == "mass" else system.star_radius
     return system.star.params[par]
+
+
+def inc_sign_matters(system: System, owner) -> bool:
+    """Whether the sign of cos i of planet ``owner`` changes the light
+    curve, so that i and 180 deg - i must not be folded together: N-body
+    orbits (mutual inclinations act on the dynamics) and a planet with
+    moons (the moons' orbits are given on the sky: the planet's hemisphere
+    mirror turns them over, docs/conventions.md). Keplerian planets without
+    moons cross the star by |cos i| only."""
+    return system.orbits == "nbody" or bool(system.planets[owner].moons)
 
 
 def is_moon(par) -> bool:

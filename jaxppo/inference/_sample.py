@@ -20,7 +20,9 @@ around neither. NUTS moves a signed coordinate s = b / (1 + p) in (-1, 1)
 and the model takes |s|: the density is symmetric in s, so a posterior
 piled up at b = 0 is one smooth mode through s = 0, and every reported
 inclination is in [0, 90] deg. ``fold_inc=False`` keeps the signed s
-(inc in (0, 180) deg, the two mirrored modes).
+(inc in (0, 180) deg, the two mirrored modes). N-body orbits and planets
+with moons keep the signed s always: for them the sign of cos i changes
+the light curve (``._params.inc_sign_matters``).
 
 The log-density in these coordinates is the likelihood plus
 ``Coordinates.log_prior`` (the prior plus log |det d(prior
@@ -373,7 +375,9 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         posterior of inc is then two mirrored modes, i and 180 deg - i, of
         equal height, and its intervals mean nothing. Default True. An
         N-body system (``orbits="nbody"``) keeps the sign (it acts on the
-        dynamics) and is never folded.
+        dynamics) and is never folded, nor is a planet with moons (their
+        orbits are given on the sky: i and 180 deg - i turn them over
+        against the planet's path, another light curve).
 
     Returns
     -------

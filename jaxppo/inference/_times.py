@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 import warnings
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -94,11 +93,8 @@ def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> 
     (one model evaluation per shift); transits that share points (two
     planets on the star together) are searched in turn, each with the
     others at their best so far, twice over."""
-    from ._model import residuals
-
     theta = model.to_theta(model.system)
     frac = np.linspace(-1.0, 1.0, grid)
-    data = model.data()
     n = model.y.size
     classes = _classes(windows)
     for _ in range(1 if len(classes) == 1 else 2):
@@ -106,7 +102,7 @@ def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> 
             idx = np.array([slots[i] for i in members])
             shifts = jnp.asarray(frac[:, None] * search[members][None, :])
             thetas = jnp.tile(theta, (grid, 1)).at[:, idx].add(shifts)
-            r2 = np.asarray(jax.lax.map(lambda th: residuals(th, data) ** 2, thetas))[:, :n]
+            r2 = np.asarray(model.residuals_batch(thetas))[:, :n] ** 2
             best = [int(np.argmin(r2[:, windows[i]].sum(1))) if windows[i].any() else grid // 2 for i in members]
             theta = theta.at[idx].set(jnp.asarray(np.asarray(thetas)[np.array(best), idx]))
     return theta

@@ -422,6 +422,14 @@ class _Stored:
             fixed.append(None if traced[-1] else leaf)
         return traced, tuple(fixed)
 
+    def _bind(self, args, kwargs) -> tuple:
+        """(static arguments, the others) of a call, by name, defaults
+        filled in."""
+        bound = self._sig.bind(*args, **kwargs)
+        bound.apply_defaults()
+        statics = {k: v for k, v in bound.arguments.items() if k in self._static}
+        return statics, {k: v for k, v in bound.arguments.items() if k not in self._static}
+
     def _plan(self, args, kwargs):
         """(key, folder, traced inputs, (treedef, traced, fixed), statics)
         of this call, or None where the store cannot serve it (off, not
@@ -429,10 +437,7 @@ class _Stored:
         folder = _state["folder"]
         if folder is None or self._name is None or not _usable():
             return None
-        bound = self._sig.bind(*args, **kwargs)
-        bound.apply_defaults()
-        statics = {k: v for k, v in bound.arguments.items() if k in self._static}
-        dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
+        statics, dynamic = self._bind(args, kwargs)
         leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         try:
             traced, fixed = self._split(leaves)
@@ -553,9 +558,7 @@ class _Stored:
             if not same:
                 return self._plan(args, {})
         key, folder, _, structure, statics = plan
-        bound = self._sig.bind(*args)
-        bound.apply_defaults()
-        leaves = jax.tree_util.tree_leaves({k: v for k, v in bound.arguments.items() if k not in self._static})
+        leaves = jax.tree_util.tree_leaves(self._bind(args, {})[1])
         return key, folder, [leaf for leaf, t in zip(leaves, structure[1]) if t], structure, statics
 
     def _load_or_compile(self, folder: Path, key: str, inputs, structure, statics):

@@ -373,14 +373,15 @@ class System(eqx.Module):
         if self.orbits == "nbody" and options.get("orbits") == "nbody":
             # a is derived again (the masses may have changed), and a default step follows new planets
             planets = [eqx.tree_at(lambda p: p.a, pl, jnp.asarray(np.nan)) for pl in planets]
-            if changed and "dt" not in nbody:
+            if (changed or "star_mass" in nbody) and "dt" not in nbody:
                 from ._nbody import default_dt
 
-                old = [np.asarray(getattr(p, f), float) for f in ("period", "e") for p in self.planets]
-                n = len(self.planets)
-                if not any(isinstance(getattr(p, f), jax.core.Tracer) for p in self.planets for f in ("period", "e")) \
-                        and self.dt == default_dt(old[:n], old[n:]):
-                    options["dt"] = None
+                fields = ("period", "e", "mass")
+                if not any(isinstance(getattr(p, f), jax.core.Tracer) for p in self.planets for f in fields) \
+                        and not isinstance(self.star_mass, jax.core.Tracer):
+                    old = [[float(getattr(p, f)) for p in self.planets] for f in fields]
+                    if self.dt == default_dt(old[0], old[1], np.asarray(old[2]) / float(self.star_mass)):
+                        options["dt"] = None
         return System(
             star if star is not None else self.star,
             planets,
