@@ -160,6 +160,11 @@ class LightCurve:
              f"{tot['duplicated']} repeated time stamps")
         if tot["flags_kept"]:
             s += f"; {tot['flags_kept']} points with flags outside the bitmask kept"
+        div = r.get("divided_by")
+        if isinstance(div, dict) and any(v != 1.0 for v in div.values()):
+            s += f"; flux and errors divided by the median of each of {len(div)} segments"
+        elif isinstance(div, (int, float)) and div != 1.0:
+            s += f"; flux and errors divided by their median {div:.6g}"
         if r.get("time"):
             s += f"; time: {r['time']}"
         return s

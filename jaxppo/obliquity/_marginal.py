@@ -49,7 +49,7 @@ import numpy as np
 from ._config import ScanConfig, check_alpha_grid, config_from_arguments, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
 from ._marginal_result import MarginalResult, analyse_draws, marginal_csv, plot_marginal
-from ._progress import atomic_write, read_progress, record_line
+from ._progress import atomic_write, progress_header, read_progress, record_line
 from ._scan import run_scan
 from ._windows import windows_and_events, windows_data
 from ..inference._importance import MIN_IMPORTANCE_ESS
@@ -509,7 +509,9 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     settings = {"draws": draws, "free": list(free), "num_warmup": int(num_warmup), "thin": int(thin),
                 "seed": int(seed), "chains": int(chains), "density": density, "samples_sha256": None if given is None else
                 hashlib.sha256(json.dumps(given, sort_keys=True).encode()).hexdigest()[:20]}
-    opts = SimpleNamespace(digest=_digest(cfg, settings), given=given, free=free, draws=draws, num_warmup=num_warmup,
+    opts = SimpleNamespace(digest=_digest(cfg, settings), settings={**settings, "scan_config_digest": cfg.digest},
+                           given=given, free=free, draws=draws,
+                           num_warmup=num_warmup,
                            thin=thin, seed=seed, chunk=chunk, chains=chains, density=density,
                            density_source=density_source, min_ess=min_ess, restart=restart, progress=progress,
                            t_begin=t_begin)
@@ -712,11 +714,10 @@ def _read_state(out: Path, cfg: ScanConfig, o):
             for name in ("marginal.json", "marginal.csv", "marginal.png", DRAWS, PROGRESS):
                 if (out / name).is_file():
                     (out / name).unlink()
-        done, notes = read_progress(out / PROGRESS, o.digest, out, cfg.source)
+        done, notes = read_progress(out / PROGRESS, o.digest, out, cfg.source, o.settings)
         stored = _stored_draws(out / DRAWS, o.digest)
         if not (out / PROGRESS).exists():  # (written here: a folder that cannot be written stops every process now)
-            atomic_write(out / PROGRESS, json.dumps({"config_digest": o.digest, "source": cfg.source,
-                                                     "format": 2}) + "\n")
+            atomic_write(out / PROGRESS, progress_header(o.digest, cfg.source, o.settings))
         return done, notes, stored
 
     def encode(state):

@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._stats import geometry_probabilities
+from ._stats import geometry_probabilities, goodness_of_fit, withheld
 from ._summary import DeprecatedSummaryAccess
 from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 
-__all__ = ["MarginalResult", "MARGINAL_DTYPE", "analyse_draws", "withheld", "marginal_csv", "plot_marginal",
+__all__ = ["MarginalResult", "MARGINAL_DTYPE", "analyse_draws", "marginal_csv", "plot_marginal",
            "logmeanexp"]
 
 
@@ -114,6 +114,9 @@ class MarginalResult(DeprecatedSummaryAccess):
         for case, c in self.summary["cases"].items():
             geo, fx = c["geometries"], self.fixed.probabilities[case]
             imp = c["importance"]
+            if not c["reliable"] and imp["reason"] == self.summary.get("goodness_of_fit", {}).get("reason"):
+                lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}")
+                continue
             if not c["reliable"]:
                 lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}; sample alpha "
                              "jointly with the transit parameters (jaxppo scan --joint N, jp.joint_scan; "
@@ -122,9 +125,10 @@ class MarginalResult(DeprecatedSummaryAccess):
             for name, g in geo.items():
                 if isinstance(g, dict):
                     sp = c["probability_spread_over_draws"][name]
+                    pf = fx[name]["probability"]
+                    fixed = "withheld" if pf is None else f"{100 * pf:.2f} %"
                     lines.append(f"  case {case}: {name}: {100 * g['probability']:.2f} % "
-                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed "
-                                 f"{100 * fx[name]['probability']:.2f} %)")
+                                 f"(draws {100 * sp['p16']:.2f}-{100 * sp['p84']:.2f} %; fixed {fixed})")
             k = geo["bayes_factor"]
             kt = f"K = {k:.4g}" if k is not None else f"log10 K = {geo['log10_bayes_factor']:.4g}"
             ess = min(g["ess"] for g in imp["groups"].values())
@@ -143,17 +147,6 @@ class MarginalResult(DeprecatedSummaryAccess):
 
 
 
-def withheld(geo: dict, names, reason: str) -> dict:
-    """The geometry block of a case whose importance weights are
-    unreliable: every probability, the Bayes factor and the rating withheld
-    (None), the reason in their place."""
-    out = {k: v for k, v in geo.items()}
-    for nm in names:
-        out[nm] = dict(geo[nm], probability=None)
-    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
-    return out
-
-
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
              min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
     """The marginal scan's result from the per-draw chi^2 curves: per case
@@ -163,6 +156,8 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
+    # does the best draw at its best tilt fit the data? (the fixed scan's check, over the draws)
+    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
@@ -191,6 +186,8 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         a_mod = np.mod(cfg.alpha, 360.0)
         pro = (a_mod <= 90.0) | (a_mod > 270.0)
         check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
+        if check["reliable"] and not fit["ok"]:
+            check.update(reliable=False, reason=fit["reason"])
         if not check["reliable"]:
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)
@@ -232,7 +229,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         weight=("p(alpha|D) ~ mean over draws of exp(-(chi2(alpha) - chi2_ref) / 2); chi2_ref per draw: "
                 + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
                    f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
-        cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases},
+        cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases}, goodness_of_fit=fit,
     )
     return MarginalResult(summary, np.array(rows, dtype=MARGINAL_DTYPE), dchi2, fixed)
 

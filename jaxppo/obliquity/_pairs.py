@@ -16,6 +16,7 @@ import numpy as np
 
 from ..model._cases import case_signs
 from ._chi2 import analyse_case, grid_chi2
+from ._stats import guard_cases
 from ._windows import windows_data
 
 __all__ = ["pair_reports", "pair_lines", "partners_of", "PAIRS_HEADER"]
@@ -56,10 +57,11 @@ def pair_reports(cfg, windows, step: float):
     for partner in partners:
         mine = [w for w in windows if partner in w.event.planets]
         data = windows_data(mine, cfg.lightcurve.exposure)
-        cases = {}
+        cases, best = {}, np.inf
         for case in cfg.cases:
             chi2 = np.concatenate([grid_chi2(system, data, cfg.alpha[i:i + cfg.block], case)
                                    for i in range(0, cfg.alpha.size, cfg.block)])
+            best = min(best, float(np.min(chi2)))
             sign = case_signs(len(labels), system.tilted, case)[labels.index(partner)]
             own = "same" if sign > 0 else "opposite"
             summary, dchi2, post = analyse_case(system, mine, data, cfg.alpha, chi2, case, step, names_case=own)
@@ -67,9 +69,10 @@ def pair_reports(cfg, windows, step: float):
             key = f"{tilted}+{partner}"
             rows += [f"{key},{case},{a:.10g},{c:.17g},{d:.17g},{p:.17g}"
                      for a, c, d, p in zip(cfg.alpha, chi2, dchi2, post)]
+        check = guard_cases(cases, best, int(data.time.size))
         pairs[f"{tilted}+{partner}"] = {"tilted": tilted, "partner": partner,
                                         "multi_transits": [int(w.number) for w in mine],
-                                        "points": int(data.time.size), "cases": cases}
+                                        "points": int(data.time.size), "cases": cases, "goodness_of_fit": check}
     return pairs, rows
 
 
@@ -82,6 +85,10 @@ def pair_lines(summary: dict) -> list[str]:
         for case, c in pr["cases"].items():
             geo = c["geometries"]
             fav = geo["favoured"]
+            if fav is None:
+                lines.append(f"   case {case} ({pr['partner']}: {c['partner_case']}): no probability or rating: "
+                             f"{geo['withheld']}")
+                continue
             k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
             lines.append(f"   case {case} ({pr['partner']}: {c['partner_case']}): {fav} "
                          f"p = {100 * geo[fav]['probability']:.2f} %, Bayes factor {k} ({geo['jeffreys']}); "

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..model._processes import is_writer
 
-__all__ = ["atomic_write", "record_line", "read_progress"]
+__all__ = ["progress_header", "atomic_write", "record_line", "read_progress"]
 
 
 def atomic_write(path: Path, text: str) -> None:
@@ -40,13 +40,15 @@ def _checksum(rec: dict) -> str:
     return hashlib.sha256(body.encode()).hexdigest()[:20]
 
 
-def read_progress(path: Path, digest: str, out: Path, source: str):
+def read_progress(path: Path, digest: str, out: Path, source: str, settings: dict | None = None):
     """Finished (case, alpha) -> chi^2 from the progress file, and notes on
     what was not usable. Only complete lines count (a line cut by an
     interruption is dropped); each record must carry this config's digest and
     a valid checksum (an edited record is recomputed, with a note). The file
     is then rewritten atomically with the good records only, so the next
-    append never lands on a torn line."""
+    append never lands on a torn line. ``settings`` (the marginal scan's):
+    kept in the header, and a header of other settings is refused naming
+    the ones that differ."""
     done, notes, keep = {}, [], []
     if not path.exists():
         return done, notes
@@ -69,6 +71,7 @@ def read_progress(path: Path, digest: str, out: Path, source: str):
     if head is None and lines:
         notes.append(f"{path.name}: the header line is damaged; rewritten (records are checked one by one)")
     elif head is not None and head.get("config_digest") != digest:
+        _refuse_other_settings(out, head.get("settings"), settings)
         raise ValueError(
             f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
             "use another --out folder or --restart to discard them"
@@ -100,6 +103,33 @@ def read_progress(path: Path, digest: str, out: Path, source: str):
             f"{out} holds results of a different configuration (digest {sorted(foreign)[0]}, now {digest}); "
             "use another --out folder or --restart to discard them"
         )
-    header = json.dumps({"config_digest": digest, "source": source, "format": 2}) + "\n"
-    atomic_write(path, header + "".join(keep))
+    atomic_write(path, progress_header(digest, source, settings) + "".join(keep))
     return done, notes
+
+
+def progress_header(digest: str, source: str, settings: dict | None = None) -> str:
+    """The first line of a progress file: the digest of what its records
+    belong to, the config's source and (marginal scan) its settings."""
+    head = {"config_digest": digest, "source": source, "format": 2}
+    if settings is not None:
+        head["settings"] = settings
+    return json.dumps(head, default=str) + "\n"
+
+
+def _refuse_other_settings(out: Path, before, now) -> None:
+    """ValueError naming the marginal scan's settings that differ from the
+    run whose progress ``out`` holds (nothing when either is unknown or the
+    settings agree: then the scan's config differs)."""
+    if not isinstance(before, dict) or now is None:
+        return
+    now = json.loads(json.dumps(now, default=str))
+    if before.get("scan_config_digest") != now.get("scan_config_digest"):
+        return  # another config: the plain refusal
+    differ = [f"{k} {before.get(k)!r} -> {now.get(k)!r}" for k in sorted(set(before) | set(now))
+              if before.get(k) != now.get(k)]
+    if differ:
+        raise ValueError(
+            f"{out} holds a marginal scan of the same config with other marginal settings ({'; '.join(differ)}): "
+            "draws are not added to an earlier run's (they are a thinned chain of its own length and seed). "
+            "Use another --out folder for the new settings, or --restart to discard the earlier draws "
+            "(the fixed scan in the folder is computed again too)")

@@ -20,6 +20,11 @@ def probability_lines(summary: dict) -> list[str]:
         n = summary.get("points")
         per = f" for {n} points (chi2_0 / N = {summary['chi2_0'][case] / n:.3f})" if n else ""
         lines.append(f"case {case}: chi2_0 = {summary['chi2_0'][case]:.3f}{per}")
+        if geo.get("withheld"):
+            said = any(geo["withheld"] in ln for ln in lines)
+            lines.append("   no probability or rating (as above)" if said else
+                         f"   no probability or rating: {geo['withheld']}")
+            continue
         for name, v in geo.items():
             if isinstance(v, dict):
                 lines.append(f"   {name:36s} p = {100 * v['probability']:6.2f} %   "

@@ -37,6 +37,7 @@ from ._keywords import Default, refuse_with_config, resolved
 from ._pairs import PAIRS_HEADER, pair_reports, partners_of
 from ._progress import atomic_write, read_progress, record_line
 from ._chi2 import analyse_case, grid_chi2
+from ._stats import guard_cases
 from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
@@ -209,7 +210,8 @@ class ScanResult(DeprecatedSummaryAccess):
             a, d = self.delta_chi2(case)
             geo = self.probabilities[case]
             fav = geo["favoured"]
-            ax.plot(a, d, lw=1, label=f"case {case} ({fav} {100 * geo[fav]['probability']:.1f} %)")
+            what = "probabilities withheld" if fav is None else f"{fav} {100 * geo[fav]['probability']:.1f} %"
+            ax.plot(a, d, lw=1, label=f"case {case} ({what})")
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xlabel("tilt angle alpha [deg]")
         ax.set_ylabel("Delta chi^2")
@@ -454,15 +456,17 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
     tm, nsub = data.supersampled_times()
     null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
     chi2_null = float(np.sum(((data.flux - null) / data.flux_err) ** 2))
-    rows, summary_cases, table = [], {}, []
+    rows, summary_cases, table, best = [], {}, [], np.inf
     for case in cfg.cases:
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
+        best = min(best, float(np.min(chi2)))
         summ, dchi2, post = analyse_case(sysm, windows, data, cfg.alpha, chi2, case, step)
         summary_cases[case] = {"chi2_0": summ.pop("chi2_0"), "chi2_null_model": chi2_null, **summ}
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):
             rows.append(f"{case},{a:.10g},{c2:.17g},{dc:.17g},{p:.17g}")
             table.append((case, float(a), float(c2), float(dc), float(p)))
-    return rows, np.array(table, dtype=_TABLE_DTYPE), summary_cases
+    check = guard_cases(summary_cases, best, int(data.time.size))
+    return rows, np.array(table, dtype=_TABLE_DTYPE), summary_cases, check
 
 
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True) -> ScanResult:
@@ -488,12 +492,12 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     data = windows_data(windows, cfg.lightcurve.exposure)
     _compute_chi2(cfg, out / PROGRESS, digest, data, done, progress and is_writer())
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
-    rows, table, summary_cases = _analyse(cfg, done, windows, data, step)
+    rows, table, summary_cases, check = _analyse(cfg, done, windows, data, step)
     pairs, pair_rows = pair_reports(cfg, windows, step)
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     summary = dict(
         config=cfg.source, config_digest=digest, chi2_0=chi2_0,
-        probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases}, cases=summary_cases,
+        probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases}, cases=summary_cases, goodness_of_fit=check,
         multi_transits=[w.as_dict() for w in windows], skipped_multi_transits=skipped,
         points=int(data.time.size), supersampling=data.supersampled_times()[1], exposure=cfg.lightcurve.exposure,
         detrending=_detrend_summary(cfg),

@@ -6,7 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities"]
+__all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit",
+           "guard_cases", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+
+# the best chi^2 of a scan above both (per point, and in probability for N
+# points): the model does not describe the data, and exp(-Delta chi^2 / 2)
+# is no posterior (errors 20 % too small already raise every ln K by 44 %)
+MISFIT_REDUCED_CHI2 = 1.5
+MISFIT_P_VALUE = 1e-3
 
 
 def jeffreys(k: float) -> str:
@@ -71,3 +78,46 @@ def geometry_probabilities(alpha, delta_chi2, case) -> dict:
         "bayes_factor": kk, "log10_bayes_factor": float(log10_k), "favoured": favoured,
         "jeffreys": jeffreys(10.0**min(log10_k, 300.0)),
     }
+
+
+def withheld(geo: dict, names, reason: str) -> dict:
+    """The geometry block of a case whose probabilities cannot be trusted:
+    every probability, the Bayes factor and the rating withheld (None), the
+    reason in their place."""
+    out = {k: v for k, v in geo.items()}
+    for nm in names:
+        out[nm] = dict(geo[nm], probability=None)
+    out.update(bayes_factor=None, log10_bayes_factor=None, favoured=None, jeffreys="not rated", withheld=reason)
+    return out
+
+
+def goodness_of_fit(chi2_best: float, points: int) -> dict:
+    """Does the scan's best model describe the data? chi^2 at the best
+    tilt and case for ``points`` points: "reduced" (chi^2 / N), "p_value"
+    (chi^2 distribution with N degrees of freedom), "ok" (False when the
+    reduced chi^2 exceeds ``MISFIT_REDUCED_CHI2`` and the p-value is below
+    ``MISFIT_P_VALUE``), and "reason" (None when ok)."""
+    from scipy.stats import chi2 as chi2_dist
+
+    reduced = chi2_best / points if points else float("nan")
+    p = float(chi2_dist.sf(chi2_best, points)) if points else float("nan")
+    ok = not (reduced > MISFIT_REDUCED_CHI2 and p < MISFIT_P_VALUE)
+    reason = None if ok else (
+        f"the model does not fit the data: chi^2 = {chi2_best:.6g} for {points} points at the best tilt "
+        f"(chi^2 / N = {reduced:.3g}, p = {p:.2g}); the geometry probabilities assume that it does. Check the "
+        "flux normalisation (the out-of-transit level must be 1), the errors and the transit parameters "
+        "(jaxppo fit, or the marginal scan: --marginalize N)")
+    return {"chi2_best": float(chi2_best), "points": int(points), "reduced": float(reduced), "p_value": p,
+            "ok": bool(ok), "reason": reason}
+
+
+def guard_cases(cases: dict, chi2_best: float, points: int) -> dict:
+    """``goodness_of_fit`` of the best chi^2 over ``cases`` (case -> its
+    summary, with "geometries"); where the model does not fit, every case's
+    geometries are ``withheld`` (in place). Returns the check."""
+    check = goodness_of_fit(chi2_best, points)
+    if not check["ok"]:
+        for c in cases.values():
+            geo = c["geometries"]
+            c["geometries"] = withheld(geo, [k for k, v in geo.items() if isinstance(v, dict)], check["reason"])
+    return check

@@ -14,8 +14,9 @@ from jaxppo.model._overlap import ppo_table
 from jaxppo.obliquity._windows import scan_windows
 
 REAL = "jaxppo/data/kepler20_real_llc.toml"
-# two of the real double transits (BKJD), so the tests stay small
-EVENTS = [334.02, 670.45]
+# two of the real double transits (BKJD), so the tests stay small; two the model fits (334.02 alone, at these
+# settings: chi^2 47.3 for 17 points, p = 1e-4, and the scan withholds its probabilities)
+EVENTS = [496.77, 670.45]
 KW = dict(alpha=np.arange(0.0, 360.0, 10.0), detrend=2, baseline=0.3, margin=0.05, clip=5.0, multi_transits=EVENTS)
 
 
@@ -210,10 +211,16 @@ def test_resume_after_interruption(real, tmp_path, monkeypatch):
     for name in ref_table.dtype.names[1:]:
         np.testing.assert_allclose(again.table[name], ref_table[name], rtol=1e-12, atol=1e-14)
     _strict((tmp_path / "marginal.json").read_text())
-    # a changed setting is refused, not mixed in
+    # a changed setting is refused, not mixed in, naming what changed (it said "a different configuration"
+    # for a new number of draws of the same config, and its advice threw the draws away)
     other = dict(kw, samples=_draws(system, 5, seed=4))
-    with pytest.raises(ValueError, match="different"):
+    with pytest.raises(ValueError, match="same config with other marginal settings .*samples_sha256"):
         marginal_scan(system, lc, **other)
+    with pytest.raises(ValueError, match=r"other marginal settings \(draws 5 -> 4; samples_sha256"):
+        marginal_scan(system, lc, **dict(kw, samples=_draws(system, 4, seed=3)))
+    moved = system.replace(planets=(system.planets[0].replace(radius=0.019), system.planets[1]))
+    with pytest.raises(ValueError, match="different configuration"):  # another config: the plain refusal
+        marginal_scan(moved, lc, **kw)
 
 
 def test_bad_input(real):
@@ -422,12 +429,13 @@ def test_guard_withholds_a_peak_one_draw_carries(real, tmp_path, monkeypatch):
     def stub(systems, tm, nsub, y, sig, alpha, cases):
         _, _, ppo = real_chi2(systems[:1], tm, nsub, y, sig, alpha, cases)
         n = len(systems)
-        chi2 = np.full((n, len(cases), alpha.size), 1000.0)
+        level = float(np.size(y))  # chi^2 ~ N: a model that fits (the scan withholds a misfit's probabilities)
+        chi2 = np.full((n, len(cases), alpha.size), level)
         first = stub.next
         stub.next += n
         if first == 0:
             chi2[0, :, alpha == 130.0] -= 6.0
-        return chi2, np.full(n, 1000.0), np.zeros((n, len(cases), alpha.size), bool)
+        return chi2, np.full(n, level), np.zeros((n, len(cases), alpha.size), bool)
 
     stub.next = 0
     monkeypatch.setattr(mod, "marginal_chi2", stub)

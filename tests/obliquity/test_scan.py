@@ -334,6 +334,42 @@ def test_summary_is_strict_json_and_bayes_factor_never_infinite():
     assert abs(geo["prograde, different hemispheres"]["probability"] - k / (1 + k)) < 1e-14
 
 
+def test_no_probability_or_rating_from_a_model_that_does_not_fit(tmp_path):
+    """Flux in physical units over windows that are mostly in transit: the loader divided by a median 0.2 %
+    below the baseline, chi^2_0 / N was 121, and the scan printed "prograde 100 %, decisive" at the wrong
+    tilt. Where the best chi^2 is far above N (chi^2 / N > 1.5 and p < 1e-3) every probability, Bayes factor
+    and rating is withheld (null in summary.json, the reason printed and in the figure); the same data
+    normalised keep theirs, and what was divided by is in the data line."""
+    from jaxppo.obliquity._report import scan_report
+    from jaxppo.obliquity._stats import goodness_of_fit
+
+    lc = jp.simulate_kepler20(seed=4, noise=2e-4, radius_scale=2.0)
+    scaled = jp.LightCurve(lc.time, lc.flux * 1e4, lc.flux_err * 1e4)
+    path = _config(tmp_path, scaled, block=30, step=12.0, scale=2.0)
+    path.write_text(path.read_text() + 'detrend = "none"\n')
+    cfg = load_config(path)
+    assert "divided by their median" in cfg.lightcurve.report_line()
+    res = run_scan(cfg, tmp_path / "out", progress=False)
+    check = res.summary["goodness_of_fit"]
+    assert not check["ok"] and check["reduced"] > 1.5 and check["p_value"] < 1e-3
+    for case in ("same", "opposite"):
+        geo = res.summary["probabilities"][case]
+        assert geo["favoured"] is None and geo["bayes_factor"] is None and geo["jeffreys"] == "not rated"
+        assert all(v["probability"] is None for v in geo.values() if isinstance(v, dict))
+        assert "does not fit the data" in geo["withheld"]
+    json.loads((tmp_path / "out" / "summary.json").read_text())  # strict JSON with the nulls
+    text = scan_report(res.summary, cfg, tmp_path / "out", 1.0)
+    assert "no probability or rating: the model does not fit" in text and " %" not in text.split("Table 5")[0]
+    path = _config(tmp_path, lc, block=30, step=12.0, scale=2.0, name="good.toml")
+    path.write_text(path.read_text() + 'detrend = "none"\n')
+    good = run_scan(load_config(path), tmp_path / "good", progress=False)
+    assert good.summary["goodness_of_fit"]["ok"]
+    assert good.summary["probabilities"]["same"]["favoured"] is not None
+    # the thresholds: both must be exceeded (a short light curve's chi^2 / N of 1.6 is chance)
+    assert goodness_of_fit(1.6 * 20, 20)["ok"] and not goodness_of_fit(1.6 * 2000, 2000)["ok"]
+    assert goodness_of_fit(1.2 * 2000, 2000)["ok"]
+
+
 def test_no_mirror_block_with_the_other_cases_names(tmp_path):
     """Cases 3 and 2 are cases 1 and 4 at 360 - alpha (paper Eq. 2): the
     same physical geometries, so a case-1 summary may only name case 1's
