@@ -265,7 +265,7 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
         m.setattr(jaxppo.obliquity._figures, "scan_figures", boom)
         assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "45", "--quiet"]) == 0
     again = capsys.readouterr().out
-    assert "resumed: the scan in ../run had already finished with this config (16 alphas" in again
+    assert "resumed: the scan in ../run had already finished with this config (16 (case, alpha) points" in again
     assert "nothing recomputed or redrawn" in again and "scanned" not in again
     assert {p.name: p.stat().st_mtime_ns for p in run.iterdir() if p.suffix in (".png", ".csv", ".ecsv")} == stamps
     # a different grid in the same folder is refused, naming the way out

@@ -195,24 +195,25 @@ class Planet(eqx.Module):
         radius = from_quantity("radius", radius, "")
         e = from_quantity("e", e, "")
         omega = from_quantity("omega", omega, "deg")
-        _positive("period", period)
-        _positive("t0", t0, strict=False, lower=-np.inf)
+        who = f"planet {str(name)!r}: " if str(name) else ""  # errors name the planet
+        _positive(who + "period", period)
+        _positive(who + "t0", t0, strict=False, lower=-np.inf)
         if not no_a:
-            _positive("a", a, lower=1.0)
-        _positive("radius", radius)
-        _positive("omega", omega, strict=False, lower=-np.inf)
+            _positive(who + "a", a, lower=1.0)
+        _positive(who + "radius", radius)
+        _positive(who + "omega", omega, strict=False, lower=-np.inf)
         lnode = from_quantity("lnode", lnode, "deg")
         mass = from_quantity("mass", mass, "M_sun")
-        _positive("lnode", lnode, strict=False, lower=-np.inf)
-        _positive("mass", mass, strict=False)
+        _positive(who + "lnode", lnode, strict=False, lower=-np.inf)
+        _positive(who + "mass", mass, strict=False)
         if not isinstance(inc, jax.core.Tracer):
             inc_arr = np.asarray(inc, dtype=float)
             if not np.all(np.isfinite(inc_arr)) or np.any((inc_arr < 0) | (inc_arr > 180)):
-                raise ValueError(f"inc must be in [0, 180] degrees, got {inc!r}")
+                raise ValueError(f"{who}inc must be in [0, 180] degrees, got {inc!r}")
         if not isinstance(e, jax.core.Tracer):
             e_arr = np.asarray(e, dtype=float)
             if not np.all(np.isfinite(e_arr)) or np.any((e_arr < 0) | (e_arr >= 1)):
-                raise ValueError(f"e (eccentricity) must be in [0, 1), got {e!r}")
+                raise ValueError(f"{who}e (eccentricity) must be in [0, 1), got {e!r}")
             if not no_a and not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
                 peri = np.asarray(a, float) * (1.0 - e_arr)
                 if np.any(peri <= 1.0 + np.asarray(radius, float)):

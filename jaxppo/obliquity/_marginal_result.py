@@ -147,6 +147,17 @@ class MarginalResult(DeprecatedSummaryAccess):
 
 
 
+def _fit_check(chi2, fixed) -> dict:
+    """Does the best draw at its best tilt fit the data (``goodness_of_fit``
+    of the least chi^2 over draws, cases and alphas)? Not ok either where
+    the fixed scan found its alpha grid too coarse for the features."""
+    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+    grid = fixed.summary.get("alpha_grid_check") or {}
+    if fit["ok"] and grid.get("ok") is False:
+        fit = dict(fit, ok=False, reason=grid["reason"])
+    return fit
+
+
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
              min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
     """The marginal scan's result from the per-draw chi^2 curves: per case
@@ -156,8 +167,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
-    # does the best draw at its best tilt fit the data? (the fixed scan's check, over the draws)
-    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+    fit = _fit_check(chi2, fixed)
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..model._cases import case_signs
 from ._chi2 import analyse_case, grid_chi2
-from ._stats import guard_cases
+from ._stats import bayes_factor_text, guard_cases
 from ._windows import windows_data
 
 __all__ = ["pair_reports", "pair_lines", "partners_of", "PAIRS_HEADER"]
@@ -89,7 +89,7 @@ def pair_lines(summary: dict) -> list[str]:
                 lines.append(f"   case {case} ({pr['partner']}: {c['partner_case']}): no probability or rating: "
                              f"{geo['withheld']}")
                 continue
-            k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
+            k = bayes_factor_text(geo)
             lines.append(f"   case {case} ({pr['partner']}: {c['partner_case']}): {fav} "
                          f"p = {100 * geo[fav]['probability']:.2f} %, Bayes factor {k} ({geo['jeffreys']}); "
                          f"min dchi2 {c['min_delta_chi2']['value']:.2f} at {c['min_delta_chi2']['alpha']:g} deg")

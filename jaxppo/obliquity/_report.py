@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._pairs import pair_lines
+from ._stats import bayes_factor_text
 from ._tables import table5_text
 
 __all__ = ["scan_report", "probability_lines"]
@@ -29,7 +30,7 @@ def probability_lines(summary: dict) -> list[str]:
             if isinstance(v, dict):
                 lines.append(f"   {name:36s} p = {100 * v['probability']:6.2f} %   "
                              f"sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
-        k = f"{geo['bayes_factor']:.3f}" if geo["bayes_factor"] is not None else f"10^{geo['log10_bayes_factor']:.1f}"
+        k = bayes_factor_text(geo)
         lines.append(f"   Bayes factor {k} for '{geo['favoured']}': {geo['jeffreys']}")
     return lines
 
@@ -41,13 +42,17 @@ def scan_report(summary: dict, cfg, out, seconds: float) -> str:
     lines = [f"data: {summary['data']['loaded']}" if "data" in summary else f"data: {cfg.lightcurve.report_line()}"]
     res = summary.get("resumed", {})
     if res.get("finished_before"):
+        redone = res.get("redone")
+        what = (f"nothing recomputed; made again, missing: {', '.join(redone)}" if redone else
+                "nothing recomputed or redrawn")
         lines.append(f"resumed: the scan in {out} had already finished with this config ({res['alphas_total']} "
-                     f"alphas, digest {summary['config_digest']}); nothing recomputed or redrawn")
+                     f"(case, alpha) points, digest {summary['config_digest']}); {what}")
     elif res.get("alphas_done_before"):
         lines.append(f"resumed from {out / 'scan_progress.jsonl'}: {res['alphas_done_before']} of "
-                     f"{res['alphas_total']} alphas were already done")
+                     f"{res['alphas_total']} (case, alpha) points were already done")
     if not res.get("finished_before"):
-        lines.append(f"scanned {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over "
+        verb = "analysed" if res.get("alphas_done_before") == res.get("alphas_total") else "scanned"
+        lines.append(f"{verb} {len(cfg.cases)} case(s) x {cfg.alpha.size} alphas over "
                      f"{len(summary['multi_transits'])} multi-transits ({summary['points']} points) in {seconds:.2f} s")
     det = summary.get("detrending", {})
     if det.get("order") not in (None, "none"):

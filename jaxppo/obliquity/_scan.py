@@ -36,8 +36,8 @@ from ._config import ScanConfig, require_scan_system
 from ._keywords import Default, refuse_with_config, resolved
 from ._pairs import PAIRS_HEADER, pair_reports, partners_of
 from ._progress import atomic_write, read_progress, record_line
-from ._chi2 import analyse_case, grid_chi2
-from ._stats import guard_cases
+from ._chi2 import analyse_case, grid_chi2, resolution_check
+from ._stats import guard_cases, withhold_cases
 from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
@@ -274,11 +274,13 @@ def scan_products(result: ScanResult, cfg: ScanConfig, out, drawer) -> ScanResul
     scan already holds is not redone."""
     from ..activity import ppo_or_spot
 
-    finish = None
+    finish, redone = None, []
     if not share(figures_current(result, out)):  # process 0's files decide (several JAX processes)
         finish = start_figures(result, cfg, out, drawer)
+        redone.append("the figures")
     block = None
     if "ppo_or_spot" not in result.summary:
+        redone.append("the PPO-or-spot verdicts")
         try:
             block = ppo_or_spot(result, cfg.system, out=out)
         except Exception as exc:  # noqa: BLE001 - a summary block, not the scan's result
@@ -287,6 +289,8 @@ def scan_products(result: ScanResult, cfg: ScanConfig, out, drawer) -> ScanResul
         result = finish(result)
     if block is not None:
         result = with_summary(out, result, ppo_or_spot=block)
+    if redone and result.resumed.get("finished_before"):  # what the report says was made again
+        result = with_summary(out, result, resumed=dict(result.resumed, redone=redone))
     return result
 
 
@@ -494,10 +498,20 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, table, summary_cases, check = _analyse(cfg, done, windows, data, step)
     pairs, pair_rows = pair_reports(cfg, windows, step)
+    grid = None
+    if check["ok"]:  # does the grid resolve the features? (chi^2 at its midpoints)
+        chi2 = {c: np.array([done[(c, round(float(a), 9))] for a in cfg.alpha]) for c in cfg.cases}
+        grid = resolution_check(cfg.system, data, cfg.alpha, chi2, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
+                                cfg.block)
+        if not grid["ok"]:
+            withhold_cases(summary_cases, grid["reason"])
+            for pr in pairs.values():
+                withhold_cases(pr["cases"], grid["reason"])
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     summary = dict(
         config=cfg.source, config_digest=digest, chi2_0=chi2_0,
         probabilities={c: summary_cases[c]["geometries"] for c in cfg.cases}, cases=summary_cases, goodness_of_fit=check,
+        alpha_grid_check=grid,
         multi_transits=[w.as_dict() for w in windows], skipped_multi_transits=skipped,
         points=int(data.time.size), supersampling=data.supersampled_times()[1], exposure=cfg.lightcurve.exposure,
         detrending=_detrend_summary(cfg),

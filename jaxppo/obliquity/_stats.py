@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit",
-           "guard_cases", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+           "guard_cases", "withhold_cases", "bayes_factor_text", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
 # points): the model does not describe the data, and exp(-Delta chi^2 / 2)
@@ -117,7 +117,22 @@ def guard_cases(cases: dict, chi2_best: float, points: int) -> dict:
     geometries are ``withheld`` (in place). Returns the check."""
     check = goodness_of_fit(chi2_best, points)
     if not check["ok"]:
-        for c in cases.values():
-            geo = c["geometries"]
-            c["geometries"] = withheld(geo, [k for k, v in geo.items() if isinstance(v, dict)], check["reason"])
+        withhold_cases(cases, check["reason"])
     return check
+
+
+def withhold_cases(cases: dict, reason: str) -> None:
+    """Every case's geometries (case -> its summary, with "geometries")
+    ``withheld`` for ``reason``, in place; those withheld already keep
+    their first reason."""
+    for c in cases.values():
+        geo = c["geometries"]
+        if not geo.get("withheld"):
+            c["geometries"] = withheld(geo, [k for k, v in geo.items() if isinstance(v, dict)], reason)
+
+
+def bayes_factor_text(geo: dict) -> str:
+    """The Bayes factor of a geometry block as printed: three decimals up
+    to 1e6, then 10^x (a decisive K ran to 110 digits)."""
+    k = geo.get("bayes_factor")
+    return f"{k:.3f}" if k is not None and k < 1e6 else f"10^{geo['log10_bayes_factor']:.1f}"

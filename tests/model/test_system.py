@@ -552,3 +552,15 @@ def test_flux_refuses_a_bad_case_as_positions_does(system, case):
     with pytest.raises(ValueError) as via_flux:
         system.flux(t, 0.0, case)
     assert str(via_flux.value) == str(direct.value)
+
+
+def test_planet_errors_name_the_planet():
+    """Out-of-range elements of a named planet: the error names it (it said "e (eccentricity) must be in
+    [0, 1), got 1.0" of a system of several planets); an unnamed planet's error is as before."""
+    good = dict(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.02)
+    for field, value, what in (("e", 1.0, r"e \(eccentricity\) must be in \[0, 1\)"), ("mass", -1e-5, "mass must be"),
+                               ("inc", 190.0, r"inc must be in \[0, 180\]"), ("period", 0.0, "period must be > 0")):
+        with pytest.raises(ValueError, match=f"^planet 'c': {what}"):
+            jp.Planet(**{**good, field: value}, name="c")
+        with pytest.raises(ValueError, match=f"^{what}"):
+            jp.Planet(**{**good, field: value})

@@ -317,7 +317,7 @@ def test_summary_is_strict_json_and_bayes_factor_never_infinite():
     """A decisive signal (Delta chi^2 of thousands in one range) underflows
     exp(-Delta chi^2 / 2): the Bayes factor comes from log space, and what
     cannot be a float is null, never Infinity (invalid JSON)."""
-    from jaxppo.obliquity._stats import geometry_probabilities
+    from jaxppo.obliquity._stats import bayes_factor_text, geometry_probabilities
 
     alpha = np.arange(0.0, 360.0, 1.0)
     retro = (alpha > 90) & (alpha <= 270)
@@ -326,11 +326,14 @@ def test_summary_is_strict_json_and_bayes_factor_never_infinite():
     assert geo["bayes_factor"] is None and abs(geo["log10_bayes_factor"] - 2500 / np.log(10)) < 1e-9  # 180 angles in each range
     assert geo["favoured"] == "prograde, same hemisphere" and geo["jeffreys"] == "decisive"
     assert "Infinity" not in text
+    assert bayes_factor_text(geo) == "10^1085.7"
+    big = geometry_probabilities(alpha, np.where(retro, 250.0, 0.0), "same")  # K = e^125 ~ 2e54: a float
+    assert big["bayes_factor"] > 1e54 and bayes_factor_text(big) == "10^54.3"  # it printed 55 digits
     # a moderate one: K = sum over the ranges of exp(-Delta chi^2 / 2), exactly
     d = np.where(retro, 3.0, 0.0)
     geo = geometry_probabilities(alpha, d, "opposite")
     k = np.exp(1.5)
-    assert abs(geo["bayes_factor"] - k) < 1e-12 * k
+    assert abs(geo["bayes_factor"] - k) < 1e-12 * k and bayes_factor_text(geo) == "4.482"
     assert abs(geo["prograde, different hemispheres"]["probability"] - k / (1 + k)) < 1e-14
 
 
@@ -368,6 +371,29 @@ def test_no_probability_or_rating_from_a_model_that_does_not_fit(tmp_path):
     # the thresholds: both must be exceeded (a short light curve's chi^2 / N of 1.6 is chance)
     assert goodness_of_fit(1.6 * 20, 20)["ok"] and not goodness_of_fit(1.6 * 2000, 2000)["ok"]
     assert goodness_of_fit(1.2 * 2000, 2000)["ok"]
+
+
+def test_a_grid_too_coarse_for_the_features_gives_no_probability(tmp_path):
+    """A PPO injected at 147 deg (planets enlarged 2x): its Delta chi^2 dips are 1-3 deg wide, and a 10-deg
+    grid stepped over them and printed 49 / 51 %, "barely worth mentioning", where 1 deg gives K ~ 5e4,
+    "decisive". The scan computes chi^2 at the grid's midpoints too; where half the step moves a geometry's
+    probability by more than 0.01 or changes the rating, every probability and rating is withheld, naming
+    the step to use. The same scan at 1 deg passes the check."""
+    lc = jp.simulate_kepler20(seed=5, noise=2e-4, radius_scale=2.0, alpha=147.0, case="same")
+    coarse = run_scan(load_config(_config(tmp_path, lc, step=10.0, scale=2.0, name="coarse.toml")),
+                      tmp_path / "coarse", progress=False)
+    grid = coarse.summary["alpha_grid_check"]
+    assert not grid["ok"] and grid["step"] == 10.0 and grid["half_step"] == 5.0
+    assert grid["cases"]["same"]["largest_shift"] > 0.1
+    assert grid["cases"]["same"]["jeffreys"] != grid["cases"]["same"]["jeffreys_at_half_step"]
+    for case in ("same", "opposite"):
+        geo = coarse.summary["probabilities"][case]
+        assert geo["favoured"] is None and "does not resolve" in geo["withheld"] and "[0, 360, 2.5]" in geo["withheld"]
+    fine = run_scan(load_config(_config(tmp_path, lc, step=1.0, scale=2.0, name="fine.toml")), tmp_path / "fine",
+                    progress=False)
+    assert fine.summary["alpha_grid_check"]["ok"]
+    geo = fine.summary["probabilities"]["same"]
+    assert geo["favoured"] == "retrograde, different hemispheres" and geo["jeffreys"] == "decisive"
 
 
 def test_no_mirror_block_with_the_other_cases_names(tmp_path):
