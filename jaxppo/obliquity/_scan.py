@@ -365,6 +365,8 @@ def _finished_result(out: Path, cfg: ScanConfig, digest: str):
             return None
         if not all((out / n).is_file() for n in ("scan.ecsv", "table5.csv", "table5.md")) or "table5" not in summary:
             return None
+        if not {"goodness_of_fit", "alpha_grid_check"} <= set(summary):
+            return None  # finished before the scan checked its fit and grid: analyse again (chi^2 from the progress)
         with open(out / "scan.csv") as fh:
             lines = fh.read().splitlines()
         if lines[0] != "case,alpha,chi2,delta_chi2,posterior":

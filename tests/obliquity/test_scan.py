@@ -820,3 +820,33 @@ def test_scan_refuses_untilted_planets_on_different_nodes():
     with pytest.raises(ValueError, match=r"untilted planets on one node \(lnode\), got \[0.0, 30.0\]"):
         jp.scan(s, lc, alpha=np.arange(0.0, 360.0, 30.0))
     jp.sweep(s, lc.time, [0.0, 90.0])  # the light curves themselves are fine
+
+
+def test_a_scan_finished_before_the_checks_is_analysed_again(tmp_path):
+    """A finished scan whose summary.json has no goodness-of-fit and grid checks (written by a version without
+    them) was handed back as stored, its probabilities unchecked: it is analysed again from its progress file
+    (no chi^2 of the grid recomputed) and gets both checks."""
+    import jaxppo.obliquity._scan as scan_mod
+
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "out", progress=False)
+    path = tmp_path / "out" / "summary.json"
+    old = json.loads(path.read_text())
+    for key in ("goodness_of_fit", "alpha_grid_check"):
+        old.pop(key)
+    path.write_text(json.dumps(old))
+    calls = []
+    real = scan_mod.grid_chi2
+
+    def counting(system, data, alphas, case):
+        calls.append(len(alphas))
+        return real(system, data, alphas, case)
+
+    scan_mod.grid_chi2 = counting
+    try:
+        again = run_scan(cfg, tmp_path / "out", progress=False)
+    finally:
+        scan_mod.grid_chi2 = real
+    assert again.summary["goodness_of_fit"]["ok"] and again.summary["alpha_grid_check"]["step"] == 12.0
+    assert not again.resumed["finished_before"] and again.resumed["alphas_done_before"] == 60
+    assert calls == []  # the grid's chi^2 came from the progress file (the midpoints: resolution_check's own)
