@@ -73,7 +73,9 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
     probability moves by more than ``tolerance``, or the favoured geometry
     or the Jeffreys rating changes (a PPO dip 1-3 deg wide falls between
     the points of a 10-deg grid: the geometries came out 49 / 51 %,
-    "barely worth mentioning", where 1 deg gives K = 5e4, "decisive")."""
+    "barely worth mentioning", where 1 deg gives K = 5e4, "decisive").
+    Each case has its own "ok" and "reason" (its probabilities are its
+    own); "ok" overall when every case's is."""
     alphas = np.asarray(alphas, float)
     step = float(alphas[1] - alphas[0]) if alphas.size > 1 else 360.0
     mids = alphas + 0.5 * step
@@ -86,17 +88,21 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
         half = geometry_probabilities(fine, both - chi2_0[case], case)
         names = [k for k, v in coarse.items() if isinstance(v, dict)]
         shift = max(abs(coarse[n]["probability"] - half[n]["probability"]) for n in names)
+        ok = not (shift > tolerance or coarse["favoured"] != half["favoured"] or coarse["jeffreys"] != half["jeffreys"])
+        reason = None
+        if not ok:
+            fav = coarse["favoured"]
+            rating = (f", {coarse['jeffreys']} -> {half['jeffreys']}" if coarse["jeffreys"] != half["jeffreys"] else
+                      f" ({coarse['jeffreys']})")
+            reason = (f"the alpha grid (step {step:g} deg) does not resolve the Delta chi^2 features of case {case}: "
+                      f"at {0.5 * step:g} deg, {fav} {100 * coarse[fav]['probability']:.2f} % -> "
+                      f"{100 * half[fav]['probability']:.2f} %{rating}. Scan again with a finer step "
+                      f"(alpha = [0, 360, {0.25 * step:g}] or finer)")
+            moved.append(reason)
         cases[case] = {"favoured": coarse["favoured"], "favoured_at_half_step": half["favoured"],
                        "probabilities": {n: coarse[n]["probability"] for n in names},
                        "probabilities_at_half_step": {n: half[n]["probability"] for n in names},
                        "jeffreys": coarse["jeffreys"], "jeffreys_at_half_step": half["jeffreys"],
-                       "largest_shift": float(shift)}
-        if shift > tolerance or coarse["favoured"] != half["favoured"] or coarse["jeffreys"] != half["jeffreys"]:
-            fav = coarse["favoured"]
-            moved.append(f"case {case}: {fav} {100 * coarse[fav]['probability']:.2f} % -> "
-                         f"{100 * half[fav]['probability']:.2f} %, {coarse['jeffreys']} -> {half['jeffreys']}")
-    ok = not moved
-    reason = None if ok else (
-        f"the alpha grid (step {step:g} deg) does not resolve the Delta chi^2 features: at {0.5 * step:g} deg, "
-        + "; ".join(moved) + f". Scan again with a finer step (alpha = [0, 360, {0.25 * step:g}] or finer)")
-    return {"step": step, "half_step": 0.5 * step, "tolerance": tolerance, "cases": cases, "ok": ok, "reason": reason}
+                       "largest_shift": float(shift), "ok": ok, "reason": reason}
+    return {"step": step, "half_step": 0.5 * step, "tolerance": tolerance, "cases": cases, "ok": not moved,
+            "reason": "; ".join(moved) if moved else None}

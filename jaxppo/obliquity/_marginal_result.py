@@ -62,22 +62,22 @@ class MarginalResult(DeprecatedSummaryAccess):
 
     Examples
     --------
-    Three given draws of planet b's inclination [deg] on a coarse grid
+    Three given draws of planet b's inclination [deg]
     (``min_ess=1`` only because three draws can never pass the default
     guard of 25 effective draws; real use keeps it, with >= 64 draws):
 
     >>> from importlib.resources import files
     >>> import numpy as np
     >>> import jaxppo as jp
-    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 1])
     >>> draws = {"b.inc": np.array([87.65, 87.687, 87.72])}
     >>> res = jp.marginal_scan(cfg, samples=draws, min_ess=1, progress=False)
     >>> res.delta_chi2.shape
-    (3, 2, 12)
+    (3, 2, 360)
     >>> res.cases["same"]["peak"]["alpha"], res.fixed.probabilities["same"]["favoured"]
-    (150.0, 'retrograde, different hemispheres')
+    (151.0, 'retrograde, different hemispheres')
     >>> print(f"{res.probabilities['same']['bayes_factor']:.2f}")
-    2.09
+    1.18
     >>> print(res.summary_lines()[0])
     marginalised over 3 draws (given by the caller)
     """
@@ -114,7 +114,7 @@ class MarginalResult(DeprecatedSummaryAccess):
         for case, c in self.summary["cases"].items():
             geo, fx = c["geometries"], self.fixed.probabilities[case]
             imp = c["importance"]
-            if not c["reliable"] and imp["reason"] == self.summary.get("goodness_of_fit", {}).get("reason"):
+            if not c["reliable"] and imp.get("withheld_by"):  # the fit or the grid check, not the weights
                 lines.append(f"  case {case}: no probability, peak or rating: {imp['reason']}")
                 continue
             if not c["reliable"]:
@@ -147,15 +147,15 @@ class MarginalResult(DeprecatedSummaryAccess):
 
 
 
-def _fit_check(chi2, fixed) -> dict:
-    """Does the best draw at its best tilt fit the data (``goodness_of_fit``
-    of the least chi^2 over draws, cases and alphas)? Not ok either where
-    the fixed scan found its alpha grid too coarse for the features."""
-    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
-    grid = fixed.summary.get("alpha_grid_check") or {}
-    if fit["ok"] and grid.get("ok") is False:
-        fit = dict(fit, ok=False, reason=grid["reason"])
-    return fit
+def _other_checks(check: dict, fit: dict, grid: dict) -> None:
+    """The importance ``check`` of a case made unreliable (in place) where
+    the best draw does not fit the data (``fit``) or the fixed scan's alpha
+    grid does not resolve this case's features (``grid``, its entry of
+    ``alpha_grid_check``), with the reason and ``withheld_by``."""
+    if check["reliable"] and not fit["ok"]:
+        check.update(reliable=False, reason=fit["reason"], withheld_by="goodness_of_fit")
+    elif check["reliable"] and grid.get("ok") is False:
+        check.update(reliable=False, reason=grid["reason"], withheld_by="alpha_grid_check")
 
 
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
@@ -167,7 +167,8 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
-    fit = _fit_check(chi2, fixed)
+    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+    grid = (fixed.summary.get("alpha_grid_check") or {}).get("cases", {})
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
@@ -196,8 +197,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         a_mod = np.mod(cfg.alpha, 360.0)
         pro = (a_mod <= 90.0) | (a_mod > 270.0)
         check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
-        if check["reliable"] and not fit["ok"]:
-            check.update(reliable=False, reason=fit["reason"])
+        _other_checks(check, fit, grid.get(case, {}))
         if not check["reliable"]:
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)

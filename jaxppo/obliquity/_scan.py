@@ -102,20 +102,27 @@ class ScanResult(DeprecatedSummaryAccess):
     --------
     >>> from importlib.resources import files
     >>> import jaxppo as jp
-    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    >>> cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 1])
     >>> result = jp.scan(cfg)
     >>> result.table.dtype.names
     ('case', 'alpha', 'chi2', 'delta_chi2', 'posterior')
     >>> print(f"{result.chi2_0['same']:.3f}")
     2869.108
     >>> alpha, dchi2 = result.delta_chi2("same")
-    >>> print(alpha[5], f"{dchi2[5]:.2f}")
-    150.0 -3.86
+    >>> print(alpha[151], f"{dchi2[151]:.2f}")
+    151.0 -3.95
     >>> geo = result.probabilities["same"]
     >>> print(geo["favoured"], f"K = {geo['bayes_factor']:.2f}", f"({geo['jeffreys']})")
-    retrograde, different hemispheres K = 2.15 (barely worth mentioning)
+    retrograde, different hemispheres K = 1.18 (barely worth mentioning)
     >>> len(result.windows), result.resumed["finished_before"]
     (7, False)
+
+    A 30-deg grid steps over the 1-3 deg features (it gave K = 2.15): no
+    probability then, and the reason:
+
+    >>> coarse = jp.scan(jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30]))
+    >>> print(coarse.probabilities["same"]["favoured"], coarse.summary["alpha_grid_check"]["cases"]["same"]["ok"])
+    None False
     """
 
     summary: dict
@@ -505,10 +512,11 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
         chi2 = {c: np.array([done[(c, round(float(a), 9))] for a in cfg.alpha]) for c in cfg.cases}
         grid = resolution_check(cfg.system, data, cfg.alpha, chi2, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
                                 cfg.block)
-        if not grid["ok"]:
-            withhold_cases(summary_cases, grid["reason"])
-            for pr in pairs.values():
-                withhold_cases(pr["cases"], grid["reason"])
+        for case, g in grid["cases"].items():  # a case whose numbers move with the step, and its pairs' case
+            if not g["ok"]:
+                withhold_cases({case: summary_cases[case]}, g["reason"])
+                for pr in pairs.values():
+                    withhold_cases({case: pr["cases"][case]}, g["reason"])
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     summary = dict(
         config=cfg.source, config_digest=digest, chi2_0=chi2_0,
