@@ -11,11 +11,15 @@ from ..model._overlap import ppo_table, quiet_model
 from ..model._sweep import sweep
 from ._stats import geometry_probabilities
 
-__all__ = ["grid_chi2", "quiet_chi2", "analyse_case", "resolution_check", "RESOLUTION_TOLERANCE"]
+__all__ = ["grid_chi2", "quiet_chi2", "analyse_case", "resolution_check", "RESOLUTION_TOLERANCE",
+           "RESOLUTION_LOG10_K"]
 
 # the largest move of a geometry probability between the alpha grid and one
 # of half its step that ``resolution_check`` lets pass
-RESOLUTION_TOLERANCE = 0.01
+RESOLUTION_TOLERANCE = 0.005
+# ... and of log10 K (half a Jeffreys category: a 5-deg grid printed
+# K = 10^7.45 where 1 deg gives 10^12.19, both "decisive")
+RESOLUTION_LOG10_K = 0.5
 
 
 def grid_chi2(system, data: LightCurve, alphas, case) -> np.ndarray:
@@ -70,8 +74,9 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
     each case's geometry probabilities on the grid of half the step, beside
     the grid's own (``chi2_by_case``: case -> chi^2 [alpha]; ``chi2_0``:
     case -> its ground level). "ok" unless, in some case, a geometry's
-    probability moves by more than ``tolerance``, or the favoured geometry
-    or the Jeffreys rating changes (a PPO dip 1-3 deg wide falls between
+    probability moves by more than ``tolerance``, log10 K by more than
+    ``RESOLUTION_LOG10_K``, or the favoured geometry or the Jeffreys rating
+    changes (a PPO dip 1-3 deg wide falls between
     the points of a 10-deg grid: the geometries came out 49 / 51 %,
     "barely worth mentioning", where 1 deg gives K = 5e4, "decisive").
     Each case has its own "ok" and "reason" (its probabilities are its
@@ -88,7 +93,9 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
         half = geometry_probabilities(fine, both - chi2_0[case], case)
         names = [k for k, v in coarse.items() if isinstance(v, dict)]
         shift = max(abs(coarse[n]["probability"] - half[n]["probability"]) for n in names)
-        ok = not (shift > tolerance or coarse["favoured"] != half["favoured"] or coarse["jeffreys"] != half["jeffreys"])
+        dk = abs(coarse["log10_bayes_factor"] - half["log10_bayes_factor"])
+        ok = not (shift > tolerance or dk > RESOLUTION_LOG10_K or coarse["favoured"] != half["favoured"]
+                  or coarse["jeffreys"] != half["jeffreys"])
         reason = None
         if not ok:
             fav = coarse["favoured"]
@@ -96,13 +103,15 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
                       f" ({coarse['jeffreys']})")
             reason = (f"the alpha grid (step {step:g} deg) does not resolve the Delta chi^2 features of case {case}: "
                       f"at {0.5 * step:g} deg, {fav} {100 * coarse[fav]['probability']:.2f} % -> "
-                      f"{100 * half[fav]['probability']:.2f} %{rating}. Scan again with a finer step "
+                      f"{100 * half[fav]['probability']:.2f} %{rating}, log10 K {coarse['log10_bayes_factor']:.3g} -> "
+                      f"{half['log10_bayes_factor']:.3g}. Scan again with a finer step "
                       f"(alpha = [0, 360, {0.25 * step:g}] or finer)")
             moved.append(reason)
         cases[case] = {"favoured": coarse["favoured"], "favoured_at_half_step": half["favoured"],
                        "probabilities": {n: coarse[n]["probability"] for n in names},
                        "probabilities_at_half_step": {n: half[n]["probability"] for n in names},
                        "jeffreys": coarse["jeffreys"], "jeffreys_at_half_step": half["jeffreys"],
-                       "largest_shift": float(shift), "ok": ok, "reason": reason}
+                       "largest_shift": float(shift), "log10_bayes_factor": coarse["log10_bayes_factor"],
+                       "log10_bayes_factor_at_half_step": half["log10_bayes_factor"], "ok": ok, "reason": reason}
     return {"step": step, "half_step": 0.5 * step, "tolerance": tolerance, "cases": cases, "ok": not moved,
             "reason": "; ".join(moved) if moved else None}

@@ -357,9 +357,11 @@ def _fig_probabilities(plt, out, summary, cases, colors):
         ax = axs[0, ci]
         geo = probs.get(_key(case), {})
         names = [n for n, v in geo.items() if isinstance(v, dict) and "probability" in v]
-        if geo.get("withheld"):  # the model does not fit the data
-            ax.text(0.5, 0.5, "probabilities withheld:\nthe model does not fit the data", transform=ax.transAxes,
-                    ha="center", va="center", fontsize=8)
+        if geo.get("withheld"):  # the model does not fit the data, or the grid is too coarse
+            why = ("the alpha grid does not\nresolve the features" if "alpha grid" in geo["withheld"] else
+                   "the model does not fit the data")
+            ax.text(0.5, 0.5, f"probabilities withheld:\n{why}", transform=ax.transAxes, ha="center", va="center",
+                    fontsize=8)
             ax.set_title(_case_title(case), fontsize=8)
             continue
         vals = [100.0 * geo[n]["probability"] for n in names]

@@ -59,6 +59,9 @@ def scan_report(summary: dict, cfg, out, seconds: float) -> str:
         lines.append(f"each multi-transit divided by its order-{det['order']} out-of-transit polynomial; "
                      f"{sum(m.get('clipped', 0) for m in summary['multi_transits'])} outliers clipped; "
                      f"errors {det['flux_err']}")
+    caution = (summary.get("goodness_of_fit") or {}).get("caution")
+    if caution:
+        lines.append(f"caution: {caution}")
     lines += probability_lines(summary)
     lines += pair_lines(summary)
     text = "\n".join(lines) + "\n" + table5_text(summary["table5"], cfg.cases)

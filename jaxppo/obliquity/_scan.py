@@ -482,6 +482,24 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
     return rows, np.array(table, dtype=_TABLE_DTYPE), summary_cases, check
 
 
+def _withhold_posterior(table, cases: dict, pairs: dict, rows: list, pair_rows: list):
+    """(scan.csv rows, pairs.csv rows) with the posterior NaN (in ``table``
+    too, in place) for every case whose geometries are withheld: no
+    p(alpha | D) where no probability is given."""
+    gone = {c for c, v in cases.items() if v["geometries"].get("withheld")}
+    if gone:
+        table["posterior"][np.isin(table["case"], sorted(gone))] = np.nan
+        rows = [f"{r['case']},{r['alpha']:.10g},{r['chi2']:.17g},{r['delta_chi2']:.17g},{r['posterior']:.17g}"
+                for r in table]
+    out = []
+    for row in pair_rows:
+        key, case = row.split(",", 2)[:2]
+        if pairs.get(key, {}).get("cases", {}).get(case, {}).get("geometries", {}).get("withheld"):
+            row = row.rsplit(",", 1)[0] + ",nan"
+        out.append(row)
+    return rows, out
+
+
 def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True) -> ScanResult:
     """Run (or resume) the scan and write scan.csv, scan.ecsv, table5.csv,
     table5.md and summary.json into ``out``; no figures, no verdict (see
@@ -517,6 +535,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
                 withhold_cases({case: summary_cases[case]}, g["reason"])
                 for pr in pairs.values():
                     withhold_cases({case: pr["cases"][case]}, g["reason"])
+    rows, pair_rows = _withhold_posterior(table, summary_cases, pairs, rows, pair_rows)
     chi2_0 = {c: summary_cases[c]["chi2_0"] for c in cfg.cases}
     summary = dict(
         config=cfg.source, config_digest=digest, chi2_0=chi2_0,

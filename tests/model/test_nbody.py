@@ -350,9 +350,12 @@ def test_bundled_nbody_config_is_the_photodynamical_fit(capsys):
 def test_a_diverging_integration_is_an_error_naming_the_masses():
     """A planet as heavy as its star beside a light one at twice its period: the map diverges. The flux was
     refused with "x must be finite, found nan" (no word of the integration); the error now says the
-    integration diverged and gives each planet's mass ratio and the step."""
+    integration diverged and gives each planet's mass ratio and the step; so does transit_times, which
+    returned the few transits before the divergence."""
     planets = [jp.Planet(period=10.0, t0=0.0, a=None, inc=89.5, radius=0.1, mass=1.0, name="b"),
                jp.Planet(period=20.0, t0=3.0, a=None, inc=89.5, radius=0.1, mass=1e-5, name="c")]
     system = jp.System(jp.Star.quadratic(0.4, 0.2), planets, orbits="nbody", epoch=0.0, star_mass=1.0, star_radius=1.0)
     with pytest.raises(ValueError, match=r"integration diverged .*b: 1, c: 1e-05"):
         system.flux(np.linspace(-0.2, 0.2, 5))
+    with pytest.raises(ValueError, match=r"integration diverged"):  # it listed a few transits, then none
+        system.transit_times(0.0, 200.0)

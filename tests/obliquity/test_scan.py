@@ -370,7 +370,15 @@ def test_no_probability_or_rating_from_a_model_that_does_not_fit(tmp_path):
     assert good.summary["probabilities"]["same"]["favoured"] is not None
     # the thresholds: both must be exceeded (a short light curve's chi^2 / N of 1.6 is chance)
     assert goodness_of_fit(1.6 * 20, 20)["ok"] and not goodness_of_fit(1.6 * 2000, 2000)["ok"]
-    assert goodness_of_fit(1.2 * 2000, 2000)["ok"]
+    assert goodness_of_fit(1.2 * 2000, 2000)["ok"] and "raise every ln K by about 20 %" in goodness_of_fit(
+        1.2 * 2000, 2000)["caution"]  # kept, with a caution
+    assert not goodness_of_fit(1.3 * 2000, 2000)["ok"]  # a PPO of K ~ 5.5 read "decisive" at 1.36 and 1.47
+    assert goodness_of_fit(1.05 * 100, 100)["caution"] is None
+    # no posterior where no probability: NaN in the table and in scan.csv
+    assert np.all(np.isnan(res.table["posterior"]))
+    rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert np.all(np.isnan(rows["posterior"]))
+    assert np.all(np.isfinite(good.table["posterior"]))
 
 
 def test_a_grid_too_coarse_for_the_features_gives_no_probability(tmp_path):
@@ -394,6 +402,7 @@ def test_a_grid_too_coarse_for_the_features_gives_no_probability(tmp_path):
         else:
             assert geo["favoured"] is None and f"features of case {case}" in geo["withheld"]
             assert "[0, 360, 2.5]" in geo["withheld"]
+            assert np.all(np.isnan(coarse.table["posterior"][coarse.table["case"] == case]))
     fine = run_scan(load_config(_config(tmp_path, lc, step=1.0, scale=2.0, name="fine.toml")), tmp_path / "fine",
                     progress=False)
     assert fine.summary["alpha_grid_check"]["ok"]
@@ -856,3 +865,23 @@ def test_a_scan_finished_before_the_checks_is_analysed_again(tmp_path):
     assert again.summary["goodness_of_fit"]["ok"] and again.summary["alpha_grid_check"]["step"] == 12.0
     assert not again.resumed["finished_before"] and again.resumed["alphas_done_before"] == 60
     assert calls == []  # the grid's chi^2 came from the progress file (the midpoints: resolution_check's own)
+
+
+def test_grid_check_compares_the_bayes_factor_too(monkeypatch):
+    """Both grids "decisive" and the probabilities 1.0 to 1e-7, but log10 K 7.5 on the grid and 12.2 at half
+    the step (a 5-deg grid on an injected PPO against 1 deg): the printed K was off by 4.7 orders of
+    magnitude. ``resolution_check`` fails a case whose log10 K moves by more than 0.5 (a half category)."""
+    import jaxppo.obliquity._chi2 as chi2_mod
+
+    alpha = np.arange(0.0, 360.0, 5.0)
+    retro = (alpha > 90) & (alpha <= 270)
+    chi2 = np.where(retro, 1000.0, 1000.0 + 2 * 7.5 * np.log(10.0) + 2 * np.log(1.0))  # log10 K = 7.5
+    mids = alpha + 2.5
+    deep = 1000.0 - 2 * 12.2 * np.log(10.0) + 2 * np.log(len(alpha))  # one midpoint alone carries K ~ 1e12
+    at_mids = np.where(mids == 152.5, deep, np.where((mids % 360 > 90) & (mids % 360 <= 270), 1000.0, chi2.max()))
+    monkeypatch.setattr(chi2_mod, "grid_chi2", lambda system, data, alphas, case: at_mids[np.searchsorted(mids, alphas)])
+    check = chi2_mod.resolution_check(None, None, alpha, {"same": chi2}, {"same": 1000.0}, 72)
+    c = check["cases"]["same"]
+    assert c["jeffreys"] == c["jeffreys_at_half_step"] == "decisive" and c["largest_shift"] < 1e-6
+    assert c["log10_bayes_factor_at_half_step"] - c["log10_bayes_factor"] > 0.5
+    assert not c["ok"] and "log10 K" in c["reason"]
