@@ -46,7 +46,10 @@ def read_scan_csv(path) -> dict:
     if missing or rows.size == 0:
         raise ValueError(f"{path}: not a complete scan.csv (missing columns {missing} or no rows); rerun the scan")
     for k in ("alpha", "chi2", "delta_chi2", "posterior"):
-        if not np.all(np.isfinite(np.asarray(rows[k], float))):
+        bad = ~np.isfinite(np.asarray(rows[k], float))
+        if k == "posterior":  # NaN for a whole case whose probabilities are withheld (docs/scan.md)
+            bad &= ~np.isin(rows["case"], [c for c in set(rows["case"].tolist()) if bad[rows["case"] == c].all()])
+        if np.any(bad):
             raise ValueError(f"{path}: column {k} has empty or non-finite values (a truncated file?); rerun the scan")
     out = {}
     for case in dict.fromkeys(rows["case"].tolist()):  # file order
