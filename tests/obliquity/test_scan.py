@@ -378,6 +378,9 @@ def test_no_probability_or_rating_from_a_model_that_does_not_fit(tmp_path):
     assert np.all(np.isnan(res.table["posterior"]))
     rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
     assert np.all(np.isnan(rows["posterior"]))
+    from jaxppo.obliquity._figures import read_scan_csv
+
+    assert np.isnan(read_scan_csv(tmp_path / "out" / "scan.csv")["same"]["posterior"]).all()  # jaxppo plot reads it
     assert np.all(np.isfinite(good.table["posterior"]))
 
 
