@@ -68,7 +68,7 @@ def analyse_case(system, windows, data: LightCurve, alphas, chi2, case, step: fl
 
 
 def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_0: dict, block: int,
-                     tolerance: float = RESOLUTION_TOLERANCE) -> dict:
+                     tolerance: float = RESOLUTION_TOLERANCE, windows=None) -> dict:
     """Does the alpha grid resolve the Delta chi^2 features? chi^2 at the
     midpoints of the grid (``grid_chi2`` in blocks of ``block`` alphas) and
     each case's geometry probabilities on the grid of half the step, beside
@@ -80,14 +80,24 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
     the points of a 10-deg grid: the geometries came out 49 / 51 %,
     "barely worth mentioning", where 1 deg gives K = 5e4, "decisive").
     Each case has its own "ok" and "reason" (its probabilities are its
-    own); "ok" overall when every case's is."""
+    own); "ok" overall when every case's is. ``windows`` (the scan's): the
+    midpoints without a PPO in any frame take the ground level, exactly
+    the chi^2 there, and only the others are computed."""
     alphas = np.asarray(alphas, float)
     step = float(alphas[1] - alphas[0]) if alphas.size > 1 else 360.0
     mids = alphas + 0.5 * step
     fine = np.stack([alphas, mids], axis=1).reshape(-1)
     cases, moved = {}, []
+    times = None if windows is None else [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0]
+                                          for w in windows]
     for case, chi2 in chi2_by_case.items():
-        at_mids = np.concatenate([grid_chi2(system, data, mids[i:i + block], case) for i in range(0, mids.size, block)])
+        # where no frame of the windows has a PPO, chi^2 is the ground level exactly: computed only elsewhere
+        todo = np.ones(mids.size, bool) if times is None else ppo_table(system, times, mids, case).any(1)
+        at_mids = np.full(mids.size, chi2_0[case])
+        sel = mids[todo]
+        if sel.size:
+            at_mids[todo] = np.concatenate([grid_chi2(system, data, sel[i:i + block], case)
+                                            for i in range(0, sel.size, block)])
         both = np.stack([np.asarray(chi2, float), at_mids], axis=1).reshape(-1)
         coarse = geometry_probabilities(alphas, np.asarray(chi2, float) - chi2_0[case], case)
         half = geometry_probabilities(fine, both - chi2_0[case], case)

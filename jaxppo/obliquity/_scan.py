@@ -529,7 +529,7 @@ def run_scan(cfg: ScanConfig, out, restart: bool = False, progress: bool = True)
     if check["ok"]:  # does the grid resolve the features? (chi^2 at its midpoints)
         chi2 = {c: np.array([done[(c, round(float(a), 9))] for a in cfg.alpha]) for c in cfg.cases}
         grid = resolution_check(cfg.system, data, cfg.alpha, chi2, {c: summary_cases[c]["chi2_0"] for c in cfg.cases},
-                                cfg.block)
+                                cfg.block, windows=windows)
         for case, g in grid["cases"].items():  # a case whose numbers move with the step, and its pairs' case
             if not g["ok"]:
                 withhold_cases({case: summary_cases[case]}, g["reason"])

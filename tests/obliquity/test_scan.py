@@ -888,3 +888,20 @@ def test_grid_check_compares_the_bayes_factor_too(monkeypatch):
     assert c["jeffreys"] == c["jeffreys_at_half_step"] == "decisive" and c["largest_shift"] < 1e-6
     assert c["log10_bayes_factor_at_half_step"] - c["log10_bayes_factor"] > 0.5
     assert not c["ok"] and "log10 K" in c["reason"]
+
+
+def test_grid_check_skips_midpoints_without_a_ppo_exactly():
+    """The grid check computes chi^2 only at midpoints where some frame has a PPO (elsewhere chi^2 is the
+    ground level exactly): the same numbers, bit for bit, as computing every midpoint."""
+    from jaxppo.obliquity._chi2 import resolution_check
+    from jaxppo.obliquity._windows import windows_data
+
+    lc = jp.simulate_kepler20(seed=5, noise=2e-4, radius_scale=2.0, alpha=147.0, case="same")
+    system = jp.kepler20_system(radius_scale=2.0)
+    res = jp.scan(system, lc, alpha=np.arange(0.0, 360.0, 4.0), detrend="none")
+    data = windows_data(list(res.windows), lc.exposure)
+    chi2 = {c: res.table["chi2"][res.table["case"] == c] for c in ("same", "opposite")}
+    c0 = res.chi2_0
+    full = resolution_check(system, data, np.arange(0.0, 360.0, 4.0), chi2, c0, 45)
+    quick = resolution_check(system, data, np.arange(0.0, 360.0, 4.0), chi2, c0, 45, windows=res.windows)
+    assert full == quick
