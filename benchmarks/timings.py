@@ -80,7 +80,7 @@ def _stages(env: dict) -> list:
             ("... loading the config and the real Kepler-20 light curve", load, ""),
             ("... the scan itself (chi^2 over the alpha grid, tables)", scan, ""),
             ("... waiting for the drawing process to be ready", ready, "its start overlaps the above"),
-            ("... figures (drawing process) and PPO-or-spot fits (this one), side by side", products, "")]
+            ("... Figs. 4 and 6 (drawing process) beside the PPO-or-spot fits and the other figures (this one)", products, "")]
 
 
 def main() -> None:

@@ -625,6 +625,20 @@ def main(argv=None) -> int:
         return 1
 
 
+def run() -> int:
+    """The installed ``jaxppo`` command (``[project.scripts]``): ``main()``,
+    then every object it made frozen (``gc.freeze``), so that the
+    interpreter's last garbage collection, which walked all of JAX's and
+    matplotlib's objects for half a second at the end of every command,
+    has nothing to walk. The files are written and closed by then; ``main``
+    itself, called in a test or a notebook, leaves the collector alone."""
+    import gc
+
+    status = main()
+    gc.freeze()
+    return status
+
+
 def _one_line(err) -> str:
     return " ".join(str(err).split())
 

@@ -30,7 +30,7 @@ from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._tables import peaks_and_dips
 
-__all__ = ["scan_figures", "read_scan_csv"]
+__all__ = ["scan_figures", "read_scan_csv", "FIGURES"]
 
 _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")
 
@@ -389,10 +389,16 @@ def _fig_probabilities(plt, out, summary, cases, colors):
     return _save(fig, out / "probabilities.png")
 
 
-def scan_figures(out, summary, table=None, system=None, windows=None, cases=None) -> list[str]:
+FIGURES = ("fig4", "fig5", "fig6", "fig7", "probabilities")
+"""The names of the scan's figures, in the order ``scan_figures`` draws them."""
+
+
+def scan_figures(out, summary, table=None, system=None, windows=None, cases=None, which=FIGURES) -> list[str]:
     """Write the scan's figures into ``out`` (see the module docstring for
     the arguments) and return their paths: fig4_multitransits.png,
-    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png.
+    fig5_delta_chi2.png, fig6_cutout.png, fig7_paths.png, probabilities.png;
+    ``which`` (names from ``FIGURES``) draws those alone, in that order
+    (``jaxppo scan`` shares them between two processes).
     """
     import matplotlib
 
@@ -400,6 +406,9 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     import matplotlib.pyplot as plt
 
     out = Path(out)
+    unknown = [w for w in which if w not in FIGURES]
+    if unknown:
+        raise ValueError(f"which must name figures from {FIGURES}, got {unknown}")
 
     def check():  # process 0 alone touches the folder; its error stops every process (several JAX processes)
         if not out.is_dir():
@@ -416,11 +425,11 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     if not windows:
         raise ValueError("windows must hold at least one multi-transit window")
     colors = {_key(c): _CASE_COLORS[i % len(_CASE_COLORS)] for i, c in enumerate(cases)}
-    files = [
-        _fig4(plt, out, summary, table, system, windows, cases),
-        _fig5(plt, out, summary, table, system, cases, colors),
-        _fig6(plt, out, summary, table, system, windows, cases, colors),
-        _fig7(plt, out, summary, table, system, cases),
-        _fig_probabilities(plt, out, summary, cases, colors),
-    ]
-    return [str(Path(f).resolve()) for f in files]  # absolute: summary.json is read from anywhere
+    draw = {
+        "fig4": lambda: _fig4(plt, out, summary, table, system, windows, cases),
+        "fig5": lambda: _fig5(plt, out, summary, table, system, cases, colors),
+        "fig6": lambda: _fig6(plt, out, summary, table, system, windows, cases, colors),
+        "fig7": lambda: _fig7(plt, out, summary, table, system, cases),
+        "probabilities": lambda: _fig_probabilities(plt, out, summary, cases, colors),
+    }
+    return [str(Path(draw[w]()).resolve()) for w in which]  # absolute: summary.json is read from anywhere

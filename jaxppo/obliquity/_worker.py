@@ -2,9 +2,10 @@
 
 After the scan, ``jaxppo scan`` draws five figures (matplotlib: about half
 of a warm run's seconds) and fits the PPO-or-spot alternatives (JAX). The
-two do not depend on each other, so the command hands the figures to a
-process it started when it began (its imports and JAX set-up overlap the
-scan) and fits meanwhile. The figures are the same files, byte for byte, as
+two do not depend on each other, so the command hands the figures with
+light curves (Figs. 4 and 6, most of the drawing) to a process it started
+when it began (its imports and JAX set-up overlap the scan), fits
+meanwhile and then draws the other three itself. The figures are the same files, byte for byte, as
 drawn in one process (``tests/obliquity/test_worker.py``).
 
 The drawing process evaluates the figures' light curves on the CPU (where

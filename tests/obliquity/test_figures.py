@@ -69,6 +69,14 @@ def test_figures_from_a_small_scan(tmp_path):
         with open(f, "rb") as fh:
             assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
     assert not list(tmp_path.glob("*.tmp.png"))
+    # some of them, in the order asked (jaxppo scan shares them between two processes): the same files
+    again = tmp_path / "again"
+    again.mkdir()
+    some = scan_figures(again, summary, table, system, windows, cases, which=("fig7", "fig4"))
+    assert [f.split("/")[-1] for f in some] == ["fig7_paths.png", "fig4_multitransits.png"]
+    assert sorted(p.name for p in again.iterdir()) == ["fig4_multitransits.png", "fig7_paths.png"]
+    for f in some:
+        assert Path(f).read_bytes() == (tmp_path / Path(f).name).read_bytes()
 
 
 def test_read_scan_csv_keeps_file_order(tmp_path):
@@ -137,6 +145,8 @@ def test_bad_figure_input(tmp_path):
         scan_figures(tmp_path, summary, table, system, [], cases)
     with pytest.raises(ValueError, match="out must be an existing folder"):
         scan_figures(tmp_path / "missing", summary, table, system, windows, cases)
+    with pytest.raises(ValueError, match=r"which must name figures from .* got \['fig9'\]"):
+        scan_figures(tmp_path, summary, table, system, windows, cases, which=("fig4", "fig9"))
 
 
 def test_fig6_shows_one_transit_with_its_own_best_and_worst_alpha():
