@@ -503,3 +503,23 @@ def test_ttv_on_real_kepler51_recovers_published_times(tmp_path, capsys):
     table = Table.read(tmp_path / "transit_times.ecsv")
     assert table.colnames == ["planet", "epoch", "tc", "tc_err", "chi2", "n_points"] and len(table) == 51
     assert "against kepler51_transit_times_jnkepler.csv" in capsys.readouterr().out
+
+
+def test_the_installed_command_freezes_its_objects_before_it_exits(monkeypatch, capsys):
+    """The console script is ``jaxppo.cli:run``: ``main``'s status, then
+    ``gc.freeze()`` (the interpreter's last collection has nothing to walk);
+    ``main`` itself leaves the collector alone."""
+    import gc
+    import tomllib
+    from pathlib import Path
+
+    from jaxppo import cli
+
+    pyproject = tomllib.loads((Path(cli.__file__).parents[1] / "pyproject.toml").read_text())
+    assert pyproject["project"]["scripts"]["jaxppo"] == "jaxppo.cli:run"
+    frozen = []
+    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(True))
+    monkeypatch.setattr("sys.argv", ["jaxppo", "plot", "/no/such/folder"])
+    assert main(["plot", "/no/such/folder"]) == 2 and not frozen
+    assert cli.run() == 2 and frozen == [True]
+    assert "no such folder" in capsys.readouterr().err
