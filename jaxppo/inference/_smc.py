@@ -387,7 +387,8 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
     no-PPO plateau, weighted by their Laplace masses, each at least
     ``floor`` / (number of components). ``found``: that function's result, to reuse over seeds.
     Returns :func:`tempered_smc`'s dict with "u" [N, dim] (the transit
-    coordinates), "modes" (the search's info) and "found" added."""
+    coordinates), "modes" (the search's info), "found" and "chi2_best"
+    (``_least_chi2``) added."""
     from ._posterior import TransitPosterior, joint_modes, mode_and_cov
 
     if found is None:
@@ -433,4 +434,16 @@ def joint_case_smc(system, data, free, density, case: str, alpha_ref: float, *, 
     out["u"] = u_mode + out["w"] @ chol.T
     out["modes"] = info
     out["found"] = found
+    out["chi2_best"] = _least_chi2(post, u_mode, chol, modes, out)
     return out
+
+
+def _least_chi2(post, u_mode, chol, modes, out) -> float:
+    """The least chi^2 of the data the case reached: at the no-PPO mode
+    (its quiet tilt), at the search's modes and at the particle of the
+    highest posterior density (``jaxppo.joint_scan``'s goodness-of-fit
+    check)."""
+    top = int(np.argmax(out["log_gamma"]))
+    points = [(u_mode, None), (out["u"][top], float(out["alpha"][top]))]
+    points += [(u_mode + m[1][:-1] @ chol.T, float(m[1][-1])) for m in modes]
+    return min(float(jnp.sum(post.data_residuals(jnp.asarray(u), a) ** 2)) for u, a in points)

@@ -24,7 +24,7 @@ from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
-from ._stats import geometry_names, jeffreys
+from ._stats import geometry_names, goodness_of_fit, jeffreys
 from ._windows import windows_and_events, windows_data
 
 __all__ = ["joint_scan", "prograde", "joint_lines"]
@@ -87,6 +87,27 @@ def _case_summary(case: str, runs: list[dict]) -> dict:
             "calls": [r["calls"] for r in runs], "seconds": [r["seconds"] for r in runs],
             "log_z_per_seed": log_z.tolist(), "prograde_per_seed": pro.tolist(), "modes": runs[0].get("modes"),
             "posterior": hist.tolist(), "particles": {"alpha": a.tolist(), "weight": wts.tolist()}}
+
+
+def _goodness_of_fit(runs: list[dict], points: int) -> dict:
+    """``goodness_of_fit`` of the least chi^2 the runs reached (each run's
+    "chi2_best": the no-PPO mode, the modes, the densest particle) for
+    ``points`` points. Runs recorded by a jaxppo that kept no chi^2 leave
+    it unchecked: "ok" True, "checked" False, with the reason."""
+    best = [r["chi2_best"] for r in runs if r.get("chi2_best") is not None]
+    if len(best) < len(runs):
+        return {"ok": True, "checked": False, "points": int(points), "reason": None, "caution": (
+            "goodness of fit not checked: joint.json holds runs of an earlier jaxppo without their chi^2 "
+            "(restart=True / --restart samples again and checks it)")}
+    return {**goodness_of_fit(min(best), points), "checked": True}
+
+
+def _withhold(case: dict, reason: str) -> None:
+    """A case's probabilities, rating, peak and posterior withheld (in
+    place): the model does not fit the data (``reason``)."""
+    case["geometries"] = {n: dict(g, probability=None, error=None) for n, g in case["geometries"].items()}
+    case.update(favoured=None, bayes_factor=None, jeffreys="not rated", upper_bound_other=None, alpha_peak=None,
+                alpha_68=None, posterior=[float("nan")] * len(case["posterior"]), withheld=reason)
 
 
 def _check(particles, seeds, cess, n_moves):
@@ -178,8 +199,14 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         "calls", "seconds", "modes", "posterior" (360 one-degree bins),
         "particles"}}, "case_bayes_factors" {"a/b": Z_a / Z_b} (None beyond a
         float), "case_log_bayes_factors" {"a/b": log Z_a - log Z_b}, "method",
-        "free", "density_prior", "seconds", and with the figure "figures"
-        (its path)}; joint.json holds it under "result".
+        "free", "density_prior", "goodness_of_fit" (the least chi^2 the runs
+        reached, for the number of points: "ok", "reason", "caution", as the
+        fixed scan's), "seconds", and with the figure "figures" (its
+        path)}; joint.json holds it under "result". Where the model does
+        not fit the data, every case's probabilities, "favoured", the
+        Bayes factors, "alpha_peak", "alpha_68" and "posterior" are
+        withheld (None, NaN; "jeffreys" "not rated", "withheld" the
+        reason).
 
     Raises
     ------
@@ -245,6 +272,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
                 found = r["found"]
                 done[key] = {"modes": r["modes"], "alpha": r["alpha"].tolist(), "weights": r["weights"].tolist(),
                              "log_z": r["log_z"], "max_log_gamma": float(np.max(r["log_gamma"])),
+                             "chi2_best": r["chi2_best"],
                              "ess": r["ess"], "steps": r["steps"], "calls": r["calls"], "seconds": r["seconds"]}
                 if path is not None:
                     on_writer(f"writing {path}", lambda: atomic_write(path, _strict_json({"settings": settings,
@@ -261,17 +289,21 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         if len(seeds) < 2:
             warnings.warn(f"joint_scan: case {case}: one seed; the errors leave out the spread between runs "
                           "(seeds=(0, 1) gives it)", stacklevel=2)
+    fit = _goodness_of_fit([done[f"{c}#{s}"] for c in cfg.cases for s in seeds], len(data))
     factors, log_factors = {}, {}
     names = list(cases)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             lk = cases[a]["log_z"] - cases[b]["log_z"]
-            log_factors[f"{a}/{b}"] = float(lk)
-            factors[f"{a}/{b}"] = float(np.exp(lk)) if abs(lk) < 700.0 else None  # None: beyond a float
+            log_factors[f"{a}/{b}"] = float(lk) if fit["ok"] else None
+            factors[f"{a}/{b}"] = float(np.exp(lk)) if abs(lk) < 700.0 and fit["ok"] else None  # None: beyond a float
+    if not fit["ok"]:
+        for c in cases.values():
+            _withhold(c, fit["reason"])
     result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,
-              "seconds": time.perf_counter() - t_begin, **process_info()}
+              "goodness_of_fit": fit, "seconds": time.perf_counter() - t_begin, **process_info()}
     if path is not None:
         _write(cfg, Path(out), {"settings": settings, "runs": done, "result": result}, figures, fixed)
     return result
@@ -348,7 +380,13 @@ def _strict_json(obj, indent=None) -> str:
 def joint_lines(result: dict) -> list[str]:
     """The command line's report of a :func:`joint_scan` result."""
     lines = [f"joint (alpha, transit parameters) posterior: {result['method']}, {result['seconds']:.0f} s"]
+    fit = result.get("goodness_of_fit") or {}
+    if fit.get("caution"):
+        lines.append(f"  caution: {fit['caution']}")
     for case, c in result["cases"].items():
+        if c.get("withheld"):
+            lines.append(f"  case {case}: no probability, peak or rating: {c['withheld']}; log Z {c['log_z']:.2f}")
+            continue
         geo = "; ".join(f"{n}: {100 * g['probability']:.2f} +- {100 * g['error']:.2f} %"
                         for n, g in c["geometries"].items())
         err = f" +- {c['log_z_error']:.2f}" if c["log_z_error"] is not None else ""
@@ -359,5 +397,8 @@ def joint_lines(result: dict) -> list[str]:
                  "of the time, the 95 % intervals 100 +- 5 %; the errors given are the sampler's own and the seeds' "
                  "spread: docs/marginal.md, 'The joint sampler')")
     for k, v in result["case_log_bayes_factors"].items():
+        if v is None:
+            lines.append(f"  Bayes factor {k}: withheld (the model does not fit the data)")
+            continue
         lines.append(f"  Bayes factor {k}: exp({v:.2f})" + (f" = {np.exp(v):.3g}" if abs(v) < 700 else ""))
     return lines

@@ -50,6 +50,13 @@ def test_the_injected_tilt_and_geometry_from_an_offset_start(injected, tmp_path)
     assert lo - 1.0 < ALPHA < hi + 1.0, c["alpha_68"]
     assert c["geometries"]["retrograde, same hemisphere"]["probability"] > 0.95
     assert c["modes"]["modes"] and abs(c["modes"]["modes"][0]["alpha"] - ALPHA) < 3.0
+    # the model fits (the noise as given): the least chi^2 the run reached, on the fixed scan's points,
+    # below the fixed scan's best (its parameters are the offset start's)
+    fit = r["goodness_of_fit"]
+    fixed = jp.scan(start, lc, alpha=np.arange(0.0, 360.0, 1.0), **{k: kw[k] for k in ("cases", "detrend")})
+    assert fit["ok"] and fit["checked"] and not c.get("withheld") and r["case_bayes_factors"] == {}
+    assert fit["points"] == fixed.summary["points"] and 0.8 < fit["reduced"] < 1.2, fit
+    assert fit["chi2_best"] < fixed.summary["goodness_of_fit"]["chi2_best"] - 100.0, (fit, fixed.summary)
     # outputs: joint.json (strict JSON, the result), joint.csv (a density per degree)
     rec = json.loads((tmp_path / "joint.json").read_text(), parse_constant=lambda x: pytest.fail(x))
     assert rec["result"]["cases"][CASE]["alpha_peak"] == c["alpha_peak"]
@@ -110,3 +117,68 @@ def test_case_summary_at_the_wrap_and_with_one_geometry_empty():
     assert c["geometries"]["prograde, same hemisphere"]["probability"] == 1.0
     assert c["geometries"]["prograde, same hemisphere"]["error"] >= c["upper_bound_other"]
     assert "at least" in c["jeffreys"]
+
+
+def test_a_joint_run_whose_model_does_not_fit_the_data_rates_nothing(tmp_path, monkeypatch):
+    """Where the least chi^2 the sampler reached is far above the number of
+    points (errors too small, a model that misses the data), joint_scan
+    gives no geometry probability, rating, peak, posterior or Bayes factor
+    between the cases: the reason in their place, in the result, joint.json,
+    joint.csv, joint.png and the report (the sampler is a stand-in on a
+    cheap target whose least chi^2 is set). Runs recorded without their
+    chi^2 (an earlier jaxppo) are resumed, unchecked, with a caution."""
+    from importlib.resources import files
+
+    import jax.numpy as jnp
+
+    import jaxppo.obliquity._joint as joint
+    from jaxppo.inference._smc import tempered_smc
+
+    reduced = {"value": 4.0}
+
+    def stand_in(system, data, free, density, case, alpha_ref, *, n_particles, seed, cess, n_moves, progress=None,
+                 found=None):
+        def log_gamma(w, alpha):
+            d = (alpha - 147.0 + 180.0) % 360.0 - 180.0
+            return -0.5 * jnp.sum(w ** 2) + jnp.log(0.05 + jnp.exp(-0.5 * (d / 4.0) ** 2))
+
+        out = tempered_smc(log_gamma, 2, n_particles=n_particles, seed=seed, cess=cess, n_moves=n_moves)
+        out.update(modes={}, found=None, chi2_best=reduced["value"] * len(data))
+        return out
+
+    monkeypatch.setattr(joint, "joint_case_smc", stand_in)
+    cfg = jp.load_config(files("jaxppo") / "data" / "kepler20_synthetic.toml", alpha=[0, 360, 30])
+    kw = dict(particles=32, seeds=(0, 1), n_moves=2, progress=False)
+    r = jp.joint_scan(cfg, out=tmp_path, **kw)
+    fit = r["goodness_of_fit"]
+    assert not fit["ok"] and fit["checked"] and abs(fit["reduced"] - 4.0) < 1e-12
+    assert "the model does not fit the data" in fit["reason"]
+    for case, c in r["cases"].items():
+        assert c["withheld"] == fit["reason"] and c["favoured"] is None and c["jeffreys"] == "not rated"
+        assert all(g["probability"] is None for g in c["geometries"].values())
+        assert c["alpha_peak"] is None and c["alpha_68"] is None and np.all(np.isnan(c["posterior"]))
+        assert np.isfinite(c["log_z"])  # the evidence of the sampler's run stays, unrated
+    assert list(r["case_bayes_factors"].values()) == [None] == list(r["case_log_bayes_factors"].values())
+    lines = "\n".join(joint.joint_lines(r))
+    assert lines.count("no probability, peak or rating: the model does not fit the data") == 2
+    assert "withheld" in lines and "favoured" not in lines and "alpha peak" not in lines
+    rec = json.loads((tmp_path / "joint.json").read_text(), parse_constant=lambda x: pytest.fail(x))
+    assert rec["result"]["cases"]["same"]["geometries"] == r["cases"]["same"]["geometries"]
+    rows = np.genfromtxt(tmp_path / "joint.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert rows.size == 720 and np.all(np.isnan(rows["posterior"]))
+    assert (tmp_path / "joint.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # chi^2 / N = 1.1 (p = 1e-4 for 2,924 points, within the limit): rated as before, with a caution
+    reduced["value"] = 1.1
+    ok = jp.joint_scan(cfg, out=tmp_path / "fits", **kw)
+    assert ok["goodness_of_fit"]["ok"] and "raise every ln K by about 10 %" in ok["goodness_of_fit"]["caution"]
+    assert all(c["jeffreys"] != "not rated" and not c.get("withheld") for c in ok["cases"].values())
+    assert "caution: chi^2 = 3216.4 for 2924 points" in "\n".join(joint.joint_lines(ok))
+    assert all(v is not None for v in ok["case_log_bayes_factors"].values())
+    # runs of an earlier jaxppo (no chi^2 recorded): resumed, unchecked, said so
+    for run in rec["runs"].values():
+        del run["chi2_best"]
+    (tmp_path / "joint.json").write_text(json.dumps({"settings": rec["settings"], "runs": rec["runs"]}))
+    old = jp.joint_scan(cfg, out=tmp_path, **kw)
+    assert old["goodness_of_fit"]["ok"] and not old["goodness_of_fit"]["checked"]
+    assert [c["seconds"] for c in old["cases"].values()] == [c["seconds"] for c in r["cases"].values()]
+    assert "caution: goodness of fit not checked" in "\n".join(joint.joint_lines(old))
