@@ -271,7 +271,10 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         of inc change sign). False keeps the side of 90 deg the fit ended on.
         Default True. N-body planets and planets with moons are never
         folded: for them the sign of cos i changes the light curve (mutual
-        inclinations; moons' orbits given on the sky).
+        inclinations; moons' orbits given on the sky), and i and 180 - i
+        are two minima, of which the fit finds the one on its start's side
+        of 90 deg: where that side is not known, fit from both and
+        compare chi^2.
 
     Returns
     -------
