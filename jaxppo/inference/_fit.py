@@ -272,9 +272,9 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         Default True. N-body planets and planets with moons are never
         folded: for them the sign of cos i changes the light curve (mutual
         inclinations; moons' orbits given on the sky), and i and 180 - i
-        are two minima, of which the fit finds the one on its start's side
-        of 90 deg: where that side is not known, fit from both and
-        compare chi^2.
+        are two minima: a fit can stay in the one on its start's side of
+        90 deg, so where that side is not known, fit from both and compare
+        chi^2.
 
     Returns
     -------
