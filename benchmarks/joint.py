@@ -68,8 +68,8 @@ def main():
         smc = sum(c["seconds"])
         print(f"  {case}: mode search {m['seconds']:.1f} s ({m['starts']} starts, {len(m['modes'])} modes); SMC "
               f"{smc:.1f} s for {calls} likelihood calls ({1e3 * smc / calls:.2f} ms per call); fixed scan: "
-              + "; ".join(f"{n} {100 * g['probability']:.2f} %" for n, g in fixed.probabilities[case].items()
-                          if isinstance(g, dict)))
+              + "; ".join(f"{n} " + ("withheld" if g["probability"] is None else f"{100 * g['probability']:.2f} %")
+                          for n, g in fixed.probabilities[case].items() if isinstance(g, dict)))
 
 
 if __name__ == "__main__":

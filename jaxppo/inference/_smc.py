@@ -442,8 +442,9 @@ def _least_chi2(post, u_mode, chol, modes, out) -> float:
     """The least chi^2 of the data the case reached: at the no-PPO mode
     (its quiet tilt), at the search's modes and at the particle of the
     highest posterior density (``jaxppo.joint_scan``'s goodness-of-fit
-    check)."""
+    check); NaN where none is finite."""
     top = int(np.argmax(out["log_gamma"]))
     points = [(u_mode, None), (out["u"][top], float(out["alpha"][top]))]
     points += [(u_mode + m[1][:-1] @ chol.T, float(m[1][-1])) for m in modes]
-    return min(float(jnp.sum(post.data_residuals(jnp.asarray(u), a) ** 2)) for u, a in points)
+    chi2 = np.array([float(jnp.sum(post.data_residuals(jnp.asarray(u), a) ** 2)) for u, a in points])
+    return float(np.min(chi2[np.isfinite(chi2)])) if np.any(np.isfinite(chi2)) else float("nan")

@@ -406,9 +406,9 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
     import matplotlib.pyplot as plt
 
     out = Path(out)
-    unknown = [w for w in which if w not in FIGURES]
-    if unknown:
-        raise ValueError(f"which must name figures from {FIGURES}, got {unknown}")
+    names = list(which) if not isinstance(which, str) and hasattr(which, "__iter__") else None
+    if names is None or not all(isinstance(w, str) and w in FIGURES for w in names) or len(set(names)) < len(names):
+        raise ValueError(f"which must be a sequence of distinct names from {FIGURES}, got {which!r}")
 
     def check():  # process 0 alone touches the folder; its error stops every process (several JAX processes)
         if not out.is_dir():
@@ -432,4 +432,4 @@ def scan_figures(out, summary, table=None, system=None, windows=None, cases=None
         "fig7": lambda: _fig7(plt, out, summary, table, system, cases),
         "probabilities": lambda: _fig_probabilities(plt, out, summary, cases, colors),
     }
-    return [str(Path(draw[w]()).resolve()) for w in which]  # absolute: summary.json is read from anywhere
+    return [str(Path(draw[w]()).resolve()) for w in names]  # absolute: summary.json is read from anywhere

@@ -89,17 +89,22 @@ def _case_summary(case: str, runs: list[dict]) -> dict:
             "posterior": hist.tolist(), "particles": {"alpha": a.tolist(), "weight": wts.tolist()}}
 
 
+_WHERE = "at the best point the sampler reached (the no-PPO mode, the modes, the densest particle)"
+
+
 def _goodness_of_fit(runs: list[dict], points: int) -> dict:
     """``goodness_of_fit`` of the least chi^2 the runs reached (each run's
-    "chi2_best": the no-PPO mode, the modes, the densest particle) for
-    ``points`` points. Runs recorded by a jaxppo that kept no chi^2 leave
-    it unchecked: "ok" True, "checked" False, with the reason."""
-    best = [r["chi2_best"] for r in runs if r.get("chi2_best") is not None]
-    if len(best) < len(runs):
+    "chi2_best": the no-PPO mode, the modes, the densest particle; None in
+    joint.json where it was not finite) for ``points`` points. Runs
+    recorded by a jaxppo that kept no chi^2 (no such key) leave it
+    unchecked: "ok" True, "checked" False, with a caution."""
+    if any("chi2_best" not in r for r in runs):
         return {"ok": True, "checked": False, "points": int(points), "reason": None, "caution": (
             "goodness of fit not checked: joint.json holds runs of an earlier jaxppo without their chi^2 "
             "(restart=True / --restart samples again and checks it)")}
-    return {**goodness_of_fit(min(best), points), "checked": True}
+    best = np.array([np.nan if r["chi2_best"] is None else float(r["chi2_best"]) for r in runs])
+    least = float(np.min(best)) if np.all(np.isfinite(best)) else float("nan")  # any NaN run: not rated
+    return {**goodness_of_fit(least, points, _WHERE), "checked": True}
 
 
 def _withhold(case: dict, reason: str) -> None:
@@ -383,10 +388,12 @@ def joint_lines(result: dict) -> list[str]:
     fit = result.get("goodness_of_fit") or {}
     if fit.get("caution"):
         lines.append(f"  caution: {fit['caution']}")
+    if not fit.get("ok", True):  # every case withheld, for one reason
+        lines.append(f"  no probability, peak or rating in any case: {fit['reason']}")
+        lines += [f"  case {case}: log Z {c['log_z']:.2f}, not rated" for case, c in result["cases"].items()]
+        lines += [f"  Bayes factor {k}: withheld" for k in result["case_log_bayes_factors"]]
+        return lines
     for case, c in result["cases"].items():
-        if c.get("withheld"):
-            lines.append(f"  case {case}: no probability, peak or rating: {c['withheld']}; log Z {c['log_z']:.2f}")
-            continue
         geo = "; ".join(f"{n}: {100 * g['probability']:.2f} +- {100 * g['error']:.2f} %"
                         for n, g in c["geometries"].items())
         err = f" +- {c['log_z_error']:.2f}" if c["log_z_error"] is not None else ""
@@ -397,8 +404,5 @@ def joint_lines(result: dict) -> list[str]:
                  "of the time, the 95 % intervals 100 +- 5 %; the errors given are the sampler's own and the seeds' "
                  "spread: docs/marginal.md, 'The joint sampler')")
     for k, v in result["case_log_bayes_factors"].items():
-        if v is None:
-            lines.append(f"  Bayes factor {k}: withheld (the model does not fit the data)")
-            continue
         lines.append(f"  Bayes factor {k}: exp({v:.2f})" + (f" = {np.exp(v):.3g}" if abs(v) < 700 else ""))
     return lines

@@ -32,7 +32,7 @@ def plot_joint(out, result: dict, fixed) -> Path:
         step = float(fa[1] - fa[0]) if fa.size > 1 else 360.0
         if c.get("withheld"):  # the model does not fit the data: no posterior drawn, as none is reported
             ax.text(0.5, 0.5, "joint posterior withheld:\nthe model does not fit the data", transform=ax.transAxes,
-                    ha="center", va="center", fontsize=8)
+                    ha="center", va="center", fontsize=8, zorder=5, bbox=dict(fc="white", ec="0.6"))
             ax.set_title(f"case {case}: no probability, peak or rating", fontsize=7)
         else:
             post = np.asarray(c["posterior"], float)  # mass per 1-degree bin = density [1/deg]

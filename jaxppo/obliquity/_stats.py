@@ -94,28 +94,35 @@ def withheld(geo: dict, names, reason: str) -> dict:
     return out
 
 
-def goodness_of_fit(chi2_best: float, points: int) -> dict:
+def goodness_of_fit(chi2_best: float, points: int, where: str = "at the best tilt") -> dict:
     """Does the scan's best model describe the data? chi^2 at the best
-    tilt and case for ``points`` points: "reduced" (chi^2 / N), "p_value"
-    (chi^2 distribution with N degrees of freedom), "ok" (False when the
-    reduced chi^2 exceeds ``MISFIT_REDUCED_CHI2`` and the p-value is below
-    ``MISFIT_P_VALUE``), "reason" (None when ok) and "caution" (where
-    p < ``MISFIT_P_VALUE`` but chi^2 / N is within the limit)."""
+    tilt and case (``where`` says where the caller took it) for ``points``
+    points: "reduced" (chi^2 / N), "p_value" (chi^2 distribution with N
+    degrees of freedom), "ok" (False when the reduced chi^2 exceeds
+    ``MISFIT_REDUCED_CHI2`` and the p-value is below ``MISFIT_P_VALUE``,
+    and for a chi^2 that is not finite), "reason" (None when ok) and
+    "caution" (where p < ``MISFIT_P_VALUE`` but chi^2 / N is within the
+    limit). Every number is finite or None (strict JSON)."""
     from scipy.special import chdtrc  # chi^2 survival function; scipy.stats costs 0.5 s to import
 
-    reduced = chi2_best / points if points else float("nan")
-    p = float(chdtrc(points, chi2_best)) if points else float("nan")
+    chi2_best = float(chi2_best)
+    if not np.isfinite(chi2_best) or not points:
+        return {"chi2_best": None, "points": int(points), "reduced": None, "p_value": None, "ok": False,
+                "reason": f"the model's chi^2 {where} is {chi2_best} for {points} points: nothing can be rated "
+                          "(a model that gives NaN, or no points)", "caution": None}
+    reduced = chi2_best / points
+    p = float(chdtrc(points, chi2_best))
     ok = not (reduced > MISFIT_REDUCED_CHI2 and p < MISFIT_P_VALUE)
     caution = None if not (ok and p < MISFIT_P_VALUE) else (
-        f"chi^2 = {chi2_best:.6g} for {points} points at the best tilt (chi^2 / N = {reduced:.3g}, p = {p:.2g}): "
+        f"chi^2 = {chi2_best:.6g} for {points} points {where} (chi^2 / N = {reduced:.3g}, p = {p:.2g}): "
         f"errors too small or parameters off by this much raise every ln K by about {100 * (reduced - 1):.0f} %; "
         "read the rating with that in mind")
     reason = None if ok else (
-        f"the model does not fit the data: chi^2 = {chi2_best:.6g} for {points} points at the best tilt "
+        f"the model does not fit the data: chi^2 = {chi2_best:.6g} for {points} points {where} "
         f"(chi^2 / N = {reduced:.3g}, p = {p:.2g}); the geometry probabilities assume that it does. Check the "
         "flux normalisation (the out-of-transit level must be 1), the errors and the transit parameters "
         "(jaxppo fit, or the marginal scan: --marginalize N)")
-    return {"chi2_best": float(chi2_best), "points": int(points), "reduced": float(reduced), "p_value": p,
+    return {"chi2_best": chi2_best, "points": int(points), "reduced": float(reduced), "p_value": p,
             "ok": bool(ok), "reason": reason, "caution": caution}
 
 

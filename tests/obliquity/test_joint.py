@@ -160,8 +160,10 @@ def test_a_joint_run_whose_model_does_not_fit_the_data_rates_nothing(tmp_path, m
         assert np.isfinite(c["log_z"])  # the evidence of the sampler's run stays, unrated
     assert list(r["case_bayes_factors"].values()) == [None] == list(r["case_log_bayes_factors"].values())
     lines = "\n".join(joint.joint_lines(r))
-    assert lines.count("no probability, peak or rating: the model does not fit the data") == 2
-    assert "withheld" in lines and "favoured" not in lines and "alpha peak" not in lines
+    assert lines.count("no probability, peak or rating in any case: the model does not fit the data") == 1
+    assert "at the best point the sampler reached" in lines and lines.count("not rated") == 2
+    assert "Bayes factor same/opposite: withheld" in lines
+    assert not any(w in lines for w in ("favoured", "alpha peak", "calibration", " %"))
     rec = json.loads((tmp_path / "joint.json").read_text(), parse_constant=lambda x: pytest.fail(x))
     assert rec["result"]["cases"]["same"]["geometries"] == r["cases"]["same"]["geometries"]
     rows = np.genfromtxt(tmp_path / "joint.csv", delimiter=",", names=True, dtype=None, encoding=None)
@@ -174,6 +176,15 @@ def test_a_joint_run_whose_model_does_not_fit_the_data_rates_nothing(tmp_path, m
     assert all(c["jeffreys"] != "not rated" and not c.get("withheld") for c in ok["cases"].values())
     assert "caution: chi^2 = 3216.4 for 2924 points" in "\n".join(joint.joint_lines(ok))
     assert all(v is not None for v in ok["case_log_bayes_factors"].values())
+    # a chi^2 that is not finite (a model that gives NaN): nothing rated, and strict JSON throughout
+    reduced["value"] = float("nan")
+    nan = jp.joint_scan(cfg, out=tmp_path / "nan", **kw)
+    assert not nan["goodness_of_fit"]["ok"] and nan["goodness_of_fit"]["chi2_best"] is None
+    assert "is nan" in nan["goodness_of_fit"]["reason"]
+    assert all(c["jeffreys"] == "not rated" for c in nan["cases"].values())
+    json.dumps(nan["goodness_of_fit"], allow_nan=False)
+    again = jp.joint_scan(cfg, out=tmp_path / "nan", **kw)  # resumed: its null chi^2 is not an earlier jaxppo's
+    assert not again["goodness_of_fit"]["ok"] and again["goodness_of_fit"]["checked"]
     # runs of an earlier jaxppo (no chi^2 recorded): resumed, unchecked, said so
     for run in rec["runs"].values():
         del run["chi2_best"]

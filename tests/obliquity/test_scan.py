@@ -374,6 +374,11 @@ def test_no_probability_or_rating_from_a_model_that_does_not_fit(tmp_path):
         1.2 * 2000, 2000)["caution"]  # kept, with a caution
     assert not goodness_of_fit(1.3 * 2000, 2000)["ok"]  # a PPO of K ~ 5.5 read "decisive" at 1.36 and 1.47
     assert goodness_of_fit(1.05 * 100, 100)["caution"] is None
+    # a chi^2 that is not finite, or no points: not ok (NaN once compared as "fitting"), strict JSON
+    for chi2, n in ((float("nan"), 100), (float("inf"), 100), (50.0, 0)):
+        bad = goodness_of_fit(chi2, n)
+        assert not bad["ok"] and bad["chi2_best"] is None and "nothing can be rated" in bad["reason"]
+        json.dumps(bad, allow_nan=False)
     # no posterior where no probability: NaN in the table and in scan.csv
     assert np.all(np.isnan(res.table["posterior"]))
     rows = np.genfromtxt(tmp_path / "out" / "scan.csv", delimiter=",", names=True, dtype=None, encoding=None)
