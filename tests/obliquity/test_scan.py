@@ -910,3 +910,25 @@ def test_grid_check_skips_midpoints_without_a_ppo_exactly():
     full = resolution_check(system, data, np.arange(0.0, 360.0, 4.0), chi2, c0, 45)
     quick = resolution_check(system, data, np.arange(0.0, 360.0, 4.0), chi2, c0, 45, windows=res.windows)
     assert full == quick
+
+
+def test_grid_check_does_not_withhold_a_near_even_split_for_its_side_of_50_percent(monkeypatch):
+    """The real Kepler-20 scan on a 5-deg grid: 50.04 / 49.96 % on the grid, 49.95 / 50.05 % at 2.5 deg, both
+    "barely worth mentioning", log10 K 7e-4 and 8e-4: the favoured geometry "changed", and the check withheld
+    an answer that a 0.5-deg grid confirms (50/50). A flip counts only where a grid rates the preference; a
+    flip of a rated preference still fails."""
+    import jaxppo.obliquity._chi2 as chi2_mod
+
+    alpha = np.arange(0.0, 360.0, 5.0)
+    mids = alpha + 2.5
+    pro, pro_mids = (alpha <= 90) | (alpha > 270), (mids % 360 <= 90) | (mids % 360 > 270)
+    for gap, ok in ((0.004, True), (2.0, False)):  # Delta chi^2 between the geometries: K ~ 1.002, K ~ e
+        chi2 = np.where(pro, 100.0 - gap / 2, 100.0 + gap / 2)  # the grid: prograde favoured
+        at_mids = np.where(pro_mids, 100.0 + 2 * gap, 100.0 - 2 * gap)  # half the step: retrograde favoured
+        monkeypatch.setattr(chi2_mod, "grid_chi2", lambda s, d, a, c: at_mids[np.searchsorted(mids, a)])
+        c = chi2_mod.resolution_check(None, None, alpha, {"same": chi2}, {"same": 100.0}, 72)["cases"]["same"]
+        assert c["favoured"] != c["favoured_at_half_step"]
+        assert c["ok"] is ok, c
+        if ok:
+            assert c["jeffreys"] == c["jeffreys_at_half_step"] == "barely worth mentioning"
+            assert c["largest_shift"] < 0.005
