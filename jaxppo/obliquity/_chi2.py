@@ -20,7 +20,7 @@ RESOLUTION_TOLERANCE = 0.005
 # ... and of log10 K (half a Jeffreys category: a 5-deg grid printed
 # K = 10^7.45 where 1 deg gives 10^12.19, both "decisive")
 RESOLUTION_LOG10_K = 0.5
-BARELY = jeffreys(1.0)  # the lowest Jeffreys category: no preference rated
+_BARELY = jeffreys(1.0)  # the lowest Jeffreys category: no preference rated
 
 
 def grid_chi2(system, data: LightCurve, alphas, case) -> np.ndarray:
@@ -77,11 +77,12 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
     case -> its ground level). "ok" unless, in some case, a geometry's
     probability moves by more than ``tolerance``, log10 K by more than
     ``RESOLUTION_LOG10_K``, or the Jeffreys rating changes, or the
-    favoured geometry where a grid rates the preference (not when both
-    are "barely worth mentioning": the real Kepler-20 data's 50.04 / 49.96 %
-    on a 5-deg grid and 49.95 / 50.05 % at 2.5 deg were withheld) (a PPO dip 1-3 deg wide falls between
-    the points of a 10-deg grid: the geometries came out 49 / 51 %,
-    "barely worth mentioning", where 1 deg gives K = 5e4, "decisive").
+    favoured geometry of a rated preference changes (a PPO dip 1-3 deg
+    wide falls between the points of a 10-deg grid: the geometries came
+    out 49 / 51 %, "barely worth mentioning", where 1 deg gives K = 5e4,
+    "decisive"). Where both grids say "barely worth mentioning", the side
+    of 50 % a near-even split falls on is no finding (the real Kepler-20
+    data: 50.04 / 49.96 % on a 5-deg grid, 49.95 / 50.05 % at 2.5 deg).
     Each case has its own "ok" and "reason" (its probabilities are its
     own); "ok" overall when every case's is. ``windows`` (the scan's): the
     midpoints without a PPO in any frame take the ground level, exactly
@@ -109,7 +110,7 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
         dk = abs(coarse["log10_bayes_factor"] - half["log10_bayes_factor"])
         # the favoured geometry flipping matters where either grid rates the preference; below that
         # (K < 10^0.5) it is the side of 50 % a near-even split falls on, which the shift judges
-        rated = BARELY not in (coarse["jeffreys"], half["jeffreys"])
+        rated = _BARELY not in (coarse["jeffreys"], half["jeffreys"])
         ok = not (shift > tolerance or dk > RESOLUTION_LOG10_K or (rated and coarse["favoured"] != half["favoured"])
                   or coarse["jeffreys"] != half["jeffreys"])
         reason = None
