@@ -124,11 +124,13 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
                       f"{half['log10_bayes_factor']:.3g}. Scan again with a finer step "
                       f"(alpha = [0, 360, {0.25 * step:g}] or finer)")
             moved.append(reason)
-        cases[case] = {"favoured": coarse["favoured"], "favoured_at_half_step": half["favoured"],
-                       "probabilities": {n: coarse[n]["probability"] for n in names},
+        # the two grids' numbers side by side, named for their grid: the answer itself is in "probabilities"
+        # of the summary (withheld there where this check fails), never here
+        cases[case] = {"favoured_on_grid": coarse["favoured"], "favoured_at_half_step": half["favoured"],
+                       "probabilities_on_grid": {n: coarse[n]["probability"] for n in names},
                        "probabilities_at_half_step": {n: half[n]["probability"] for n in names},
-                       "jeffreys": coarse["jeffreys"], "jeffreys_at_half_step": half["jeffreys"],
-                       "largest_shift": float(shift), "log10_bayes_factor": coarse["log10_bayes_factor"],
+                       "jeffreys_on_grid": coarse["jeffreys"], "jeffreys_at_half_step": half["jeffreys"],
+                       "largest_shift": float(shift), "log10_bayes_factor_on_grid": coarse["log10_bayes_factor"],
                        "log10_bayes_factor_at_half_step": half["log10_bayes_factor"], "ok": ok, "reason": reason}
     return {"step": step, "half_step": 0.5 * step, "tolerance": tolerance, "cases": cases, "ok": not moved,
             "reason": "; ".join(moved) if moved else None}

@@ -355,7 +355,9 @@ def _fig7(plt, out, summary, table, system, cases):
 def _fig_probabilities(plt, out, summary, cases, colors):
     """Table 6 as bars: each case's geometry probabilities, 50 % marked."""
     probs = summary.get("probabilities", {})
-    fig, axs = plt.subplots(1, len(cases), figsize=(3.6 * len(cases), 3.4), squeeze=False, sharey=True)
+    # no shared y axis: a withheld panel has no axes, and the first drawn panel carries the labels
+    fig, axs = plt.subplots(1, len(cases), figsize=(3.6 * len(cases), 3.4), squeeze=False)
+    labelled = False
     for ci, case in enumerate(cases):
         ax = axs[0, ci]
         geo = probs.get(_key(case), {})
@@ -366,6 +368,7 @@ def _fig_probabilities(plt, out, summary, cases, colors):
             ax.text(0.5, 0.5, f"probabilities withheld:\n{why}", transform=ax.transAxes, ha="center", va="center",
                     fontsize=8)
             ax.set_title(_case_title(case), fontsize=8)
+            ax.axis("off")  # an empty frame with 0-1 ticks read as a plot of nothing
             continue
         vals = [100.0 * geo[n]["probability"] for n in names]
         bars = ax.bar(range(len(names)), vals, color=colors[_key(case)], alpha=0.75, width=0.6)
@@ -384,7 +387,9 @@ def _fig_probabilities(plt, out, summary, cases, colors):
         bf = geo.get("bayes_factor")
         sub = f"\nBayes factor {bf:.4g} ({geo.get('jeffreys', '')})" if isinstance(bf, (int, float)) and np.isfinite(bf) else ""
         ax.set_title(_case_title(case) + sub, fontsize=8)
-    axs[0, 0].set_ylabel("probability [%]")
+        if not labelled:
+            ax.set_ylabel("probability [%]")
+            labelled = True
     fig.tight_layout()
     return _save(fig, out / "probabilities.png")
 

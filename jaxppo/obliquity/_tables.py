@@ -5,10 +5,17 @@ Delta chi^2 stays beyond the paper's threshold (|Delta chi^2| > 0.15, one
 sign) is one feature: its extreme value, the alpha of the extreme, and the
 interval of the run written as alpha^{+upper}_{-lower} (the paper: "we
 consider all Delta chi^2 values aside the maxima and minima, whose values are
-larger than +-0.15"; not an error bar). Paper cases 3 and 2 follow from cases
-1 and 4 by Eq. 2, alpha -> 360 - alpha (which also swaps the interval's
-upper and lower widths). Runs that cross 360 -> 0 on a full-circle grid are
-one feature.
+larger than +-0.15"; not an error bar). The interval reaches the first grid
+angle on each side that is not beyond the threshold: the curve crosses 0.15
+somewhere between the run's last point and that angle, so the interval
+holds the whole feature and is never narrower than one grid step (the
+paper's does the same: its case-4 dip at 324^{+1}_{-1} deg and peak at
+326^{+1}_{-1} deg share 325 deg, which neither run holds). Where a run
+reaches the end of a grid that is not a full circle, the width is to that
+end and is flagged open (printed ">=": the feature may go on). Paper cases
+3 and 2 follow from cases 1 and 4 by Eq. 2, alpha -> 360 - alpha (which also
+swaps the interval's upper and lower widths). Runs that cross 360 -> 0 on a
+full-circle grid are one feature.
 
 Plain data in, rows out: ``peaks_and_dips`` for one curve, ``table5_rows``
 for a scan table ({case: {"alpha", "delta_chi2", ...}}), and writers for
@@ -59,6 +66,21 @@ def _runs(mask: np.ndarray, circular: bool) -> list[np.ndarray]:
     return runs
 
 
+def _width(alpha, j: int, edge: int, side: int, circular: bool, points: int) -> tuple[float, bool]:
+    """(width [deg], open) of one side of a feature whose extreme is at
+    index ``j`` and whose run ends at index ``edge`` on that ``side``
+    (-1 lower, +1 upper): the distance to the first angle beyond the run
+    (across 360 -> 0 on a circular grid); to the run's end, open, where
+    the grid ends there (or the run is the whole circle)."""
+    n = alpha.size
+    nxt = edge + side
+    if circular and points < n:
+        return float(np.mod(side * (alpha[nxt % n] - alpha[j]), 360.0)), False
+    if not circular and 0 <= nxt < n:
+        return float(side * (alpha[nxt] - alpha[j])), False
+    return float(np.mod(side * (alpha[edge] - alpha[j]), 360.0)), True
+
+
 def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits: dict | None = None) -> list[dict]:
     """Features of one Delta chi^2(alpha) curve, in order of alpha.
 
@@ -72,9 +94,14 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
 
     Returns:
         dicts with ``kind`` ("peak" | "dip"), ``alpha`` [deg] of the extreme,
-        ``delta_chi2`` there, ``lower`` and ``upper`` [deg] (the run spans
-        alpha - lower .. alpha + upper), ``start`` and ``end`` [deg] of the
-        run, ``points`` in it, and ``transits`` (PPO transits at the extreme).
+        ``delta_chi2`` there, ``lower`` and ``upper`` [deg] (alpha - lower and
+        alpha + upper are the first grid angles beyond the run, not beyond
+        the threshold: each at least one step away), ``lower_open`` and
+        ``upper_open`` (True where the run reaches the end of a grid that is
+        not a full circle: the width is to that end, and the feature may go
+        on), ``start`` and ``end`` [deg] of the run (its first and last
+        angle beyond the threshold), ``points`` in it, and ``transits`` (PPO
+        transits at the extreme).
     """
     alpha = np.asarray(alpha, float)
     d = np.asarray(delta_chi2, float)
@@ -95,14 +122,12 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
         for run in _runs(sign * d > threshold, circular):
             j = run[int(np.argmax(sign * d[run]))]
             a0 = alpha[j]
-            # widths measured along the run (unwrapped across 360 -> 0)
-            pos = np.flatnonzero(run == j)[0]
-            steps_before, steps_after = pos, run.size - 1 - pos
-            lower = float(np.sum(np.mod(alpha[run[1:pos + 1]] - alpha[run[:pos]], 360.0))) if steps_before else 0.0
-            upper = float(np.sum(np.mod(alpha[run[pos + 1:]] - alpha[run[pos:-1]], 360.0))) if steps_after else 0.0
+            lower, lower_open = _width(alpha, j, run[0], -1, circular, run.size)
+            upper, upper_open = _width(alpha, j, run[-1], 1, circular, run.size)
             tr = [] if ppo_transits is None else [int(v) for v in ppo_transits.get(f"{a0:g}", [])]
             rows.append({
                 "kind": kind, "alpha": float(a0), "delta_chi2": float(d[j]), "lower": lower, "upper": upper,
+                "lower_open": lower_open, "upper_open": upper_open,
                 "start": float(alpha[run[0]]), "end": float(alpha[run[-1]]), "points": int(run.size), "transits": tr,
             })
     rows.sort(key=lambda r: r["alpha"])
@@ -113,6 +138,7 @@ def _mirror(row: dict) -> dict:
     """Eq. 2: the same feature at 360 - alpha (upper and lower swap)."""
     return {
         "alpha": float(np.mod(360.0 - row["alpha"], 360.0)), "lower": row["upper"], "upper": row["lower"],
+        "lower_open": row["upper_open"], "upper_open": row["lower_open"],
         "start": float(np.mod(360.0 - row["end"], 360.0)), "end": float(np.mod(360.0 - row["start"], 360.0)),
     }
 
@@ -142,13 +168,14 @@ def table5_rows(table: dict, summary: dict | None = None, cases=None, threshold:
             out.append({
                 "case": case, "paper_case": name, **r,
                 "mirror_case": mirror_name, "mirror_alpha": m["alpha"], "mirror_lower": m["lower"],
-                "mirror_upper": m["upper"],
+                "mirror_upper": m["upper"], "mirror_lower_open": m["lower_open"], "mirror_upper_open": m["upper_open"],
             })
     return out
 
 
 _CSV_FIELDS = ("case", "paper_case", "kind", "alpha", "upper", "lower", "delta_chi2", "start", "end", "points",
-               "transits", "mirror_case", "mirror_alpha", "mirror_upper", "mirror_lower")
+               "transits", "mirror_case", "mirror_alpha", "mirror_upper", "mirror_lower", "upper_open", "lower_open",
+               "mirror_upper_open", "mirror_lower_open")
 
 
 def table5_csv(rows: list[dict]) -> str:
@@ -185,18 +212,22 @@ def _pair(rows: list[dict], cases: tuple) -> list[tuple]:
     return pairs
 
 
-def _fmt_angle(a, up, lo, tex: bool) -> str:
+def _fmt_angle(a, up, lo, tex: bool, up_open: bool = False, lo_open: bool = False) -> str:
+    """alpha^{+up}_{-lo}; an open width (the grid ends there) as ">=" it."""
+    ge = r"\geq " if tex else ">="
+    u, v = (ge if up_open else "") + f"{up:g}", (ge if lo_open else "") + f"{lo:g}"
     if tex:
-        return f"${a:g}^{{+{up:g}}}_{{-{lo:g}}}$"
-    return f"{a:g} +{up:g}/-{lo:g}"
+        return f"${a:g}^{{+{u}}}_{{-{v}}}$"
+    return f"{a:g} +{u}/-{v}"
 
 
 def _cells(r, tex: bool) -> list[str]:
     if r is None:
         return ["", "", "", ""]
     tr = ",".join(str(v) for v in r["transits"])
-    return [_fmt_angle(r["alpha"], r["upper"], r["lower"], tex),
-            _fmt_angle(r["mirror_alpha"], r["mirror_upper"], r["mirror_lower"], tex),
+    return [_fmt_angle(r["alpha"], r["upper"], r["lower"], tex, r["upper_open"], r["lower_open"]),
+            _fmt_angle(r["mirror_alpha"], r["mirror_upper"], r["mirror_lower"], tex, r["mirror_upper_open"],
+                       r["mirror_lower_open"]),
             f"{r['delta_chi2']:.2f}", tr]
 
 
@@ -242,7 +273,8 @@ def table5_markdown(rows: list[dict], cases=None) -> str:
 def table5_text(rows: list[dict], cases=None, threshold: float = THRESHOLD) -> str:
     """Plain-text table for the terminal (same layout as the markdown)."""
     cases = _cases_of(rows, cases)
-    title = f"Table 5: Delta chi^2 peaks and dips (|Delta chi^2| > {threshold:g}; interval = run beyond it)"
+    title = (f"Table 5: Delta chi^2 peaks and dips (|Delta chi^2| > {threshold:g}; "
+             "interval: to the first angle on each side not beyond it)")
     if not cases:
         return title + "\n  none\n"
     head = _header(rows, cases)

@@ -168,3 +168,24 @@ def test_fig6_shows_one_transit_with_its_own_best_and_worst_alpha():
     d = table["same"]
     # the global maximum lies in another transit: the old choice mixed them
     assert 2 not in summary["cases"]["same"]["ppo_transits"][f"{d['alpha'][np.argmax(d['delta_chi2'])]:g}"]
+
+
+def test_a_withheld_panel_of_the_probabilities_has_no_axes(tmp_path, monkeypatch):
+    """A case whose probabilities are withheld was drawn as an empty frame with 0-1 ticks beside the other
+    case's bars (sharing its y axis); now it is the note alone, and the drawn panel keeps its labels."""
+    import jaxppo.obliquity._figures as figures
+
+    system, windows, table, summary, cases = small_scan(step=12.0)
+    geo = summary["probabilities"]["same"]
+    summary["probabilities"]["same"] = {k: (dict(v, probability=None) if isinstance(v, dict) else v)
+                                        for k, v in geo.items()}
+    summary["probabilities"]["same"].update(favoured=None, bayes_factor=None, withheld="the alpha grid (step 12 deg)")
+    drawn = []
+    save = figures._save
+    monkeypatch.setattr(figures, "_save", lambda fig, path: (drawn.append(fig), save(fig, path))[1])
+    scan_figures(tmp_path, summary, table, system, windows, cases, which=("probabilities",))
+    (fig,) = drawn
+    held, shown = fig.axes
+    assert not held.axison and "withheld" in " ".join(t.get_text() for t in held.texts)
+    assert shown.axison and shown.get_ylabel() == "probability [%]" and len(shown.patches) == 2
+    assert all(lab.get_visible() for lab in shown.get_yticklabels())

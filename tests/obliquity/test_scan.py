@@ -401,8 +401,13 @@ def test_a_grid_too_coarse_for_the_features_gives_no_probability(tmp_path):
     grid = coarse.summary["alpha_grid_check"]
     assert not grid["ok"] and grid["step"] == 10.0 and grid["half_step"] == 5.0
     assert grid["cases"]["same"]["largest_shift"] > 0.1
-    assert grid["cases"]["same"]["jeffreys"] != grid["cases"]["same"]["jeffreys_at_half_step"]
+    assert grid["cases"]["same"]["jeffreys_on_grid"] != grid["cases"]["same"]["jeffreys_at_half_step"]
     assert not grid["cases"]["same"]["ok"]
+    # the check's numbers are named for their grid: no answer under the summary's own keys (a withheld case's
+    # coarse-grid "favoured" and "probabilities" read as the answer)
+    for c in grid["cases"].values():
+        assert not {"favoured", "probabilities", "jeffreys", "log10_bayes_factor"} & set(c), sorted(c)
+        assert set(c["probabilities_on_grid"]) == set(c["probabilities_at_half_step"])
     for case in ("same", "opposite"):  # each case by its own check (its probabilities are its own)
         geo = coarse.summary["probabilities"][case]
         if grid["cases"][case]["ok"]:
@@ -890,8 +895,8 @@ def test_grid_check_compares_the_bayes_factor_too(monkeypatch):
     monkeypatch.setattr(chi2_mod, "grid_chi2", lambda system, data, alphas, case: at_mids[np.searchsorted(mids, alphas)])
     check = chi2_mod.resolution_check(None, None, alpha, {"same": chi2}, {"same": 1000.0}, 72)
     c = check["cases"]["same"]
-    assert c["jeffreys"] == c["jeffreys_at_half_step"] == "decisive" and c["largest_shift"] < 1e-6
-    assert c["log10_bayes_factor_at_half_step"] - c["log10_bayes_factor"] > 0.5
+    assert c["jeffreys_on_grid"] == c["jeffreys_at_half_step"] == "decisive" and c["largest_shift"] < 1e-6
+    assert c["log10_bayes_factor_at_half_step"] - c["log10_bayes_factor_on_grid"] > 0.5
     assert not c["ok"] and "log10 K" in c["reason"]
 
 
@@ -927,8 +932,8 @@ def test_grid_check_does_not_withhold_a_near_even_split_for_its_side_of_50_perce
         at_mids = np.where(pro_mids, 100.0 + 2 * gap, 100.0 - 2 * gap)  # half the step: retrograde favoured
         monkeypatch.setattr(chi2_mod, "grid_chi2", lambda s, d, a, c: at_mids[np.searchsorted(mids, a)])
         c = chi2_mod.resolution_check(None, None, alpha, {"same": chi2}, {"same": 100.0}, 72)["cases"]["same"]
-        assert c["favoured"] != c["favoured_at_half_step"]
+        assert c["favoured_on_grid"] != c["favoured_at_half_step"]
         assert c["ok"] is ok, c
         if ok:
-            assert c["jeffreys"] == c["jeffreys_at_half_step"] == "barely worth mentioning"
+            assert c["jeffreys_on_grid"] == c["jeffreys_at_half_step"] == "barely worth mentioning"
             assert c["largest_shift"] < 0.005

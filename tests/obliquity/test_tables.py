@@ -21,9 +21,10 @@ def _tri(center, height, left, right):
 
 
 def _expected_width(height, w):
-    # largest integer step k with |h| (1 - k / w) > 0.15
+    # the interval reaches the first angle not beyond the threshold: the
+    # first integer step k with |h| (1 - k / w) <= 0.15
     k = np.arange(0, 100)
-    return int(k[np.abs(height) * (1 - k / w) > 0.15].max())
+    return int(k[np.abs(height) * (1 - k / w) <= 0.15].min())
 
 
 def test_features_of_a_known_curve():
@@ -55,7 +56,8 @@ def test_threshold_is_strict_and_run_wraps_through_zero():
     d = np.zeros(ALPHA.size)
     d[[355, 356, 357, 358, 359, 0, 1, 2, 3]] = [0.2, 0.5, 1.0, 2.0, 1.5, 1.0, 0.6, 0.3, 0.16]
     (r,) = peaks_and_dips(ALPHA, d)
-    assert (r["alpha"], r["lower"], r["upper"], r["start"], r["end"], r["points"]) == (358.0, 3.0, 5.0, 355.0, 3.0, 9)
+    assert (r["alpha"], r["lower"], r["upper"], r["start"], r["end"], r["points"]) == (358.0, 4.0, 6.0, 355.0, 3.0, 9)
+    assert not r["lower_open"] and not r["upper_open"]
     # a partial grid is not circular: the same values give two features
     sub = np.arange(0.0, 359.0, 1.0)
     assert len(peaks_and_dips(sub, d[:359])) == 2
@@ -81,14 +83,49 @@ def test_rows_mirror_by_eq2_and_writers(tmp_path):
     lines = md.strip().splitlines()
     assert "alpha_1" in lines[0] and "alpha_3" in lines[0] and "alpha_4" in lines[0] and "alpha_2" in lines[0]
     assert len(lines) == 4  # header, rule, two paired rows
-    # widths: 3 (1 - k / 11) > 0.15 up to k = 10, 3 (1 - k / 5) up to k = 4
-    assert (_expected_width(3.0, 11), _expected_width(3.0, 5), _expected_width(2.9, 6)) == (10, 4, 5)
-    assert "$90^{+4}_{-10}$" in lines[2] and "$270^{+10}_{-4}$" in lines[2] and "$93^{+5}_{-10}$" in lines[2]
+    # widths: 3 (1 - k / 11) > 0.15 up to k = 10, so the interval reaches 11; 3 (1 - k / 5) up to 4: 5
+    assert (_expected_width(3.0, 11), _expected_width(3.0, 5), _expected_width(2.9, 6)) == (11, 5, 6)
+    # the paper's first row: 90^{+5}_{-11}, 270^{+11}_{-5}, 93^{+6}_{-11}
+    assert "$90^{+5}_{-11}$" in lines[2] and "$270^{+11}_{-5}$" in lines[2] and "$93^{+6}_{-11}$" in lines[2]
     txt = table5_text(rows)
-    assert "0.15" in txt and "313 +1/-4" in txt  # 1.9 (1 - 1 / 1.2) = 0.32 > 0.15
+    assert "0.15" in txt and "313 +2/-5" in txt  # 1.9 (1 - 1 / 1.2) = 0.32 > 0.15; 1.9 (1 - 2 / 1.2) < 0
     paths = write_table5(tmp_path, table, summary)
     assert [p.split("/")[-1] for p in paths] == ["table5.csv", "table5.md"]
     assert (tmp_path / "table5.md").read_text() == md
+
+
+def test_interval_is_never_narrower_than_the_grid_step():
+    """A feature one grid point wide printed 140 +0/-0 on a 20-deg grid:
+    the curve crosses the threshold somewhere before the neighbouring
+    angles, so the interval reaches them (as the paper's does: its case-4
+    dip at 324^{+1}_{-1} and peak at 326^{+1}_{-1} share 325 deg)."""
+    coarse = np.arange(0.0, 360.0, 20.0)
+    d = np.zeros(coarse.size)
+    d[7] = -2.0  # 140 deg
+    (r,) = peaks_and_dips(coarse, d)
+    assert (r["alpha"], r["lower"], r["upper"], r["points"]) == (140.0, 20.0, 20.0, 1)
+    assert (r["start"], r["end"]) == (140.0, 140.0)  # the run itself: one angle
+    d = np.zeros(ALPHA.size)
+    d[[323, 324, 325, 326, 327]] = [0.1, -0.42, 0.0, 0.32, 0.1]  # the paper's case 4, 323-327 deg
+    dip, peak = peaks_and_dips(ALPHA, d)
+    assert (dip["kind"], dip["alpha"], dip["lower"], dip["upper"]) == ("dip", 324.0, 1.0, 1.0)
+    assert (peak["kind"], peak["alpha"], peak["lower"], peak["upper"]) == ("peak", 326.0, 1.0, 1.0)
+    rows = table5_rows({"opposite": {"alpha": ALPHA, "delta_chi2": d}})
+    assert "324 +1/-1" in table5_text(rows) and "$36^{+1}_{-1}$" in table5_markdown(rows)  # Eq. 2: case 2
+    # at the end of a grid that is not a full circle the width is to that end, printed open
+    part = np.arange(20.0, 159.0, 1.0)  # the paper's 20-158 deg
+    d = np.zeros(part.size)
+    d[:3] = [1.0, 0.5, 0.2]
+    (r,) = peaks_and_dips(part, d)
+    assert (r["alpha"], r["lower"], r["lower_open"], r["upper"], r["upper_open"]) == (20.0, 0.0, True, 3.0, False)
+    rows = table5_rows({"same": {"alpha": part, "delta_chi2": d}})
+    assert "20 +3/->=0" in table5_text(rows) and r"$20^{+3}_{-\geq 0}$" in table5_markdown(rows)
+    assert "340 +>=0/-3" in table5_text(rows)  # the mirror: the open side swaps too
+    back = next(csv.DictReader(io.StringIO(table5_csv(rows))))
+    assert (back["lower_open"], back["upper_open"], back["mirror_upper_open"]) == ("True", "False", "True")
+    # a whole circle beyond the threshold: one feature, open on both sides
+    (r,) = peaks_and_dips(ALPHA, np.ones(ALPHA.size))
+    assert r["lower_open"] and r["upper_open"] and r["points"] == 360
 
 
 def test_bad_input():
