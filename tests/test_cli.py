@@ -523,3 +523,15 @@ def test_the_installed_command_freezes_its_objects_before_it_exits(monkeypatch, 
     assert main(["plot", "/no/such/folder"]) == 2 and not frozen
     assert cli.run() == 2 and frozen == [True]
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_python_m_jaxppo_is_the_command():
+    """``python -m jaxppo`` runs the same command (no module ran before)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "jaxppo", "plot", "/no/such/folder"], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 2 and "no such folder" in out.stderr and "jaxppo plot" in out.stderr, out
+    help_text = subprocess.run([sys.executable, "-m", "jaxppo", "--help"], capture_output=True, text=True, timeout=120)
+    assert help_text.returncode == 0 and help_text.stdout.startswith("usage: jaxppo"), help_text
