@@ -40,3 +40,13 @@ def pytest_configure(config):
     except Exception:  # arviz missing or broken: the tests that need it say so themselves
         pass
 
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark each test under tests/inference ``inference``: .ci/run runs
+    those at XLA's optimisation level 0 except the ones marked
+    ``runs_programs``, which it runs with the workflows at the default
+    level (``-m "not inference or runs_programs"``)."""
+    for item in items:
+        if Path(str(item.fspath)).resolve().parent.name == "inference":
+            item.add_marker("inference")

@@ -155,6 +155,7 @@ def _benchmark_fit(seed, capsys=None):
     return res, lc, checks
 
 
+@pytest.mark.runs_programs
 def test_fit_on_the_kepler20_benchmark_is_a_minimum_in_few_steps(capsys):
     """The benchmark of benchmarks/fit_timing.py (10 free parameters) on
     the data of seeds 7-11: optimistix's Levenberg-Marquardt took 451
@@ -220,6 +221,7 @@ def test_a_stalled_carried_hessian_is_checked_at_once():
     assert res.success and res.steps < 100, (res.steps, res.message)
 
 
+@pytest.mark.runs_programs
 def test_the_lowest_curvature_is_measured_along_its_direction():
     """Seed 19 of the benchmark: the Hessian assembled from second
     differences along the parameters and their weak combinations read

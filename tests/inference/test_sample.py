@@ -318,6 +318,7 @@ def test_rank_diagnostics_equal_arviz_and_never_negative():
 
 # ---- issue 22 item 0: right from an off-truth start ----
 
+@pytest.mark.runs_programs  # 129 s at XLA's level 0, 73 s at the default (CI, 2 workers)
 def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
     """One transit at 1-minute cadence, started 3 min off in t0, 5 % off in
     a/R* and the radius and at inc 88 deg for a true 88.3 deg (b = 0.31,
