@@ -375,6 +375,19 @@ def _clear_outputs(out: Path) -> None:
 _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.png", "fig7_paths.png", "probabilities.png")
 
 
+def _analysed_as_now(summary: dict) -> bool:
+    """Whether a finished scan's summary has what this release's analysis
+    gives: the goodness-of-fit and grid checks, the grid check's numbers
+    named for their grid (``*_on_grid``), and Table 5's intervals to the
+    first angle beyond each run (rows with ``lower_open``; older ones
+    spanned the run alone, 0 wide for a one-point feature)."""
+    if not {"goodness_of_fit", "alpha_grid_check"} <= set(summary):
+        return False
+    grid = summary["alpha_grid_check"].get("cases", {})
+    return (all("probabilities_on_grid" in c for c in grid.values())
+            and all("lower_open" in r for r in summary.get("table5", [])))
+
+
 def _finished_result(out: Path, cfg: ScanConfig, digest: str):
     """The stored result of a scan that already finished in ``out`` with this
     config (same digest, every output present), or None. A rerun then
@@ -386,8 +399,8 @@ def _finished_result(out: Path, cfg: ScanConfig, digest: str):
             return None
         if not all((out / n).is_file() for n in ("scan.ecsv", "table5.csv", "table5.md")) or "table5" not in summary:
             return None
-        if not {"goodness_of_fit", "alpha_grid_check"} <= set(summary):
-            return None  # finished before the scan checked its fit and grid: analyse again (chi^2 from the progress)
+        if not _analysed_as_now(summary):
+            return None  # analysed by an older release: analyse again (chi^2 from the progress)
         with open(out / "scan.csv") as fh:
             lines = fh.read().splitlines()
         if lines[0] != "case,alpha,chi2,delta_chi2,posterior":

@@ -850,19 +850,36 @@ def test_scan_refuses_untilted_planets_on_different_nodes():
     jp.sweep(s, lc.time, [0.0, 90.0])  # the light curves themselves are fine
 
 
-def test_a_scan_finished_before_the_checks_is_analysed_again(tmp_path):
+def _as_an_older_release(summary: dict, release: str) -> dict:
+    """A finished scan's summary as an older release wrote it: "checks" without the goodness-of-fit and grid
+    checks; "intervals" with Table 5 rows spanning the run alone (no open flags) and the grid check's numbers
+    under the answer's own names."""
+    old = json.loads(json.dumps(summary))
+    if release == "checks":
+        for key in ("goodness_of_fit", "alpha_grid_check"):
+            old.pop(key)
+        return old
+    for r in old["table5"]:
+        for k in ("lower_open", "upper_open", "mirror_lower_open", "mirror_upper_open"):
+            r.pop(k)
+    for c in old["alpha_grid_check"]["cases"].values():
+        for k in ("probabilities", "favoured", "jeffreys", "log10_bayes_factor"):
+            c[k] = c.pop(k + "_on_grid")
+    return old
+
+
+@pytest.mark.parametrize("release", ["checks", "intervals"])
+def test_a_scan_finished_before_the_checks_is_analysed_again(tmp_path, release):
     """A finished scan whose summary.json has no goodness-of-fit and grid checks (written by a version without
     them) was handed back as stored, its probabilities unchecked: it is analysed again from its progress file
-    (no chi^2 of the grid recomputed) and gets both checks."""
+    (no chi^2 of the grid recomputed) and gets both checks. So is one whose Table 5 spans each run alone (a
+    feature one point wide printed +0/-0) and whose grid check names its coarse numbers as the answer."""
     import jaxppo.obliquity._scan as scan_mod
 
     cfg = _small(tmp_path)
     run_scan(cfg, tmp_path / "out", progress=False)
     path = tmp_path / "out" / "summary.json"
-    old = json.loads(path.read_text())
-    for key in ("goodness_of_fit", "alpha_grid_check"):
-        old.pop(key)
-    path.write_text(json.dumps(old))
+    path.write_text(json.dumps(_as_an_older_release(json.loads(path.read_text()), release)))
     calls = []
     real = scan_mod.grid_chi2
 
@@ -876,6 +893,8 @@ def test_a_scan_finished_before_the_checks_is_analysed_again(tmp_path):
     finally:
         scan_mod.grid_chi2 = real
     assert again.summary["goodness_of_fit"]["ok"] and again.summary["alpha_grid_check"]["step"] == 12.0
+    assert all("probabilities_on_grid" in c for c in again.summary["alpha_grid_check"]["cases"].values())
+    assert all("lower_open" in r for r in again.summary["table5"])
     assert not again.resumed["finished_before"] and again.resumed["alphas_done_before"] == 60
     assert calls == []  # the grid's chi^2 came from the progress file (the midpoints: resolution_check's own)
 
