@@ -28,6 +28,7 @@ from ..model._lightcurve import LightCurve
 from ..model._processes import on_writer
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
+from ._stats import plot_range
 from ._tables import peaks_and_dips
 
 __all__ = ["scan_figures", "read_scan_csv", "FIGURES"]
@@ -123,6 +124,7 @@ def _fig5(plt, out, summary, table, system, cases, colors):
     fig, ax = plt.subplots(figsize=(8.0, 4.0))
     ymin, ymax = 0.0, 0.0
     labels = []
+    lo, hi = plot_range(table[_key(cases[0])]["alpha"])
     for ci, case in enumerate(cases):
         d = table[_key(case)]
         a, dc = d["alpha"], d["delta_chi2"]
@@ -136,12 +138,12 @@ def _fig5(plt, out, summary, table, system, cases, colors):
     span = max(ymax - ymin, 0.5)
     pad = 0.14 * span
     ax.set_ylim(ymin - pad, ymax + pad)
-    ax.set_xlim(0, 360)
+    ax.set_xlim(lo, hi)
     for x, y, text, col, ci in labels:
         # above peaks, below dips, the cases side by side; the anchor is
         # clamped so that the text stays inside the frame
         up = y >= 0
-        xx = min(max(x, 8.0), 352.0)
+        xx = min(max(x, lo + 0.022 * (hi - lo)), hi - 0.022 * (hi - lo))
         ax.annotate(text, (xx, y), textcoords="offset points", xytext=(4 * (2 * ci - 1) if len(cases) > 1 else 0,
                                                                       3 if up else -3),
                     ha="center", va="bottom" if up else "top", fontsize=7, color=col, clip_on=True)
@@ -149,10 +151,12 @@ def _fig5(plt, out, summary, table, system, cases, colors):
     ax.axhspan(-0.15, 0.15, color="0.85", lw=0, zorder=0, label=r"$|\Delta\chi^2| \leq 0.15$ (Table 5 threshold)")
     try:
         for lim in alpha_limits(system):
-            ax.axvline(lim, color="0.5", lw=0.6, ls=":")
+            x = lo + (lim - lo) % 360.0  # the same tilt on the grid's own range
+            if x <= hi:
+                ax.axvline(x, color="0.5", lw=0.6, ls=":")
     except ValueError:
         pass
-    ax.set_xticks(np.arange(0, 361, 45))
+    ax.set_xticks(np.arange(45.0 * np.ceil(lo / 45.0), hi + 1e-9, 45.0))
     ax.set_xlabel(r"tilt angle $\alpha$ [deg]")
     ax.set_ylabel(r"$\Delta\chi^2$")
     fig.suptitle(r"$\Delta\chi^2(\alpha)$; numbers: multi-transits with a PPO; dotted: $\alpha_{a..d}$ (Eqs. 3-6)",

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._stats import geometry_probabilities, goodness_of_fit, withheld
+from ._stats import geometry_probabilities, goodness_of_fit, plot_range, withheld
 from ._summary import DeprecatedSummaryAccess
 from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 
@@ -292,7 +292,7 @@ def plot_marginal(out: Path, result: MarginalResult, cfg) -> Path:
         ax.plot(fa, fw / (fw.sum() * step), color="k", lw=0.8, ls="--", label="fixed parameters")
         ax.set_xlabel("tilt angle alpha [deg]")
         ax.set_ylabel("p(alpha | D) [1/deg]")
-        ax.set_xlim(0, 360)
+        ax.set_xlim(*plot_range(fa))
         ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "marginal.png"

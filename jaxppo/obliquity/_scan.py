@@ -37,7 +37,7 @@ from ._keywords import Default, refuse_with_config, resolved
 from ._pairs import PAIRS_HEADER, pair_reports, partners_of
 from ._progress import atomic_write, read_progress, record_line
 from ._chi2 import analyse_case, grid_chi2, resolution_check
-from ._stats import guard_cases, withhold_cases
+from ._stats import guard_cases, plot_range, withhold_cases
 from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
@@ -222,7 +222,7 @@ class ScanResult(DeprecatedSummaryAccess):
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xlabel("tilt angle alpha [deg]")
         ax.set_ylabel("Delta chi^2")
-        ax.set_xlim(0, 360)
+        ax.set_xlim(*plot_range(self.table["alpha"][self.table["case"] == self.table["case"][0]]))
         ax.legend(fontsize=8)
         return ax
 

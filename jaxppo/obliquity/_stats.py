@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit",
-           "guard_cases", "withhold_cases", "bayes_factor_text", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+           "guard_cases", "withhold_cases", "bayes_factor_text", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
 # points): the model does not describe the data, and exp(-Delta chi^2 / 2)
@@ -17,6 +17,19 @@ __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", 
 # stay, with a caution.
 MISFIT_REDUCED_CHI2 = 1.25
 MISFIT_P_VALUE = 1e-3
+
+
+def plot_range(alpha) -> tuple[float, float]:
+    """The x limits of a plot over the tilt grid ``alpha`` [deg]: a grid
+    around the whole circle from its first angle to that + 360 (-180 ..
+    180 for ``--alpha -180 180 1``; a fixed 0 .. 360 cut half of it away),
+    a partial grid its own span."""
+    a = np.asarray(alpha, float)
+    if a.size < 2:
+        return (0.0, 360.0) if a.size == 0 else (float(a[0]) - 180.0, float(a[0]) + 180.0)
+    if a[0] + 360.0 - a[-1] <= float(np.max(np.diff(a))) * (1 + 1e-9):
+        return float(a[0]), float(a[0]) + 360.0
+    return float(a[0]), float(a[-1])
 
 
 def jeffreys(k: float) -> str:

@@ -6,13 +6,15 @@ sign) is one feature: its extreme value, the alpha of the extreme, and the
 interval of the run written as alpha^{+upper}_{-lower} (the paper: "we
 consider all Delta chi^2 values aside the maxima and minima, whose values are
 larger than +-0.15"; not an error bar). The interval reaches the first grid
-angle on each side that is not beyond the threshold: the curve crosses 0.15
-somewhere between the run's last point and that angle, so the interval
-holds the whole feature and is never narrower than one grid step (the
-paper's does the same: its case-4 dip at 324^{+1}_{-1} deg and peak at
+angle outside the run on each side (no longer beyond 0.15 with the
+feature's sign; where a feature of the other sign follows at once, that
+feature's first angle): the curve leaves the run somewhere between, so the
+interval holds the whole feature and is never narrower than one grid step
+(the paper's does the same: its case-4 dip at 324^{+1}_{-1} deg and peak at
 326^{+1}_{-1} deg share 325 deg, which neither run holds). Where a run
-reaches the end of a grid that is not a full circle, the width is to that
-end and is flagged open (printed ">=": the feature may go on). Paper cases
+reaches the end of a grid that is not a full circle, or covers the whole
+circle, the width is to that end and is flagged open (printed ">=": the
+feature may go on). Paper cases
 3 and 2 follow from cases 1 and 4 by Eq. 2, alpha -> 360 - alpha (which also
 swaps the interval's upper and lower widths). Runs that cross 360 -> 0 on a
 full-circle grid are one feature.
@@ -78,6 +80,8 @@ def _width(alpha, j: int, edge: int, side: int, circular: bool, points: int) -> 
         return float(np.mod(side * (alpha[nxt % n] - alpha[j]), 360.0)), False
     if not circular and 0 <= nxt < n:
         return float(side * (alpha[nxt] - alpha[j])), False
+    if not circular:
+        return float(side * (alpha[edge] - alpha[j])) + 0.0, True  # + 0.0: no "-0" printed
     return float(np.mod(side * (alpha[edge] - alpha[j]), 360.0)), True
 
 
@@ -85,8 +89,10 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
     """Features of one Delta chi^2(alpha) curve, in order of alpha.
 
     Args:
-        alpha: tilt angles [deg], 1D, increasing (a regular grid; a grid
-            covering [0, 360) is treated as circular).
+        alpha: tilt angles [deg], 1D, increasing, spanning less than 360
+            deg (0 and 360 are one tilt); a grid whose gap from its last
+            angle round to its first is no wider than its steps is
+            circular (features run through 360 -> 0).
         delta_chi2: Delta chi^2 at each alpha.
         threshold: |Delta chi^2| must exceed this (strictly) [paper: 0.15].
         ppo_transits: optional {f"{alpha:g}": [transit numbers]} (the scan's
@@ -95,11 +101,11 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
     Returns:
         dicts with ``kind`` ("peak" | "dip"), ``alpha`` [deg] of the extreme,
         ``delta_chi2`` there, ``lower`` and ``upper`` [deg] (alpha - lower and
-        alpha + upper are the first grid angles beyond the run, not beyond
-        the threshold: each at least one step away), ``lower_open`` and
+        alpha + upper are the first grid angles outside the run: each at
+        least one step away), ``lower_open`` and
         ``upper_open`` (True where the run reaches the end of a grid that is
         not a full circle: the width is to that end, and the feature may go
-        on), ``start`` and ``end`` [deg] of the run (its first and last
+        on; also for a run round the whole circle), ``start`` and ``end`` [deg] of the run (its first and last
         angle beyond the threshold), ``points`` in it, and ``transits`` (PPO
         transits at the extreme).
     """
@@ -113,10 +119,12 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
         raise ValueError("alpha and delta_chi2 must be finite")
     if alpha.size > 1 and np.any(np.diff(alpha) <= 0):
         raise ValueError("alpha must increase")
+    if alpha[-1] - alpha[0] >= 360.0:
+        raise ValueError(f"alpha must span less than 360 deg (0 and 360 are one tilt; a feature through them would "
+                         f"count twice), got {alpha[0]:g} .. {alpha[-1]:g}")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
-    step = float(alpha[1] - alpha[0]) if alpha.size > 1 else 360.0
-    circular = alpha.size > 1 and abs(alpha[0] + 360.0 - (alpha[-1] + step)) < 1e-6 * step
+    circular = alpha.size > 1 and alpha[0] + 360.0 - alpha[-1] <= float(np.max(np.diff(alpha))) * (1 + 1e-9)
     rows = []
     for sign, kind in ((1.0, "peak"), (-1.0, "dip")):
         for run in _runs(sign * d > threshold, circular):
@@ -255,7 +263,7 @@ def table5_markdown(rows: list[dict], cases=None) -> str:
     alpha with its interval, the Eq. 2 mirror (3 and 2), Delta chi^2 and the
     PPO transits, features of the two cases side by side."""
     cases = _cases_of(rows, cases)
-    if not cases:
+    if not cases or not rows:
         return "No Delta chi^2 feature beyond the threshold.\n"
     head = _header(rows, cases)
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -274,8 +282,8 @@ def table5_text(rows: list[dict], cases=None, threshold: float = THRESHOLD) -> s
     """Plain-text table for the terminal (same layout as the markdown)."""
     cases = _cases_of(rows, cases)
     title = (f"Table 5: Delta chi^2 peaks and dips (|Delta chi^2| > {threshold:g}; "
-             "interval: to the first angle on each side not beyond it)")
-    if not cases:
+             "interval: to the first angle on each side outside the run)")
+    if not cases or not rows:
         return title + "\n  none\n"
     head = _header(rows, cases)
     body = [_cells(p[0], False) + (_cells(p[1], False) if len(cases) > 1 else []) for p in _pair(rows, cases)]

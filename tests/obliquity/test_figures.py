@@ -189,3 +189,37 @@ def test_a_withheld_panel_of_the_probabilities_has_no_axes(tmp_path, monkeypatch
     assert not held.axison and "withheld" in " ".join(t.get_text() for t in held.texts)
     assert shown.axison and shown.get_ylabel() == "probability [%]" and len(shown.patches) == 2
     assert all(lab.get_visible() for lab in shown.get_yticklabels())
+
+
+def test_fig5_shows_a_grid_that_does_not_start_at_zero(tmp_path, monkeypatch):
+    """``--alpha -180 180 1`` is a grid the command accepts; Fig. 5's x axis was fixed at 0 .. 360, so half of
+    both curves was off the plot and the transit labels of the features at negative alpha were clamped to
+    the left edge with no curve under them."""
+    import jaxppo.obliquity._figures as figures
+    from jaxppo.obliquity._stats import plot_range
+
+    assert plot_range(np.arange(-180.0, 180.0, 1.0)) == (-180.0, 180.0)
+    assert plot_range(np.arange(10.0, 370.0, 5.0)) == (10.0, 370.0)
+    assert plot_range(np.arange(0.0, 360.0, 7.0)) == (0.0, 360.0)  # 357 -> 360 is within a step
+    assert plot_range(np.arange(20.0, 159.0, 1.0)) == (20.0, 158.0)  # a partial grid: its own span
+    system, windows, table, summary, cases = small_scan(step=12.0)
+    for case in cases:  # the same curves on the grid -180 .. 168 (alpha and alpha - 360 are one tilt)
+        d = table[case]
+        order = np.argsort(np.where(d["alpha"] >= 180.0, d["alpha"] - 360.0, d["alpha"]))
+        table[case] = {k: np.asarray(v)[order] for k, v in d.items()}
+        table[case]["alpha"] = np.where(table[case]["alpha"] >= 180.0, table[case]["alpha"] - 360.0, table[case]["alpha"])
+        ppo = summary["cases"][case]["ppo_transits"]  # keyed by the grid's own angles, as the scan writes them
+        summary["cases"][case]["ppo_transits"] = {f"{float(k) - 360.0 if float(k) >= 180.0 else float(k):g}": v
+                                                  for k, v in ppo.items()}
+    drawn = []
+    save = figures._save
+    monkeypatch.setattr(figures, "_save", lambda fig, path: (drawn.append(fig), save(fig, path))[1])
+    scan_figures(tmp_path, summary, table, system, windows, cases, which=("fig5",))
+    ax = drawn[0].axes[0]
+    assert ax.get_xlim() == (-180.0, 180.0)
+    for text in ax.texts:  # every transit label over its own feature (none clamped to an edge)
+        assert -180.0 < text.xy[0] < 180.0
+    assert any(t.xy[0] < 0 for t in ax.texts)  # the injected PPO at 312 deg is at -48 deg here
+    ticks = ax.get_xticks()
+    assert ticks[0] == -180.0 and ticks[-1] == 180.0
+    assert all(-180.0 <= line.get_xdata()[0] <= 180.0 for line in ax.lines if line.get_linestyle() == ":")

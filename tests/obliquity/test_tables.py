@@ -128,6 +128,29 @@ def test_interval_is_never_narrower_than_the_grid_step():
     assert r["lower_open"] and r["upper_open"] and r["points"] == 360
 
 
+def test_grid_ends_open_widths_and_a_grid_round_the_circle_at_uneven_steps():
+    """Review: an open width at the end of a partial grid was taken modulo 360 (0 for a run over 0 .. 360);
+    a grid holding both 0 and 360 counted a feature through them twice; a 7-deg grid (357 -> 0 is 3 deg) split
+    one feature into two open ones; a table without features printed a bare header."""
+    part = np.arange(0.0, 300.0, 10.0)
+    d = np.zeros(part.size)
+    d[1:] = 1.0  # beyond the threshold from 10 deg to the grid's end at 290
+    d[1] = 2.0
+    (r,) = peaks_and_dips(part, d)
+    assert (r["alpha"], r["lower"], r["lower_open"], r["upper"], r["upper_open"]) == (10.0, 10.0, False, 280.0, True)
+    with pytest.raises(ValueError, match="span less than 360 deg"):
+        peaks_and_dips(np.linspace(0.0, 360.0, 361), np.zeros(361))
+    seven = np.arange(0.0, 360.0, 7.0)  # ... 350, 357, then 0 again 3 deg on
+    d = np.zeros(seven.size)
+    d[[-2, -1, 0, 1]] = [0.5, 1.0, 2.0, 0.5]
+    (r,) = peaks_and_dips(seven, d)
+    assert (r["alpha"], r["start"], r["end"], r["points"]) == (0.0, 350.0, 7.0, 4)
+    assert (r["lower"], r["upper"], r["lower_open"], r["upper_open"]) == (17.0, 14.0, False, False)
+    rows = table5_rows({"same": {"alpha": ALPHA, "delta_chi2": np.zeros(360)}}, cases=("same", "opposite")[:1])
+    assert rows == [] and table5_text(rows, ("same",)).rstrip().endswith("none")
+    assert table5_markdown(rows, ("same",)) == "No Delta chi^2 feature beyond the threshold.\n"
+
+
 def test_bad_input():
     with pytest.raises(ValueError, match="alpha and delta_chi2 must be 1D"):
         peaks_and_dips(ALPHA, np.zeros(3))
