@@ -128,6 +128,15 @@ class LightCurve:
         if dup.any():
             raise ValueError(f"time has {int(dup.sum())} repeated time stamps (first at {t[1:][dup][0]!r}); each would "
                              "count twice in chi^2 (LightCurve.from_arrays keeps the first and reports it)")
+        if self.exposure is not None and t.size >= 3:
+            # an exposure in minutes or seconds read as days (29.4 for 29.4 min) averaged the model over weeks
+            # and asked for tens of GiB; exposures longer than the points' spacing overlap each other
+            spacing = float(np.median(np.diff(t)))
+            if self.exposure > 2.0 * spacing:
+                raise ValueError(
+                    f"exposure must be a number of days no longer than the points' spacing, got {self.exposure:g} "
+                    f"d, {self.exposure / spacing:.3g} times their median spacing of {spacing:.6g} d (a 29.4-min "
+                    "Kepler long cadence is 0.0204 d)")
         object.__setattr__(self, "time", t)
         object.__setattr__(self, "flux", f[order])
         object.__setattr__(self, "flux_err", e[order])

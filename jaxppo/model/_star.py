@@ -68,6 +68,14 @@ def _profile(star: "Star", mu):
     return star.total_flux, star.intensity(mu)
 
 
+def _plain(v) -> str:
+    """A coefficient as an error message shows it: a NumPy number as the
+    plain number (5.0, not np.float64(5.0)), anything else as its repr."""
+    if isinstance(v, (np.floating, np.integer)) and not isinstance(v, np.bool_):
+        return repr(v.item())
+    return repr(v)
+
+
 def _check_profile(star: "Star", coefficients: str) -> "Star":
     """Refuse a law whose total flux F0 is not positive (the normalisation
     would flip or blow up every light curve) and warn when its intensity is
@@ -418,7 +426,7 @@ class Star(eqx.Module):
         _check_finite("u1", u1)
         _check_finite("u2", u2)
         star = cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
-        return _check_profile(star, f"u1={u1!r}, u2={u2!r}")
+        return _check_profile(star, f"u1={_plain(u1)}, u2={_plain(u2)}")
 
     @classmethod
     def nonlinear(cls, c1: ArrayLike, c2: ArrayLike, c3: ArrayLike, c4: ArrayLike) -> "Star":
@@ -459,7 +467,7 @@ class Star(eqx.Module):
         for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
             _check_finite(name, v)
         star = cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
-        return _check_profile(star, f"c1={c1!r}, c2={c2!r}, c3={c3!r}, c4={c4!r}")
+        return _check_profile(star, f"c1={_plain(c1)}, c2={_plain(c2)}, c3={_plain(c3)}, c4={_plain(c4)}")
 
     @classmethod
     def power2(cls, c: ArrayLike, alpha: ArrayLike) -> "Star":
@@ -506,7 +514,7 @@ class Star(eqx.Module):
         if not _is_traced(alpha) and np.any(np.asarray(alpha, dtype=float) <= 0):
             raise ValueError(f"power-2 exponent alpha must be > 0, got {alpha!r}")
         star = cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
-        return _check_profile(star, f"c={c!r}, alpha={alpha!r}")
+        return _check_profile(star, f"c={_plain(c)}, alpha={_plain(alpha)}")
 
     @classmethod
     def tabulated(
@@ -686,7 +694,7 @@ class Star(eqx.Module):
         given = np.atleast_1d(np.asarray(coefficients, dtype=object))
         for k, v in enumerate(given):
             _check_finite(f"coefficients[{k}]", v)  # a quoted number or a bool is refused by name
-        coefficients = list(np.asarray(given, dtype=float)) if given.size else []
+        coefficients = [float(v) for v in np.asarray(given, dtype=float)] if given.size else []  # plain floats print plainly
         need = {"uniform": 0, "quadratic": 2, "nonlinear": 4, "power2": 2}
         if law not in need:
             raise ValueError(f"unknown limb-darkening law {law!r}; expected one of {tuple(need)} (tables: Star.tabulated)")

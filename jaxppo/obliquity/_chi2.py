@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model._exposure import supersampled_times
 from ..model._lightcurve import LightCurve
 from ..model._overlap import ppo_table, quiet_model
 from ..model._sweep import sweep
@@ -50,7 +51,7 @@ def analyse_case(system, windows, data: LightCurve, alphas, chi2, case, step: fl
     untilted planets: 2e6 off for such a triple). ``names_case``: the case
     whose names the geometries take (default ``case``)."""
     alphas = np.asarray(alphas, float)
-    times = [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0] for w in windows]
+    times = [supersampled_times(w.time, w.exposure)[0] for w in windows]
     ppo = ppo_table(system, times, alphas, case)
     quiet = ~ppo.any(1)
     chi2_0 = float(np.median(chi2[quiet])) if quiet.any() else quiet_chi2(system, data, case)
@@ -92,8 +93,7 @@ def resolution_check(system, data: LightCurve, alphas, chi2_by_case: dict, chi2_
     mids = alphas + 0.5 * step
     fine = np.stack([alphas, mids], axis=1).reshape(-1)
     cases, moved = {}, []
-    times = None if windows is None else [LightCurve(w.time, w.flux, w.flux_err, w.exposure).supersampled_times()[0]
-                                          for w in windows]
+    times = None if windows is None else [supersampled_times(w.time, w.exposure)[0] for w in windows]
     for case, chi2 in chi2_by_case.items():
         # where no frame of the windows has a PPO, chi^2 is the ground level exactly: computed only elsewhere
         todo = np.ones(mids.size, bool) if times is None else ppo_table(system, times, mids, case).any(1)

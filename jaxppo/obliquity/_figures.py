@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model._lightcurve import LightCurve
+from ..model._exposure import supersampled_times
 from ..model._processes import on_writer
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
@@ -77,12 +77,11 @@ def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np
     rule of the scan's chi^2 (``LightCurve.supersampled_times``): the
     figures show the model whose chi^2 the scan reports. ``time`` in any
     order, with repeats."""
-    # a LightCurve sorts its times and drops repeated ones: the model at the
-    # distinct times, then back in the order given
+    # the model at the distinct times (sorted), then back in the order given; the times may be a fine grid for a
+    # smooth curve, closer than the exposure (a LightCurve of data refuses that)
     distinct, back = np.unique(np.asarray(time, float), return_inverse=True)
     alphas = np.atleast_1d(np.asarray(alphas, float))
-    ones = np.ones_like(distinct)
-    tm, n = LightCurve(distinct, ones, ones, exposure or None).supersampled_times()
+    tm, n = supersampled_times(distinct, exposure or None)
     f = sweep(system, tm, alphas, cases=(case,), no_overlap=no_overlap)[0]
     return f.reshape(alphas.size, distinct.size, n).mean(-1)[:, back.ravel()]
 

@@ -238,6 +238,20 @@ def test_exposure_quantity_is_stored_in_days():
         jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=[1, 2] * u.min)
 
 
+def test_an_exposure_in_minutes_read_as_days_is_refused():
+    """exposure = 29.4 (minutes, read as days) on a 29.4-min cadence averaged the model over a month and the
+    scan asked for 40.9 GiB ("internal error: MemoryError"); an exposure longer than twice the points' median
+    spacing is refused, naming it; one as long as the spacing (Kepler long cadence) is fine."""
+    t = 100.0 + np.arange(50) * 0.0204336
+    ok = jp.LightCurve(t, np.ones(50), np.full(50, 1e-3), exposure=0.0204336)
+    assert ok.exposure == 0.0204336
+    jp.LightCurve(t[::5], np.ones(10), np.full(10, 1e-3), exposure=0.0204336)  # every fifth point: shorter
+    for bad in (29.4, 1765.0, 0.49):  # minutes, seconds, hours read as days
+        with pytest.raises(ValueError, match=rf"exposure must be a number of days no longer than the points' "
+                                             rf"spacing, got {bad:g} d, .* median spacing of 0.0204336 d"):
+            jp.LightCurve(t, np.ones(50), np.full(50, 1e-3), exposure=bad)
+
+
 def test_repeated_time_stamps_are_never_silent():
     """The old constructor accepted the same cadence twice (it would count
     twice in chi^2); now it refuses, and the loaders drop and count it."""

@@ -193,6 +193,11 @@ def test_non_physical_laws():
         jp.Star.quadratic(3.0 * (1.0 - 1e-14), 0.0)
     with pytest.raises(ValueError, match="total flux"):
         jp.Star.nonlinear(2.0, 2.0, 0.0, 0.0)
+    # numbers from a config or an array print as numbers, not np.float64(5.0)
+    with pytest.raises(ValueError, match=r"Star.nonlinear\(c1=5.0, c2=5.0, c3=5.0, c4=5.0\) has total flux"):
+        jp.Star.from_law("nonlinear", [5, 5, 5, 5])
+    with pytest.raises(ValueError, match=r"law 'nonlinear' needs 4 coefficients, got 2: \[0.4, 0.2\]$"):
+        jp.Star.from_law("nonlinear", np.array([0.4, 0.2]))
     with pytest.warns(UserWarning, match=r"u1=1.5, u2=0.5\) has negative intensity I\(mu=0\) = -1"):
         jp.Star.quadratic(1.5, 0.5)
     with pytest.warns(UserWarning, match="negative intensity"):

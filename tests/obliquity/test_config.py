@@ -67,6 +67,18 @@ def test_data_columns_named_by_the_user(tmp_path):
         load_config(_cfg(tmp_path, 'path = "d.csv"\ncolumns = {flux_err = "err_flux"}'))
 
 
+def test_data_exposure_in_minutes_is_refused_by_name(tmp_path):
+    """``exposure = 29.4`` (the cadence in minutes) ended in "internal error: MemoryError: Unable to allocate
+    40.9 GiB"; now a clear error naming [data] exposure and its value."""
+    lc = _lc()
+    _csv(tmp_path / "d.csv", "time,flux,flux_err", (lc.time, lc.flux, lc.flux_err))
+    step = float(np.median(np.diff(lc.time)))
+    assert load_config(_cfg(tmp_path, f'path = "d.csv"\nexposure = {step!r}')).lightcurve.exposure == step
+    with pytest.raises(ValueError, match=r"\[data\].*exposure must be a number of days no longer than the points' "
+                                         r"spacing, got 29.4 d"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"\nexposure = 29.4'))
+
+
 def test_data_several_gzipped_quarters(tmp_path):
     lc = _lc()
     half = lc.time.size // 2
