@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit",
-           "guard_cases", "withhold_cases", "bayes_factor_text", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+           "guard_cases", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
 # points): the model does not describe the data, and exp(-Delta chi^2 / 2)
@@ -19,6 +19,15 @@ MISFIT_REDUCED_CHI2 = 1.25
 MISFIT_P_VALUE = 1e-3
 
 
+def full_circle(alpha) -> bool:
+    """Whether the increasing tilt grid ``alpha`` [deg] goes round the
+    circle: its gap from the last angle round to the first is no wider
+    than its widest step (0 .. 359 by 1; 0 .. 357 by 7, whose last gap is
+    3 deg)."""
+    a = np.asarray(alpha, float)
+    return a.size > 1 and bool(a[0] + 360.0 - a[-1] <= float(np.max(np.diff(a))) * (1 + 1e-9))
+
+
 def plot_range(alpha) -> tuple[float, float]:
     """The x limits of a plot over the tilt grid ``alpha`` [deg]: a grid
     around the whole circle from its first angle to that + 360 (-180 ..
@@ -27,7 +36,7 @@ def plot_range(alpha) -> tuple[float, float]:
     a = np.asarray(alpha, float)
     if a.size < 2:
         return (0.0, 360.0) if a.size == 0 else (float(a[0]) - 180.0, float(a[0]) + 180.0)
-    if a[0] + 360.0 - a[-1] <= float(np.max(np.diff(a))) * (1 + 1e-9):
+    if full_circle(a):
         return float(a[0]), float(a[0]) + 360.0
     return float(a[0]), float(a[-1])
 

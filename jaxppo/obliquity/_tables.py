@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model._processes import is_writer
+from ._stats import full_circle
 
 __all__ = [
     "THRESHOLD", "peaks_and_dips", "table5_rows", "table5_csv", "table5_markdown", "table5_text", "write_table5",
@@ -124,7 +125,7 @@ def peaks_and_dips(alpha, delta_chi2, threshold: float = THRESHOLD, ppo_transits
                          f"count twice), got {alpha[0]:g} .. {alpha[-1]:g}")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
-    circular = alpha.size > 1 and alpha[0] + 360.0 - alpha[-1] <= float(np.max(np.diff(alpha))) * (1 + 1e-9)
+    circular = full_circle(alpha)
     rows = []
     for sign, kind in ((1.0, "peak"), (-1.0, "dip")):
         for run in _runs(sign * d > threshold, circular):
