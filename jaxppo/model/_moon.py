@@ -133,7 +133,7 @@ class Moon(eqx.Module):
                  ("radius", radius, ""), ("mass_ratio", mass_ratio, ""), ("lnode", lnode, "deg"),
                  ("e", e, ""), ("omega", omega, "deg"))
         v = {k: from_quantity(k, val, unit) for k, val, unit in units}
-        label = f"moon {str(name)!r}: " if name else ""
+        label = f"moon {str(name)!r}: " if name else "moon: "
         for k in ("period", "a", "radius"):
             _check(label + k, v[k], lower=0.0)
         _check(label + "mass_ratio", v["mass_ratio"], lower=0.0, strict_lower=False)
@@ -245,7 +245,7 @@ def _check_group(planet, moons) -> tuple:
             touch = float(np.max(np.asarray(planet.radius, float) + np.asarray(m.radius, float)))
             if np.any(peri <= touch):
                 raise ValueError(
-                    f"moons[{k}] ({m.name!r}): periapsis a (1 - e) = {float(np.min(peri)):.4g} R* <= planet radius "
+                    f"moons[{k}]{f' ({m.name!r})' if m.name else ''}: periapsis a (1 - e) = {float(np.min(peri)):.4g} R* <= planet radius "
                     f"+ moon radius = {touch:.4g} R*, so the moon would hit its planet")
     return moons
 

@@ -61,6 +61,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike
 
+from ._planet import check_periastron, warn_if_never_transits
+
 __all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "default_dt", "R_SUN_AU", "G_AU_DAY"]
 
 #: Nominal solar radius (IAU 2015 B3, 695 700 km) in au (IAU 2012, 149 597 870.7 km).
@@ -398,6 +400,10 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
         v = _concrete_or_none(value)
         if v is not None and not (v.ndim == 0 and np.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        lo, hi, unit = STAR_RANGES[name]
+        if v is not None and not lo <= v <= hi:
+            raise ValueError(f"{name} = {float(v):.6g} {unit} is outside {lo:g}..{hi:g} {unit}: {name} is in {unit} "
+                             "(a Quantity in other units is converted)")
     periods = [_concrete_or_none(pl.period) for pl in planets]
     if all(p is not None for p in periods):
         if np.any(np.diff(np.asarray(periods, float)) <= 0):
@@ -442,7 +448,18 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
                 f"planet {pl.name!r}: a = {float(given):.6g} R* disagrees with Kepler's third law for its period, "
                 f"the masses and star_radius ({float(derived):.6g} R*); an N-body System derives a: give a=None")
         out.append(eqx.tree_at(lambda p: p.a, pl, jnp.asarray(a, float)))  # no re-check: a may be traced
+        # the derived orbit's checks of a Keplerian Planet (traced values pass):
+        # a unit slip in star_radius or star_mass shows here
+        why = " (Kepler's third law from its period, the masses and star_radius)"
+        check_periastron(pl.name, out[-1].a, pl.e, pl.radius, why)
+        warn_if_never_transits(out[-1], orbit=f" (its osculating orbit at epoch {epoch:g}, a by Kepler's third "
+                                              "law from its period, the masses and star_radius)")
     return tuple(out), star_mass, star_radius, epoch, dt, span
+
+
+# star_mass [M_sun] and star_radius [R_sun] outside these are a unit slip
+# (kg, km, metres), not a star: brown dwarfs and white dwarfs to supergiants
+STAR_RANGES = {"star_mass": (1e-3, 1e3, "M_sun"), "star_radius": (1e-3, 1e4, "R_sun")}
 
 
 def _elements(system, signs, extra_node):

@@ -20,12 +20,14 @@ from ._contacts import eccentric_contacts
 from ._ttv import check_transit_times, epochs_text, mid_time, shifted_time
 from ._units import from_quantity
 
-__all__ = ["Planet"]
+__all__ = ["Planet", "check_periastron", "warn_if_never_transits"]
 
 
 def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
     if isinstance(value, jax.core.Tracer):
         return
+    if value is None:
+        raise ValueError(f"{name} must be a number, got None")
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")
@@ -33,6 +35,51 @@ def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
     if np.any(bad):
         op = ">" if strict else ">="
         raise ValueError(f"{name} must be {op} {lower}, got {value!r}")
+
+
+def check_periastron(name: str, a, e, radius, why: str = "") -> None:
+    """Refuse an orbit whose periastron a (1 - e) [R*] is not clear of the
+    star (<= 1 + radius), naming the planet; traced values pass. ``why``:
+    where ``a`` comes from, when the user did not give it."""
+    if any(isinstance(v, jax.core.Tracer) for v in (a, e, radius)):
+        return
+    peri = np.asarray(a, float) * (1.0 - np.asarray(e, float))
+    if np.any(peri <= 1.0 + np.asarray(radius, float)):
+        raise ValueError(
+            f"planet {name!r}: a = {np.min(np.asarray(a, float)):.4g} R*{why} and e = {e!r} put periastron at "
+            f"a (1 - e) = {np.min(peri):.4g} R* <= 1 + radius = {1.0 + np.max(np.asarray(radius, float)):.4g} R*, so "
+            "the planet would hit the star")
+
+
+def warn_if_never_transits(planet, orbit: str = "") -> None:
+    """Warn when a planet's orbit never crosses the stellar disk (|b| >= 1 +
+    radius, and for an eccentric orbit no contacts): usually an inclination
+    in radians, or a unit slip in a or the star's size. A moon reaches up
+    to a_m (1 + e_m) from its planet and may transit when the planet does
+    not (no warning then). ``orbit``: what orbit is meant, for the message
+    (N-body planets: their osculating orbit at the epoch)."""
+    fields = (planet.a, planet.inc, planet.radius, planet.e, planet.omega)
+    if any(isinstance(v, jax.core.Tracer) for v in fields) or np.any(np.isnan(np.asarray(planet.a, float))):
+        return
+    a, inc, radius, e_ = (np.asarray(v, float) for v in fields[:4])
+    w_ = np.deg2rad(np.asarray(planet.omega, float))
+    b = np.abs(a * np.cos(np.deg2rad(inc))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
+    # an eccentric orbit's sky distance is smallest off conjunction, so a b
+    # just above 1 + radius may still graze: ask the contacts
+    reach = max([float(np.max(np.asarray(m.a) * (1.0 + np.asarray(m.e)) + np.asarray(m.radius)))
+                 for m in planet.moons if not any(isinstance(v, jax.core.Tracer) for v in (m.a, m.e, m.radius))]
+                or [0.0])
+    never = b >= 1.0 + np.maximum(radius, reach)
+    if np.any(never) and not planet.circular:
+        never = never & (np.asarray(planet.contacts()[1]) == 0)
+    if np.any(never):
+        formula = "a |cos i|" if planet.circular else "a |cos i| (1 - e^2) / (1 + e sin omega)"
+        warnings.warn(
+            f"planet {planet.name!r}{orbit}: inc = {inc.tolist()} deg and a = {np.max(a):.4g} R* give |b| = {formula} "
+            f"= {np.max(b):.4g} >= 1 + radius, so it never transits (inc is in degrees, a in stellar radii; a "
+            "Quantity is converted)",
+            UserWarning, stacklevel=user_stacklevel(),
+        )
 
 
 def user_stacklevel() -> int:
@@ -214,13 +261,8 @@ class Planet(eqx.Module):
             e_arr = np.asarray(e, dtype=float)
             if not np.all(np.isfinite(e_arr)) or np.any((e_arr < 0) | (e_arr >= 1)):
                 raise ValueError(f"{who}e (eccentricity) must be in [0, 1), got {e!r}")
-            if not no_a and not any(isinstance(v, jax.core.Tracer) for v in (a, radius)):
-                peri = np.asarray(a, float) * (1.0 - e_arr)
-                if np.any(peri <= 1.0 + np.asarray(radius, float)):
-                    raise ValueError(
-                        f"planet {str(name)!r}: e = {e!r} puts periastron at a (1 - e) = {np.min(peri):.4g} R* <= "
-                        f"1 + radius = {1.0 + np.max(np.asarray(radius, float)):.4g} R*, so the planet would hit the star"
-                    )
+            if not no_a:
+                check_periastron(str(name), a, e, radius)
         self.period = jnp.asarray(period, float)
         self.t0 = jnp.asarray(t0, float)
         self.a = jnp.asarray(a, float)
@@ -245,25 +287,8 @@ class Planet(eqx.Module):
         self.transit_times, self.transit_epochs = check_transit_times(
             transit_times, transit_epochs, period, t0, self.name)
         # ---- end transit times
-        if not no_a and not any(isinstance(v, jax.core.Tracer) for v in (a, inc, radius, e, omega)):
-            e_, w_ = np.asarray(e, float), np.deg2rad(np.asarray(omega, float))
-            b = np.abs(np.asarray(a, float) * np.cos(np.deg2rad(np.asarray(inc, float)))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
-            # an eccentric orbit's sky distance is smallest off conjunction,
-            # so a b just above 1 + radius may still graze: ask the contacts
-            # a moon reaches up to a_m (1 + e_m) from its planet, and may
-            # transit when the planet does not (no warning then)
-            reach = max([float(np.max(np.asarray(m.a) * (1.0 + np.asarray(m.e)) + np.asarray(m.radius)))
-                         for m in self.moons if not any(isinstance(v, jax.core.Tracer) for v in (m.a, m.e, m.radius))]
-                        or [0.0])
-            never = b >= 1.0 + np.maximum(np.asarray(radius, float), reach)
-            if np.any(never) and not self.circular:
-                never = never & (np.asarray(self.contacts()[1]) == 0)
-            if np.any(never):
-                warnings.warn(
-                    f"planet {self.name!r}: inc = {np.asarray(inc, float).tolist()} deg gives |b| = {'a |cos i|' if self.circular else 'a |cos i| (1 - e^2) / (1 + e sin omega)'} = {np.max(b):.4g} >= 1 + radius, "
-                    "so it never transits (inc is in degrees; a Quantity in radians is converted)",
-                    UserWarning, stacklevel=user_stacklevel(),
-                )
+        if not no_a:
+            warn_if_never_transits(self)
 
     @property
     def circular(self) -> bool:

@@ -257,9 +257,14 @@ def test_system_with_moons_disks_tilt_cases_and_refusals():
     np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13)
     with pytest.raises(ValueError, match="must be a Moon"):
         jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09, moons=[b])
-    with pytest.raises(ValueError, match="would hit its planet"):
+    with pytest.raises(ValueError, match=r"^moons\[0\]: periapsis .* would hit its planet"):
         jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09,
                   moons=[Moon(period=1.0, t0=0.0, a=0.1, inc=90.0, radius=0.02)])
+    # an unnamed moon's errors say it is a moon's parameter
+    with pytest.raises(ValueError, match="^moon: mass_ratio must be finite and >= 0, got -0.1"):
+        Moon(period=1.0, t0=0.0, a=0.5, inc=90.0, radius=0.02, mass_ratio=-0.1)
+    with pytest.raises(ValueError, match="^planet 'b': mass must be a number, got None"):
+        jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09, name="b", mass=None)
 
 
 def test_no_never_transits_warning_when_a_moon_can_transit():

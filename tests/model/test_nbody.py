@@ -26,6 +26,7 @@ import importlib.util
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import jax
@@ -154,6 +155,36 @@ def test_system_nbody_bad_inputs():
         jax.jit(lambda t: jp.System(star, pl, **ok).flux(t))(jnp.array([200.0]))
     inside = jax.jit(lambda t: jp.System(star, pl, **ok, span=(150.0, 250.0)).flux(t))(jnp.array([159.1102]))
     assert float(inside[0]) < 0.999
+
+
+def test_derived_orbits_get_the_checks_of_a_keplerian_planet():
+    """An N-body planet's a comes from Kepler's third law, after Planet's
+    checks ran on a = None: a periastron inside the star (P = 1 d, e = 0.9:
+    0.42 R*), a star_radius in km or a star_mass in kg (a = 2.8e-5 R* or
+    2.5e11 R*) gave a normal-looking light curve, or none, without a word.
+    Now the same refusal as for a Keplerian planet, a refusal of star sizes
+    no star has, and the "never transits" warning on the osculating orbit."""
+    star = jp.Star.uniform()
+    ok = dict(orbits="nbody", epoch=0.0, star_mass=1.0, star_radius=1.0)
+
+    def planet(**kw):
+        return jp.Planet(**{**dict(period=10.0, t0=0.0, a=None, inc=90.0, radius=0.05, mass=3e-6, name="b"), **kw})
+
+    with pytest.raises(ValueError, match="planet 'b'.*periastron at a \\(1 - e\\) = 0.42.*would hit the star"):
+        jp.System(star, [planet(period=1.0, e=0.9)], **ok)
+    with pytest.raises(ValueError, match="a = 0.57.*would hit the star"):
+        jp.System(star, [planet(period=0.05)], **ok)
+    with pytest.raises(ValueError, match="star_radius = 695700 R_sun is outside"):
+        jp.System(star, [planet()], **{**ok, "star_radius": 695700.0})
+    with pytest.raises(ValueError, match="star_mass = 1.989e\\+30 M_sun is outside"):
+        jp.System(star, [planet()], **{**ok, "star_mass": 1.989e30})
+    with pytest.warns(UserWarning, match="planet 'b' \\(its osculating orbit at epoch 0.*never transits"):
+        jp.System(star, [planet(inc=80.0)], **ok)  # a = 19.5 R*, b = 3.4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.System(star, [planet(inc=89.0)], **ok)  # b = 0.34: transits, no warning
+        # a white dwarf (0.013 R_sun) and a brown dwarf host are stars
+        jp.System(star, [planet(period=3.0)], **{**ok, "star_mass": 0.6, "star_radius": 0.013})
 
 
 def test_kepler51_positions_match_rebound():
