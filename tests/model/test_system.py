@@ -281,7 +281,7 @@ def test_flux_positions_sweep_convert_time_quantities():
 
 
 def test_planet_that_never_transits_warns():
-    with pytest.warns(UserWarning, match=r"inc = 1.53 deg gives \|b\| = a \|cos i\| = 10.6"):
+    with pytest.warns(UserWarning, match=r"inc = 1.53 deg and a = 10.6 R\* give \|b\| = a \|cos i\| = 10.6"):
         jp.Planet(period=3.0, t0=0.0, a=10.6, inc=1.53, radius=0.02, name="b")
     import warnings
 
