@@ -72,8 +72,8 @@ def _with_times(pl: Planet, new: dict) -> Planet:
     times = {} if pl.transit_times is None else dict(zip(pl.transit_epochs, np.asarray(pl.transit_times, float)))
     times.update(new)
     epochs = sorted(times)
-    fields = {k: getattr(pl, k) for k in ("period", "t0", "a", "inc", "radius", "name", "e", "omega")}
-    return Planet(**fields, transit_times=[times[e] for e in epochs], transit_epochs=epochs)
+    # every other element kept as it is (lnode: two planets' overlap geometry)
+    return pl.replace(transit_times=[times[e] for e in epochs], transit_epochs=epochs)
 
 
 def _classes(windows) -> list[list[int]]:
