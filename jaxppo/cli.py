@@ -295,6 +295,8 @@ def cmd_sample(args) -> int:
               f"ess bulk {d['ess_bulk']:.0f} tail {d['ess_tail']:.0f}")
     div = int(np.sum(res.stats["diverging"]))
     print(f"{args.chains} chains x {args.samples} draws, {div} divergent transitions")
+    for line in res.problems():
+        print(f"warning: {line}")
     if args.out:
         res.save(args.out)
         print(f"wrote {args.out} (jaxppo.SampleResult.load reads it)")

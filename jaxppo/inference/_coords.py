@@ -34,7 +34,7 @@ from ..model._system import System
 from ._params import inc_sign_matters, is_moon, is_tc, planet_value, star_value
 
 __all__ = ["Coordinates", "default_priors", "start_q", "a_from_density", "density_from_a", "check_density",
-           "default_density"]
+           "default_density", "window_priors"]
 
 G_CGS = 6.67430e-8  # [cm^3 g^-1 s^-2] (CODATA 2018)
 DAY_S = 86400.0
@@ -122,6 +122,27 @@ def default_priors(model, user=None):
             out.append(dist.Uniform(v - 1.0, v + 1.0))
         else:
             out.append(_planet_prior(model.system.planets[owner], par))
+    return out
+
+
+def window_priors(model, user=None) -> dict:
+    """The free parameters whose prior is a default WINDOW about the start
+    (not a physical bound), name -> (low, high): t0 and listed transit
+    times (+-0.05 d), the period (+-0.1 %), a node (+-90 deg), the light
+    curve's offset and baseline coefficients, the star's limb-darkening
+    coefficients (+-1; not Kipping's q, whose [0, 1] is physical) and an
+    N-body star's mass and radius (factor 2), a moon's t0 and period.
+    A posterior against such a bound is the window's, not the data's
+    (``jaxppo.sample`` warns). Parameters with a prior in ``user`` are the
+    user's choice and not listed."""
+    user = dict(user or {})
+    out = {}
+    for name, (owner, par), pr in zip(model.free, model.slots, default_priors(model, user)):
+        moon_window = is_moon(par) and par[2] in ("t0", "period")
+        window = (par in ("t0", "period", "lnode") or is_tc(par) or moon_window
+                  or (owner == "lc" and par != "jitter") or (owner == "star" and par not in ("q1", "q2")))
+        if window and name not in user:
+            out[name] = (float(pr.support.lower_bound), float(pr.support.upper_bound))
     return out
 
 

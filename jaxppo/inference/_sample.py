@@ -44,7 +44,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
-from ._coords import Coordinates, default_priors, start_q
+from ._coords import Coordinates, default_priors, start_q, window_priors
 from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -105,7 +105,10 @@ class SampleResult:
         Where the chains started: {"optimised": bool, "converged": bool or
         None, "message": str} (``converged`` False: the optimiser did not
         find the posterior mode from the given system, and a UserWarning
-        said so).
+        said so), and "prior_bound": the free parameters whose posterior
+        lies against a bound of its default prior window (t0 +-0.05 d, P
+        +-0.1 % ... about the start; a UserWarning says so). ``problems()``
+        lists what a user should look at before using the draws.
 
     Examples
     --------
@@ -149,6 +152,51 @@ class SampleResult:
     pointwise: object = None  # callable: [draw, k] physical -> [draw, time] log-likelihood
     names: tuple = ()  # the free parameters (``chains`` also holds derived u1, u2)
     start: dict = dataclasses.field(default_factory=dict)  # how the start was found (see ``sample``)
+
+    def problems(self, r_hat_max: float = 1.01, ess_per_chain: float = 100.0) -> list:
+        """What to look at before using the draws, one line each (empty: none).
+
+        Rank-normalised R-hat above ``r_hat_max`` or not finite, bulk or
+        tail ESS below ``ess_per_chain`` per chain (Vehtari et al. 2021:
+        1.01 and 100), divergent transitions, a posterior against a bound
+        of its default prior window (``start["prior_bound"]``), an
+        optimiser that did not find the mode, and draws that reached frames
+        the model did not compute.
+
+        Parameters
+        ----------
+        r_hat_max : float, optional
+            Largest acceptable R-hat (default 1.01).
+        ess_per_chain : float, optional
+            Smallest acceptable bulk and tail ESS per chain (default 100).
+
+        Returns
+        -------
+        list of str
+            One line per problem.
+        """
+        chains = max(len(next(iter(self.chains.values()))) if self.chains else 1, 1)
+        out = []
+        names = list(self.diagnostics)
+        bad_r = [n for n in names if not self.diagnostics[n]["r_hat"] <= r_hat_max]
+        if bad_r:
+            out.append(f"R-hat above {r_hat_max} (or not finite) for {bad_r}: the chains disagree; run longer")
+        ess = {n: min(self.diagnostics[n]["ess_bulk"], self.diagnostics[n]["ess_tail"]) for n in names}
+        low = [n for n in names if not ess[n] >= ess_per_chain * chains]
+        if low:
+            out.append(f"ESS below {ess_per_chain:g} per chain ({ess_per_chain * chains:g}) for {low} (lowest "
+                       f"{min(ess[n] for n in low):.0f}): intervals are uncertain; run longer")
+        div = int(np.sum(self.stats["diverging"])) if "diverging" in self.stats else 0
+        if div:
+            out.append(f"{div} divergent transitions: the sampler missed part of the posterior")
+        if self.start.get("prior_bound"):
+            out.append(f"posterior against its default prior window for {list(self.start['prior_bound'])}: the "
+                       "window, not the data, sets that edge; start nearer the solution (jp.fit) or give priors")
+        if self.start.get("converged") is False:
+            out.append(f"the optimiser did not find the posterior mode ({self.start.get('message', '')})")
+        if self.start.get("frames_complete") is False:
+            out.append("draws reached frames the model did not compute (see the warning of jaxppo.sample)")
+        return out
 
     def save(self, path) -> str:
         """Write the result to a numpy ``.npz`` file (no pickle).
@@ -459,11 +507,33 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
                       f"({used.active_idx.size} of {used.t_model.shape[0]} computed, {model.active_idx.size} needed): "
                       "those draws' likelihoods are short of the planets' transits there; check the posterior's "
                       "tails (grazing orbits) or narrow the priors", UserWarning, stacklevel=2)
+    result.start["prior_bound"] = _against_windows(model, priors, result)
     if start["converged"] is False:
         warnings.warn(f"sample: the optimiser did not find the posterior mode from the given system ({start['message']});"
                       " the chains started there with the Laplace metric of that point: check R-hat, or start closer "
                       "(e.g. at jp.fit's solution)", UserWarning, stacklevel=2)
     return result
+
+
+def _against_windows(model: Model, user, result: SampleResult) -> list:
+    """The free parameters whose posterior lies against a bound of its
+    default prior window (``window_priors``: the median within 3 standard
+    deviations of the bound), each with a UserWarning: the window cut the
+    posterior (a start far from the data's solution: the windows are
+    centred on it), not the data."""
+    out = []
+    for name, (lo, hi) in window_priors(model, user).items():
+        s = np.asarray(result.samples[name], float)
+        med, sd = float(np.median(s)), float(np.std(s))
+        bound = lo if med - lo < hi - med else hi
+        if abs(med - bound) < 3.0 * sd or not np.isfinite(med):
+            out.append(name)
+            warnings.warn(f"sample: the posterior of {name} (median {med:.10g}, sd {sd:.3g}) lies against the bound "
+                          f"{bound:.10g} of its default prior [{lo:.10g}, {hi:.10g}], a window centred on the start: "
+                          "the window, not the data, sets that edge (a start far from the data's solution, or data "
+                          "that do not measure it, e.g. a period from one transit); start nearer the solution (e.g. "
+                          f"at jp.fit's) or give priors={{{name!r}: ...}}", UserWarning, stacklevel=3)
+    return out
 
 
 def _check_priors(model: Model, system: System, user) -> None:

@@ -318,6 +318,34 @@ def test_rank_diagnostics_equal_arviz_and_never_negative():
 
 # ---- issue 22 item 0: right from an off-truth start ----
 
+def test_a_posterior_cut_by_its_default_prior_window_is_named(tmp_path):
+    """The default t0 prior is a window of +-0.05 d about the start: started
+    86 min late, the draws piled against its edge (t0 = start - 0.05 d, sd
+    3 s, the radius biased by 2 %) while R-hat, ESS and the optimiser all
+    said converged, and nothing warned. Now a UserWarning names t0,
+    ``start["prior_bound"]`` lists it, ``problems()`` (which the CLI
+    prints) says so, and it survives save / load; the radius, whose
+    log-uniform prior is a physical bound, is not listed."""
+    truth, lc = _one_planet()
+    pl = truth.planets[0]
+    late = truth.replace(planets=(pl.replace(t0=0.06),))
+    with pytest.warns(UserWarning, match=r"posterior of b.t0 .* lies against the bound 0.01 of its default prior"):
+        res = jp.sample(late, lc, free=("b.t0", "b.radius"), num_warmup=60, num_samples=60, num_chains=2, seed=0,
+                        progress_bar=False)
+    assert res.start["prior_bound"] == ["b.t0"]
+    assert any("default prior window for ['b.t0']" in line for line in res.problems())
+    assert jp.SampleResult.load(res.save(tmp_path / "r.npz")).start["prior_bound"] == ["b.t0"]
+    # a user prior is the user's choice: not listed (the window check is for the defaults)
+    from jaxppo.inference._coords import window_priors
+    from jaxppo.inference._model import Model
+
+    model = Model(late, lc, ("b.t0", "b.period", "b.radius", "star.u1"))
+    assert sorted(window_priors(model)) == ["b.period", "b.t0", "star.u1"]
+    assert window_priors(Model(late, lc, ("b.radius", "star.q1", "lc.jitter"))) == {}  # physical bounds
+    import numpyro.distributions as dist
+    assert sorted(window_priors(model, {"b.t0": dist.Normal(0.06, 1.0)})) == ["b.period", "star.u1"]
+
+
 @pytest.mark.runs_programs  # 129 s at XLA's level 0, 73 s at the default (CI, 2 workers)
 def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
     """One transit at 1-minute cadence, started 3 min off in t0, 5 % off in
@@ -347,6 +375,9 @@ def test_from_an_off_truth_start_the_posterior_is_folded_and_covers_the_truth():
     inc = res.samples["b.inc"]
     assert np.all(inc <= 90.0), inc.max()
     assert res.start["optimised"] and res.start["converged"], res.start
+    # one transit does not measure the period: its posterior is the prior's
+    # +-0.1 % window, and is named (t0, a, inc and the radius are the data's)
+    assert res.start["prior_bound"] == ["b.period"], res.start
     for n in free:
         med, sd = np.median(res.samples[n]), np.std(res.samples[n])
         want = float(getattr(pl, n.split(".")[1]))
