@@ -24,7 +24,7 @@ from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
-from ._stats import geometry_names, goodness_of_fit, jeffreys
+from ._stats import geometry_names, goodness_of_fit, jeffreys, reach_check
 from ._windows import windows_and_events, windows_data
 
 __all__ = ["joint_scan", "prograde", "joint_lines"]
@@ -295,6 +295,11 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
             warnings.warn(f"joint_scan: case {case}: one seed; the errors leave out the spread between runs "
                           "(seeds=(0, 1) gives it)", stacklevel=2)
     fit = _goodness_of_fit([done[f"{c}#{s}"] for c in cfg.cases for s in seeds], len(data))
+    # did the sampled model reach the configuration's own fit? (the fixed scan, in every process)
+    fixed = _fixed_scan(cfg) if fixed is None else fixed
+    fit["reach"] = reach_check(fit, fixed.summary["goodness_of_fit"], len(free), "sampler's particles")
+    if fit["ok"] and not fit["reach"]["ok"]:
+        fit.update(ok=False, reason=fit["reach"]["reason"])
     factors, log_factors = {}, {}
     names = list(cases)
     for i, a in enumerate(names):

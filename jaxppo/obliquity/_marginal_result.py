@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._stats import geometry_probabilities, goodness_of_fit, plot_range, withheld
+from ._stats import geometry_probabilities, goodness_of_fit, plot_range, reach_check, withheld
 from ._summary import DeprecatedSummaryAccess
 from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 
@@ -168,6 +168,10 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
     fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+    # did the draws reach the configuration's own fit? (the fixed scan's best)
+    fit["reach"] = reach_check(fit, fixed.summary.get("goodness_of_fit") or {}, len(samples), "draws")
+    if fit["ok"] and not fit["reach"]["ok"]:
+        fit.update(ok=False, reason=fit["reach"]["reason"])
     grid = (fixed.summary.get("alpha_grid_check") or {}).get("cases", {})
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]

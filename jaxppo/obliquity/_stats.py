@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit",
+__all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit", "reach_check",
            "guard_cases", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
@@ -146,6 +146,40 @@ def goodness_of_fit(chi2_best: float, points: int, where: str = "at the best til
         "(jaxppo fit, or the marginal scan: --marginalize N)")
     return {"chi2_best": chi2_best, "points": int(points), "reduced": float(reduced), "p_value": p,
             "ok": bool(ok), "reason": reason, "caution": caution}
+
+
+def reach_check(fit: dict, fixed_fit: dict, k: int, what: str) -> dict:
+    """Did the sampled model reach the fit of the configuration's own
+    parameters? ``fit``: ``goodness_of_fit`` of the least chi^2 the
+    sampler's draws or particles reached (over tilts and cases);
+    ``fixed_fit``: that of the fixed-parameter scan of the same data (its
+    best tilt and case); ``k`` free parameters. The sampled model holds the
+    configuration's parameters (unless it ties them, e.g. every a/R* to
+    one stellar density), so its draws come within about k / 2 of its best
+    chi^2, which is at most the fixed scan's: a least chi^2 more than
+    k + 3 sqrt(2 k) above the fixed scan's means the sampler's model cannot
+    describe the data as well as the fixed parameters do (injected data
+    whose a/R* imply two stellar densities, tied to one), or the sampler
+    missed the solution; its geometry probabilities are then those of the
+    wrong model. Returns {"ok", "reason" (None when ok or unchecked),
+    "excess", "limit", "fixed_chi2_best", "checked"}; unchecked where
+    either chi^2 is missing or the point counts differ."""
+    least, best, n = fit.get("chi2_best"), fixed_fit.get("chi2_best"), fixed_fit.get("points")
+    limit = float(k + 3.0 * np.sqrt(2.0 * k))
+    out = {"ok": True, "reason": None, "excess": None, "limit": limit, "fixed_chi2_best": best, "checked": False}
+    if least is None or best is None or n != fit.get("points"):
+        return out
+    excess = float(least) - float(best)
+    out.update(excess=excess, checked=True)
+    if excess > limit:
+        out.update(ok=False, reason=(
+            f"the least chi^2 the {what} reached ({float(least):.6g}) is {excess:.1f} above the fixed scan's best "
+            f"({float(best):.6g}, the configuration's own parameters), more than {k} free parameters allow "
+            f"({limit:.1f}): the sampled model cannot fit these data as well as the fixed parameters do (every a/R* "
+            "tied to one stellar density where the configuration's a/R* imply different ones, e.g. data made by "
+            "jaxppo simulate from the paper's a/R*; give stellar_density or free fewer a/R*), or the sampler missed "
+            "the solution; its geometry probabilities would be those of the wrong model"))
+    return out
 
 
 def guard_cases(cases: dict, chi2_best: float, points: int) -> dict:
