@@ -86,6 +86,15 @@ def _classes(windows) -> list[list[int]]:
     return [[i for i, c in enumerate(colour) if c == k] for k in range(max(colour) + 1)]
 
 
+def start_shifts(grid: int) -> np.ndarray:
+    """The starting shifts in units of the search half-width: ``grid``
+    evenly spaced in [-1, 1], and 0 (the start) whatever the parity of
+    ``grid``, ordered by size, so that where shifts tie (every one moves
+    the transit off the data) the first minimum is the unshifted start."""
+    frac = np.unique(np.r_[np.linspace(-1.0, 1.0, grid), 0.0])
+    return frac[np.argsort(np.abs(frac), kind="stable")]
+
+
 def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> jnp.ndarray:
     """Theta with each free mid-time moved to the shift (on a grid of
     ``grid`` shifts of up to +-search [d]) that minimises the chi^2 of
@@ -94,7 +103,8 @@ def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> 
     planets on the star together) are searched in turn, each with the
     others at their best so far, twice over."""
     theta = model.to_theta(model.system)
-    frac = np.linspace(-1.0, 1.0, grid)
+    frac = start_shifts(grid)
+    grid = frac.size
     n = model.y.size
     classes = _classes(windows)
     for _ in range(1 if len(classes) == 1 else 2):
@@ -103,7 +113,7 @@ def _grid_start(model: Model, slots, search: np.ndarray, grid: int, windows) -> 
             shifts = jnp.asarray(frac[:, None] * search[members][None, :])
             thetas = jnp.tile(theta, (grid, 1)).at[:, idx].add(shifts)
             r2 = np.asarray(model.residuals_batch(thetas))[:, :n] ** 2
-            best = [int(np.argmin(r2[:, windows[i]].sum(1))) if windows[i].any() else grid // 2 for i in members]
+            best = [int(np.argmin(r2[:, windows[i]].sum(1))) if windows[i].any() else 0 for i in members]  # 0: the start
             theta = theta.at[idx].set(jnp.asarray(np.asarray(thetas)[np.array(best), idx]))
     return theta
 
@@ -134,11 +144,10 @@ def _joint_grid(model: Model, theta, slots, names, search, grid: int, windows, l
     of a joint grid over their shifts, on the group's points only: searched
     one at a time, each time can take the other's dip (a swapped pair is a
     deep local minimum of chi^2)."""
-    frac = np.linspace(-1.0, 1.0, grid)
     for group in _groups(windows):
         if len(group) > 3:
             continue  # the passes of _grid_start only
-        axis = frac if len(group) == 2 else np.linspace(-1.0, 1.0, min(grid, 21))
+        axis = start_shifts(grid if len(group) == 2 else min(grid, 21))
         mask = np.any([windows[i] for i in group], axis=0)
         sub = Model(model.to_system(theta), lc.select(mask), tuple(names[i] for i in group), alpha, case,
                     active_margin=2.5)
@@ -403,6 +412,10 @@ def _plan(system: System, lc, chosen, min_points: int, search):
         t1, t4 = (float(v) for v in system.planets[i].contacts())
         width = 0.5 * (t4 - t1) if search is None else float(search)
         label = planet_label(system, i)
+        period = float(system.planets[i].period)
+        if search is not None and width >= 0.5 * period:
+            raise ValueError(f"search must be below half the period of planet {label} (P / 2 = {0.5 * period:g} d: "
+                             f"a shift of half a period is the next transit), got {width:g} d (search is in days)")
         for n, _ in found[i]:
             tc = start.planets[i].mid_time(n)
             plan.append({"name": f"{label}.tc[{n}]", "planet": label, "epoch": n, "contacts": (t1, t4),

@@ -185,6 +185,28 @@ def test_measured_times_keep_every_other_element_of_the_planets():
     assert res.chi2 < len(lc) + 3 * np.sqrt(2 * len(lc))
 
 
+def test_an_even_or_coarse_grid_keeps_the_start_and_search_stays_below_half_a_period():
+    """An even ``grid`` had no zero shift, and where every shift moved the
+    transit off the data (a search of 1 d: minutes typed as days) the tied
+    chi^2 took the first, -search: "does not transit in the data at the
+    start" and NaN errors, though the start did. Now the start is always
+    among the shifts and wins ties; a search of half a period or more is
+    refused by name."""
+    from jaxppo.inference._times import start_shifts
+
+    assert start_shifts(10)[0] == 0.0 and start_shifts(10).size == 11 and start_shifts(41).size == 41
+    b = jp.Planet(period=10.0, t0=100.0, a=20.0, inc=89.5, radius=0.08, name="b")
+    system = jp.System(jp.Star.quadratic(0.4, 0.25), [b])
+    t = np.concatenate([np.arange(100.0 + n * 10.0 - 0.4, 100.0 + n * 10.0 + 0.4, 2 / 1440) for n in range(3)])
+    lc = jp.simulate(system, t, noise=5e-4, seed=4)
+    table = jp.measure_transit_times(system, lc, search=1.0, grid=10)
+    assert table.meta["success"] and np.all(np.isfinite(table["tc_err"]))
+    off = np.asarray(table["tc"]) - 100.0 - 10.0 * np.asarray(table["epoch"])
+    assert np.all(np.abs(off) < 4 * np.asarray(table["tc_err"])), off * 1440
+    with pytest.raises(ValueError, match=r"search must be below half the period of planet b \(P / 2 = 5 d"):
+        jp.measure_transit_times(system, lc, search=6.0)
+
+
 def test_chi2_column_is_that_of_the_measured_times():
     """Transits far from their start: the per-transit chi^2 is computed at
     the measured times (it used the start's frames: 1962 for 125 points)."""
