@@ -169,9 +169,26 @@ def test_a_joint_run_whose_model_does_not_fit_the_data_rates_nothing(tmp_path, m
     rows = np.genfromtxt(tmp_path / "joint.csv", delimiter=",", names=True, dtype=None, encoding=None)
     assert rows.size == 720 and np.all(np.isnan(rows["posterior"]))
     assert (tmp_path / "joint.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # chi^2 / N = 1.1 (p = 1e-4 for 2,924 points, within the limit): rated as before, with a caution
+    # The sampler's least chi^2 against the fixed scan's best (the configuration's own parameters):
+    # 50 above it (reduced chi^2 ~ 1, so the goodness of fit passes) is more than 10 free
+    # parameters allow (10 + 3 sqrt(20) = 23.4): the sampled model cannot reach the configuration's
+    # fit (data made from a/R* of two stellar densities, tied to one), withheld; 5 above: rated
+    fixed = joint._fixed_scan(cfg)
+    best, n = fixed.summary["goodness_of_fit"]["chi2_best"], fixed.summary["points"]
+    reduced["value"] = (best + 50.0) / n
+    far = jp.joint_scan(cfg, out=tmp_path / "far", fixed=fixed, **kw)
+    assert not far["goodness_of_fit"]["ok"] and far["goodness_of_fit"]["reach"]["excess"] == pytest.approx(50.0)
+    assert "cannot fit these data as well as the fixed parameters do" in far["goodness_of_fit"]["reason"]
+    assert all(c["jeffreys"] == "not rated" and c["favoured"] is None for c in far["cases"].values())
+    reduced["value"] = (best + 5.0) / n
+    near = jp.joint_scan(cfg, out=tmp_path / "near", fixed=fixed, **kw)
+    assert near["goodness_of_fit"]["ok"] and near["goodness_of_fit"]["reach"]["checked"]
+    assert all(c["jeffreys"] != "not rated" for c in near["cases"].values())
+    # chi^2 / N = 1.1 (p = 1e-4 for 2,924 points, within the limit), the fixed scan's alike (a
+    # stand-in, as the sampler is): rated as before, with a caution
     reduced["value"] = 1.1
-    ok = jp.joint_scan(cfg, out=tmp_path / "fits", **kw)
+    fixed.summary["goodness_of_fit"]["chi2_best"] = 1.1 * n
+    ok = jp.joint_scan(cfg, out=tmp_path / "fits", fixed=fixed, **kw)
     assert ok["goodness_of_fit"]["ok"] and "raise every ln K by about 10 %" in ok["goodness_of_fit"]["caution"]
     assert all(c["jeffreys"] != "not rated" and not c.get("withheld") for c in ok["cases"].values())
     assert "caution: chi^2 = 3216.4 for 2924 points" in "\n".join(joint.joint_lines(ok))
