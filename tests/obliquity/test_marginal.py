@@ -73,6 +73,34 @@ def test_equal_draws_reproduce_the_plain_scan(real, tmp_path):
     _strict((tmp_path / "marginal.json").read_text())
 
 
+def test_draws_that_do_not_reach_the_fixed_fit_rate_nothing(real, tmp_path):
+    """Draws that fit the data far worse than the configuration's own
+    parameters (in a review, NUTS draws whose a/R* were tied to one stellar
+    density, on data made from a/R* of two: chi^2 43 above the fixed
+    scan's best of 2,884 for 2,924 points, so the goodness of fit passed)
+    rated the geometries of a model that does not describe the data. Now
+    the least chi^2 of the draws is checked against the fixed scan's best:
+    more than k + 3 sqrt(2 k) above it (k free parameters) withholds every
+    case with the reason. Here 30 draws at the fixed parameters against a
+    fixed scan whose best chi^2 is set 20 lower (a stand-in: on these 27
+    points a real offset is caught by the goodness of fit first); the same
+    draws against the true fixed scan pass (the test above)."""
+    system, lc = real
+    fixed = jp.scan(system, lc, **KW)
+    same = {f"{pl.name}.{p}": np.full(30, float(getattr(pl, p))) for pl in system.planets for p in ("t0", "a")}
+    fixed.summary["goodness_of_fit"]["chi2_best"] -= 20.0
+    m = marginal_scan(system, lc, samples=same, fixed=fixed, out=tmp_path, progress=False, figures=False, **KW)
+    reach = m.summary["goodness_of_fit"]["reach"]
+    assert reach["checked"] and reach["excess"] == pytest.approx(20.0, abs=1e-6), reach
+    assert reach["limit"] == pytest.approx(4 + 3 * np.sqrt(8.0)) and not m.summary["goodness_of_fit"]["ok"]
+    for case in ("same", "opposite"):
+        cs = m.summary["cases"][case]
+        assert not cs["reliable"] and cs["importance"]["withheld_by"] == "goodness_of_fit"
+        assert "cannot fit these data as well as the fixed parameters do" in cs["importance"]["reason"]
+        assert all(g["probability"] is None for g in cs["geometries"].values() if isinstance(g, dict))
+    _strict((tmp_path / "marginal.json").read_text())
+
+
 def test_importance_average_against_brute_force(real, tmp_path):
     """Per-draw Delta chi^2 and the marginal -2 log mean exp(-Delta chi^2/2)
     against a plain loop over draws: System.flux with the exact union
