@@ -200,7 +200,28 @@ def cmd_simulate(args) -> int:
                               radius_scale=args.radius_scale)
     lc.to_csv(out)
     print(f"wrote {out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
+    if args.alpha is not None:
+        print(_injected_ppos(jp.kepler20_system(radius_scale=args.radius_scale), lc.time, args.alpha, args.case))
     return 0
+
+
+def _injected_ppos(system, time, alpha: float, case: str) -> str:
+    """Which double transits of the simulated data carry a planet-planet
+    occultation at the injected tilt (a tilt without any gives data
+    without a PPO signal: nothing for a scan to recover)."""
+    import jaxppo as jp
+    from jaxppo.model._overlap import ppo_table
+
+    time = np.asarray(time, float)
+    events = jp.multi_transits(system, float(time.min()), float(time.max()))
+    frames = [time[(time >= e.start) & (time <= e.end)] for e in events]
+    events, frames = [e for e, f in zip(events, frames) if f.size], [f for f in frames if f.size]  # those with data
+    hit = ppo_table(system, frames, np.array([float(alpha)]), case)[0]
+    if not hit.any():
+        return (f"no PPO at alpha {alpha:g} deg (case {case}) in any of the {len(events)} double transits: the data "
+                "carry no occultation signal to recover (a larger --radius-scale widens the tilts that give one)")
+    mids = ", ".join(f"{e.mid:.2f}" for e, h in zip(events, hit) if h)
+    return f"PPO at alpha {alpha:g} deg (case {case}) in {int(hit.sum())} of {len(events)} double transits (BKJD {mids})"
 
 
 _DEFAULT_FREE = "the config's [fit] free, else every planet's t0 (its transit times, tc, where listed) and radius"
@@ -619,12 +640,22 @@ def main(argv=None) -> int:
         print(f"{name}: error: cannot read or write{where}: {err.strerror or err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"{name}: interrupted (a scan resumes where it stopped when rerun with the same --out)", file=sys.stderr)
+        again = ("a scan resumes where it stopped when rerun with the same --out" if args.command == "scan" else
+                 "this command does not resume: run it again")
+        print(f"{name}: interrupted ({again})", file=sys.stderr)
         return 130
     except Exception as err:  # a bug: still one line, with what to report
         print(f"{name}: internal error: {type(err).__name__}: {_one_line(err)} (a bug in jaxppo "
               f"{__version__}; please report it with the command line)", file=sys.stderr)
         return 1
+
+
+def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as the command's other messages are (``warnings.showwarning``
+    of ``run``): one line on stderr, ``jaxppo COMMAND: warning: ...``,
+    without Python's file, line and source echo."""
+    command = sys.argv[1] if len(sys.argv) > 1 and not sys.argv[1].startswith("-") else ""
+    print(f"jaxppo{' ' + command if command else ''}: warning: {_one_line(message)}", file=sys.stderr)
 
 
 def run() -> int:
@@ -633,9 +664,12 @@ def run() -> int:
     interpreter's last garbage collection, which walked all of JAX's and
     matplotlib's objects for half a second at the end of every command,
     has nothing to walk. The files are written and closed by then; ``main``
-    itself, called in a test or a notebook, leaves the collector alone."""
+    itself, called in a test or a notebook, leaves the collector alone.
+    Warnings print as one line each (``jaxppo scan: warning: ...``), without
+    Python's file, line and source echo."""
     import gc
 
+    warnings.showwarning = show_warning
     status = main()
     gc.freeze()
     return status

@@ -52,9 +52,39 @@ def test_default_scan_and_plot(tmp_path):
     assert (out / "scan.ecsv").exists()
 
 
-def test_simulate_writes_csv(tmp_path):
-    assert main(["simulate", "--out", str(tmp_path / "d.csv"), "--noise", "1e-4", "--alpha", "151"]) == 0
+def test_simulate_writes_csv_and_says_which_transits_carry_the_injected_ppo(tmp_path, capsys):
+    """A tilt was injected without a word on whether it gives a PPO: 147 deg
+    (the docs' example, which needs --radius-scale 2) gives none in any of
+    the seven double transits, and a recovery test then found a flat
+    posterior. Now simulate says where the injected tilt occults."""
+    assert main(["simulate", "--out", str(tmp_path / "d.csv"), "--noise", "1e-4", "--alpha", "141"]) == 0
     assert (tmp_path / "d.csv").read_text().startswith("time,flux,flux_err")
+    assert "PPO at alpha 141 deg (case same) in 1 of 7 double transits (BKJD 1017.82)" in capsys.readouterr().out
+    assert main(["simulate", "--out", str(tmp_path / "d.csv"), "--alpha", "147"]) == 0
+    assert "no PPO at alpha 147 deg (case same) in any of the 7 double transits" in capsys.readouterr().out
+    assert main(["simulate", "--out", str(tmp_path / "d.csv"), "--alpha", "147", "--radius-scale", "2"]) == 0
+    assert "in 2 of 7 double transits (BKJD 334.02, 1017.82)" in capsys.readouterr().out
+
+
+def test_warnings_print_as_one_line(monkeypatch, capsys):
+    """The installed command (``run``) prints a warning as its errors are
+    printed: one line, no Python file, line number and source echo."""
+    from jaxppo.cli import show_warning
+
+    monkeypatch.setattr("sys.argv", ["jaxppo", "scan", "--out", "x"])
+    show_warning(UserWarning("draws = 16 is below\n min_ess = 25"), UserWarning, "/x/cli.py", 140, line="m = ...")
+    assert capsys.readouterr().err == "jaxppo scan: warning: draws = 16 is below min_ess = 25\n"
+
+
+def test_an_interrupted_command_says_whether_it_resumes(monkeypatch, capsys):
+    import jaxppo.cli as cli
+
+    def stop(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "cmd_simulate", stop)
+    assert main(["simulate", "--out", "d.csv"]) == 130
+    assert "jaxppo simulate: interrupted (this command does not resume: run it again)" in capsys.readouterr().err
 
 
 def test_bad_config_exits_with_message(tmp_path):
