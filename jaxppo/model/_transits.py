@@ -241,7 +241,14 @@ def planet_label(system: System, i: int) -> str:
 
 def transit_windows(system: System, idx, t_start: float, t_end: float) -> list:
     """(first contact, last contact, planet index, mid-transit) [d] of every
-    transit that touches [t_start, t_end], sorted by first contact."""
+    transit that touches [t_start, t_end], sorted by first contact.
+    A system with moons is refused: the windows are the planets' own
+    contacts, and a moon, up to a_m (1 + e_m) from its planet (which
+    recoils from it), crosses the star outside them."""
+    if any(pl.moons for pl in system.planets):
+        raise ValueError("multi-transit windows (multi_transits, multi_transit_counts) come from each planet's own "
+                         "contacts and do not follow moons (a moon reaches a_m (1 + e_m) from its planet, which "
+                         "recoils from it): events would be missed or misplaced; find them from system.positions")
     windows = []
     nbody = None
     if system.orbits == "nbody":

@@ -260,6 +260,12 @@ def test_system_with_moons_disks_tilt_cases_and_refusals():
     with pytest.raises(ValueError, match=r"^moons\[0\]: periapsis .* would hit its planet"):
         jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.8, radius=0.09,
                   moons=[Moon(period=1.0, t0=0.0, a=0.1, inc=90.0, radius=0.02)])
+    # multi-transit windows are the planets' contacts: a moon's events would be missed (a review found
+    # a moon on the star with planet c listed as no event at all), so a system with moons is refused
+    with pytest.raises(ValueError, match="do not follow moons"):
+        jp.multi_transits(system, 0.0, 100.0)
+    with pytest.raises(ValueError, match="do not follow moons"):
+        jp.multi_transit_counts(system, np.linspace(0.0, 100.0, 50))
     # an unnamed moon's errors say it is a moon's parameter
     with pytest.raises(ValueError, match="^moon: mass_ratio must be finite and >= 0, got -0.1"):
         Moon(period=1.0, t0=0.0, a=0.5, inc=90.0, radius=0.02, mass_ratio=-0.1)
