@@ -111,6 +111,9 @@ class MarginalResult(DeprecatedSummaryAccess):
             The lines, without newlines.
         """
         lines = [f"marginalised over {self.summary['draws']} draws ({self.summary['sampler'].get('method', '')})"]
+        mixing = self.summary.get("sampler_mixing") or {}
+        if mixing.get("caution"):
+            lines.append(f"  caution: {mixing['caution']}")
         for case, c in self.summary["cases"].items():
             geo, fx = c["geometries"], self.fixed.probabilities[case]
             imp = c["importance"]
@@ -147,15 +150,54 @@ class MarginalResult(DeprecatedSummaryAccess):
 
 
 
-def _other_checks(check: dict, fit: dict, grid: dict) -> None:
+# R-hat of the sampler's draws (rank-normalised, split): above STUCK_R_HAT the
+# chains sit in different places (a review's 16 draws: up to 5.8) and the
+# draws are no sample of the posterior, whatever the importance weights say;
+# above CAUTION_R_HAT (Vehtari et al. 2021 ask for 1.01; the bundled real scan
+# at 64 draws reaches 1.41) the probabilities carry more Monte Carlo error
+# than their spread over draws shows
+STUCK_R_HAT = 1.5
+CAUTION_R_HAT = 1.1
+
+
+def sampler_mixing(sampler: dict) -> dict:
+    """Do the sampler's chains agree? From its per-parameter diagnostics
+    (``nuts_draws``; draws given by the caller have none: "checked"
+    False): {"checked", "r_hat_max", "worst" (the parameters above
+    CAUTION_R_HAT, or not finite), "ok" (False above STUCK_R_HAT or
+    not finite), "reason", "caution"}."""
+    diag = sampler.get("diagnostics") or {}
+    out = {"checked": bool(diag), "r_hat_max": None, "worst": [], "ok": True, "reason": None, "caution": None}
+    if not diag:
+        return out
+    r = {n: d.get("r_hat") for n, d in diag.items()}
+    bad = {n: v for n, v in r.items() if v is None or not np.isfinite(v) or v > CAUTION_R_HAT}
+    finite = [v for v in r.values() if v is not None and np.isfinite(v)]
+    out.update(r_hat_max=max(finite) if finite else None, worst=sorted(bad))
+    text = ", ".join(f"{n} {'n/a' if v is None or not np.isfinite(v) else f'{v:.2f}'}" for n, v in sorted(bad.items()))
+    if any(v is None or not np.isfinite(v) or v > STUCK_R_HAT for v in bad.values()):
+        out.update(ok=False, reason=(
+            f"the sampler's chains disagree (R-hat {text}; above {STUCK_R_HAT:g} or not computable: chains in "
+            "different places, or too few draws per chain): the draws are no sample of the transit posterior, "
+            "and the importance weights cannot see it; draw more (--marginalize N, more warm-up)"))
+    elif bad:
+        out["caution"] = (f"the sampler's chains mix partially (R-hat {text}, above {CAUTION_R_HAT:g}): the "
+                          "probabilities carry more Monte Carlo error than their spread over draws shows; draw more")
+    return out
+
+
+def _other_checks(check: dict, fit: dict, grid: dict, mixing: dict) -> None:
     """The importance ``check`` of a case made unreliable (in place) where
-    the best draw does not fit the data (``fit``) or the fixed scan's alpha
+    the best draw does not fit the data (``fit``), the fixed scan's alpha
     grid does not resolve this case's features (``grid``, its entry of
-    ``alpha_grid_check``), with the reason and ``withheld_by``."""
+    ``alpha_grid_check``) or the sampler's chains disagree (``mixing``,
+    ``sampler_mixing``), with the reason and ``withheld_by``."""
     if check["reliable"] and not fit["ok"]:
         check.update(reliable=False, reason=fit["reason"], withheld_by="goodness_of_fit")
     elif check["reliable"] and grid.get("ok") is False:
         check.update(reliable=False, reason=grid["reason"], withheld_by="alpha_grid_check")
+    elif check["reliable"] and not mixing["ok"]:
+        check.update(reliable=False, reason=mixing["reason"], withheld_by="sampler_mixing")
 
 
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
@@ -173,6 +215,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     if fit["ok"] and not fit["reach"]["ok"]:
         fit.update(ok=False, reason=fit["reach"]["reason"])
     grid = (fixed.summary.get("alpha_grid_check") or {}).get("cases", {})
+    mixing = sampler_mixing(sampler)
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
@@ -201,7 +244,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         a_mod = np.mod(cfg.alpha, 360.0)
         pro = (a_mod <= 90.0) | (a_mod > 270.0)
         check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
-        _other_checks(check, fit, grid.get(case, {}))
+        _other_checks(check, fit, grid.get(case, {}), mixing)
         if not check["reliable"]:
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)
@@ -244,6 +287,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
                 + ("chi2_0 (draws given by the caller, taken as no-PPO posterior draws)" if chi2_ref is None else
                    f"chi2 at the sampling tilt alpha_ref = {sampler['alpha_ref']:g} deg, case {sampler['case_ref']}")),
         cases=cases, probabilities={c: cases[c]["geometries"] for c in cfg.cases}, goodness_of_fit=fit,
+        sampler_mixing=mixing,
     )
     return MarginalResult(summary, np.array(rows, dtype=MARGINAL_DTYPE), dchi2, fixed)
 
