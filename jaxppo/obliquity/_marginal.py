@@ -492,6 +492,8 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
     >>> again = jp.marginal_scan(cfg, samples=draws, min_ess=1, out="marginal_out", figures=False, progress=False)
     >>> again.summary["seconds"]["draws_computed"]  # resumed: nothing recomputed
     0
+    >>> [run["draws_computed"] for run in again.summary["seconds"]["earlier_runs"]]  # the first run's timings kept
+    [3]
     """
     t_begin = time.perf_counter()
     cfg = config_of(system, lightcurve, dict(alpha=alpha, cases=cases, margin=margin, detrend=detrend,
@@ -677,7 +679,8 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
                                                  "p16": float(np.percentile(rho, 15.865)),
                                                  "p84": float(np.percentile(rho, 84.135))}
     summary["seconds"] = {"total": time.perf_counter() - o.t_begin, **timing,
-                          "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"])}
+                          "per_draw_chi2": timing["chi2_s"] / max(1, timing["draws_computed"]),
+                          "earlier_runs": _earlier_seconds(out / "marginal.json", o.digest)}
     summary["cpu"] = {"devices": [str(d) for d in jax.devices()], "load_average": list(os.getloadavg())}
     summary.update(process_info())
     summary["progress_notes"] = notes
@@ -693,6 +696,22 @@ def _run(cfg: ScanConfig, out: Path, fixed, figures: bool, o) -> MarginalResult:
     # every process returns once process 0 has written the folder (or each raises its error)
     on_writer(f"writing marginal.csv, marginal.json and marginal.png in {out}", write)
     return result
+
+
+def _earlier_seconds(path: Path, digest: str) -> list:
+    """The timings of the earlier runs of this marginal scan (``digest``)
+    recorded in its marginal.json (each run's ``seconds`` without its own
+    list of earlier runs), oldest first: a rerun that computes nothing
+    keeps what the sampler and the chi^2 of the draws cost."""
+    try:
+        rec = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return []
+    if not isinstance(rec, dict) or rec.get("marginal_digest") != digest or not isinstance(rec.get("seconds"), dict):
+        return []
+    last = dict(rec["seconds"])
+    earlier = last.pop("earlier_runs", [])
+    return (earlier if isinstance(earlier, list) else []) + [last]
 
 
 def _append(path: Path, lines: list[str]) -> None:
