@@ -298,9 +298,10 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
     assert "resumed: the scan in ../run had already finished with this config (16 (case, alpha) points" in again
     assert "nothing recomputed or redrawn" in again and "scanned" not in again
     assert {p.name: p.stat().st_mtime_ns for p in run.iterdir() if p.suffix in (".png", ".csv", ".ecsv")} == stamps
-    # a different grid in the same folder is refused, naming the way out
+    # a different grid in the same folder is refused, naming what changed and the way out
     assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "90", "--quiet"]) == 2
-    assert "different configuration" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "different configuration" in err and "changed: scan.alpha)" in err and "--restart" in err
     # plot from an unrelated folder
     (tmp_path / "elsewhere").mkdir()
     monkeypatch.chdir(tmp_path / "elsewhere")

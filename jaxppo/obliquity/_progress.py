@@ -40,7 +40,7 @@ def _checksum(rec: dict) -> str:
     return hashlib.sha256(body.encode()).hexdigest()[:20]
 
 
-def read_progress(path: Path, digest: str, out: Path, source: str, settings: dict | None = None):
+def read_progress(path: Path, digest: str, out: Path, source: str, settings: dict | None = None, explain=None):
     """Finished (case, alpha) -> chi^2 from the progress file, and notes on
     what was not usable. Only complete lines count (a line cut by an
     interruption is dropped); each record must carry this config's digest and
@@ -48,7 +48,8 @@ def read_progress(path: Path, digest: str, out: Path, source: str, settings: dic
     is then rewritten atomically with the good records only, so the next
     append never lands on a torn line. ``settings`` (the marginal scan's):
     kept in the header, and a header of other settings is refused naming
-    the ones that differ."""
+    the ones that differ. ``explain``: a callable giving what differs from
+    the configuration ``out`` holds (added to the refusal)."""
     done, notes, keep = {}, [], []
     if not path.exists():
         return done, notes
@@ -73,8 +74,8 @@ def read_progress(path: Path, digest: str, out: Path, source: str, settings: dic
     elif head is not None and head.get("config_digest") != digest:
         _refuse_other_settings(out, head.get("settings"), settings)
         raise ValueError(
-            f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}); "
-            "use another --out folder or --restart to discard them"
+            f"{out} holds results of a different configuration (digest {head.get('config_digest')}, now {digest}"
+            f"{'; ' + explain() if explain else ''}); use another --out folder or --restart to discard them"
         )
     foreign = set()
     for n, line in enumerate(body, start=1 if first_is_record else 2):
@@ -100,8 +101,8 @@ def read_progress(path: Path, digest: str, out: Path, source: str, settings: dic
         keep.append(line + "\n")
     if foreign:
         raise ValueError(
-            f"{out} holds results of a different configuration (digest {sorted(foreign)[0]}, now {digest}); "
-            "use another --out folder or --restart to discard them"
+            f"{out} holds results of a different configuration (digest {sorted(foreign)[0]}, now {digest}"
+            f"{'; ' + explain() if explain else ''}); use another --out folder or --restart to discard them"
         )
     atomic_write(path, progress_header(digest, source, settings) + "".join(keep))
     return done, notes

@@ -436,13 +436,41 @@ def _require_x64(what: str) -> None:
         )
 
 
+def what_changed(out: Path, cfg: ScanConfig) -> str:
+    """What differs between the configuration whose results ``out`` holds
+    (its config.json) and ``cfg``: the config keys (TOML tables and keys,
+    the --alpha grid included), else the data or jaxppo's version."""
+    try:
+        before = json.loads((out / "config.json").read_text())["config"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return "no config.json there to compare with"
+
+    def flat(d, prefix=""):
+        items = {}
+        for k, v in (d.items() if isinstance(d, dict) else ()):
+            key = f"{prefix}{k}"
+            if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):  # [[planet]] tables
+                for i, x in enumerate(v):
+                    items.update(flat(x, f"{key}[{i}]."))
+                items[key + " count"] = str(len(v))
+            else:
+                items.update(flat(v, key + ".") if isinstance(v, dict) else {key: json.dumps(v, default=str)})
+        return items
+
+    a, b = flat(before), flat(json.loads(json.dumps(cfg.raw, default=str)))
+    keys = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+    if keys:
+        return "changed: " + ", ".join(keys[:8]) + (f" and {len(keys) - 8} more" if len(keys) > 8 else "")
+    return "the config's keys are the same: the data's contents, a transit-times file or jaxppo's version changed"
+
+
 def _open_progress(cfg: ScanConfig, out: Path, digest: str, restart: bool):
     """Clear the old outputs (restart), read the progress (done, notes) and
     write the progress header and config.json."""
     prog_path = out / PROGRESS
     if restart:
         _clear_outputs(out)
-    done, notes = read_progress(prog_path, digest, out, cfg.source)
+    done, notes = read_progress(prog_path, digest, out, cfg.source, explain=lambda: what_changed(out, cfg))
     if not prog_path.exists():
         atomic_write(prog_path, json.dumps({"config_digest": digest, "source": cfg.source, "format": 2}) + "\n")
     # keep the config next to the results: jaxppo plot rebuilds it from here

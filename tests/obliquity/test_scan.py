@@ -144,8 +144,9 @@ def test_changed_config_is_not_mixed(tmp_path):
     cfg = load_config(_config(tmp_path, lc, step=12.0))
     run_scan(cfg, tmp_path / "out", progress=False)
     cfg2 = load_config(_config(tmp_path, lc, scale=1.1, name="other.toml", step=12.0))
-    with pytest.raises(ValueError, match="different configuration"):
+    with pytest.raises(ValueError, match="different configuration .*; changed: ") as err:
         run_scan(cfg2, tmp_path / "out", progress=False)
+    assert "radius" in str(err.value), err.value  # the key that differs is named
     run_scan(cfg2, tmp_path / "out", restart=True, progress=False)
 
 
