@@ -409,7 +409,9 @@ def cmd_ttv(args) -> int:
     kw = {k: v for k, v in cfg.ttv.items() if k != "reference"}
     if args.planets:
         kw["planets"] = args.planets
-    reference = {Path(p).name: read_times(p) for p in cfg.ttv.get("reference", [])}
+    paths = list(cfg.ttv.get("reference", []))
+    names = [Path(p).name for p in paths]  # each file by its name; by its path where two share a name
+    reference = {(n if names.count(n) == 1 else str(p)): read_times(p) for n, p in zip(names, paths)}
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)

@@ -4,6 +4,7 @@ diagram of each planet, and the comparison with reference times."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,6 +43,21 @@ def read_times(path) -> "Table":
     out["epoch"] = np.asarray(table["epoch"], int)
     out["tc"] = np.asarray(table["tc"], float)
     out["tc_err"] = np.asarray(table["tc_err"], float)
+    # a reference is compared epoch by epoch: each time finite, each error
+    # finite and > 0 (one NaN made a planet's whole comparison NaN), one row
+    # per (planet, epoch)
+    bad = np.flatnonzero(~np.isfinite(out["tc"]) | ~(np.asarray(out["tc_err"]) > 0) | ~np.isfinite(out["tc_err"]))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"transit-times file {str(path)!r} row {i + 1} (planet {out['planet'][i]}, epoch "
+                         f"{out['epoch'][i]}): tc must be finite and tc_err finite and > 0 [d], got tc = "
+                         f"{out['tc'][i]!r}, tc_err = {out['tc_err'][i]!r} ({bad.size} such rows)")
+    seen = {}
+    for i, key in enumerate(zip(out["planet"], out["epoch"])):
+        if key in seen:
+            raise ValueError(f"transit-times file {str(path)!r} lists planet {key[0]} epoch {key[1]} twice (rows "
+                             f"{seen[key] + 1} and {i + 1})")
+        seen[key] = i
     return out
 
 
@@ -114,14 +130,21 @@ def write_times_products(table, out, references=None) -> dict:
     table}) in the folder ``out``; returns the summary."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    table[list(TIMES_COLUMNS)].write(out / "transit_times.ecsv", format="ascii.ecsv", overwrite=True)
+    tmp = out / "transit_times.ecsv.tmp"
+    table[list(TIMES_COLUMNS)].write(tmp, format="ascii.ecsv", overwrite=True)
+    os.replace(tmp, out / "transit_times.ecsv")
     summary = {"fit": dict(table.meta), "planets": {}, "figures": []}
+    err = np.asarray(table["tc_err"], float)
+    measured = table[np.isfinite(err) & (err > 0)]  # a time without an error has no place in an ephemeris fit
     for planet in sorted(set(table["planet"])):
-        m = table[table["planet"] == planet]
-        entry = {"transits": int(len(m))}
+        entry = {"transits": int(np.sum(table["planet"] == planet))}
+        lost = table[(table["planet"] == planet) & ~(np.isfinite(err) & (err > 0))]
+        if len(lost):
+            entry["epochs_without_error"] = [int(e) for e in lost["epoch"]]
+        m = measured[measured["planet"] == planet]
         if len(set(m["epoch"])) >= 2:
             name = f"oc_{planet}.png"
-            eph = plot_oc(table, planet, out / name, references)
+            eph = plot_oc(measured, planet, out / name, references)
             oc = np.asarray(m["tc"]) - eph["t0"] - eph["period"] * np.asarray(m["epoch"])
             entry.update(eph, oc_rms_min=float(np.sqrt(np.mean(oc**2)) * MINUTES),
                          oc_max_abs_min=float(np.max(np.abs(oc)) * MINUTES),
@@ -131,8 +154,34 @@ def write_times_products(table, out, references=None) -> dict:
         summary["planets"][planet] = entry
     if references:
         summary["reference"] = {label: compare_times(table, ref) for label, ref in references.items()}
-    (out / "ttv_summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    # the O-C figures of an earlier run in this folder (planets not measured
+    # now) went with its table and summary, which this run replaces
+    for old in out.glob("oc_*.png"):
+        if old.name not in summary["figures"]:
+            old.unlink()
+    tmp = out / "ttv_summary.json.tmp"
+    tmp.write_text(json.dumps(_strict(summary), indent=2, allow_nan=False) + "\n")
+    os.replace(tmp, out / "ttv_summary.json")
     return summary
+
+
+def _strict(obj):
+    """``obj`` with numbers as plain floats and every NaN or infinity as
+    None (strict JSON: a failed transit's error is NaN)."""
+    if isinstance(obj, dict):
+        return {k: _strict(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_strict(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)) or (isinstance(obj, np.ndarray) and obj.ndim == 0):
+        v = float(obj)
+        return v if np.isfinite(v) else None
+    if isinstance(obj, np.ndarray):
+        return _strict(obj.tolist())
+    return obj
 
 
 def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
@@ -147,6 +196,8 @@ def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
         if "oc_rms_min" in e:
             line += (f", O-C rms {e['oc_rms_min']:.1f} min (max {e['oc_max_abs_min']:.1f}), median error "
                      f"{e['median_tc_err_min']:.1f} min, chi^2 of a linear ephemeris {e['chi2_linear']:.1f}")
+        if e.get("epochs_without_error"):
+            line += f"; epochs {e['epochs_without_error']} without an error (left out of the ephemeris)"
         lines.append(line)
     for label, per_planet in summary.get("reference", {}).items():
         lines.append(f"  against {label}:")

@@ -207,6 +207,38 @@ def test_an_even_or_coarse_grid_keeps_the_start_and_search_stays_below_half_a_pe
         jp.measure_transit_times(system, lc, search=6.0)
 
 
+def test_times_products_are_strict_and_replace_an_earlier_runs_figures(tmp_path):
+    """jaxppo ttv into a folder of an earlier run left that run's O-C figures
+    of planets not measured now beside the new table; a failed transit's
+    NaN error wrote a bare NaN into ttv_summary.json; a reference file with
+    a NaN or zero error, or an epoch listed twice, was taken as it was (one
+    NaN made a planet's whole comparison NaN). Now the earlier figures go,
+    the summary is strict JSON (null), and such a reference is refused,
+    naming the file and row."""
+    import json
+
+    from astropy.table import Table
+
+    from jaxppo.inference._times_report import read_times, write_times_products
+
+    table = Table({"planet": ["b", "b", "b"], "epoch": [0, 1, 2], "tc": [10.0, 20.001, 29.999],
+                   "tc_err": [1e-3, np.nan, 1e-3], "chi2": [1.0, 2.0, 3.0], "n_points": [50, 50, 50]})
+    table.meta.update(success=True, chi2=6.0, n_points=150, reduced_chi2=1.0)
+    (tmp_path / "oc_c.png").write_bytes(b"an earlier run's")
+    ref = tmp_path / "ref.csv"
+    ref.write_text("planet,epoch,tc,tc_err\nb,0,10.0,0.001\nb,1,20.0,0.001\n")
+    summary = write_times_products(table, tmp_path, {"ref.csv": read_times(ref)})
+    assert sorted(p.name for p in tmp_path.glob("oc_*.png")) == ["oc_b.png"] == summary["figures"]
+    assert summary["planets"]["b"]["transits"] == 3 and summary["planets"]["b"]["epochs_without_error"] == [1]
+    json.loads((tmp_path / "ttv_summary.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    for body, match in (("b,0,10.0,nan", "row 1 \\(planet b, epoch 0\\): tc must be finite and tc_err finite"),
+                        ("b,0,10.0,0", "tc_err finite and > 0"),
+                        ("b,0,10.0,0.001\nb,0,10.1,0.001", "lists planet b epoch 0 twice \\(rows 1 and 2\\)")):
+        ref.write_text("planet,epoch,tc,tc_err\n" + body + "\n")
+        with pytest.raises(ValueError, match=match):
+            read_times(ref)
+
+
 def test_chi2_column_is_that_of_the_measured_times():
     """Transits far from their start: the per-transit chi^2 is computed at
     the measured times (it used the start's frames: 1962 for 125 points)."""
