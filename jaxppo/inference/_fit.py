@@ -137,7 +137,12 @@ class FitResult:
         """
         rows = [f"{n:14s} {v:16.8f} +- {e:.2e}" for n, v, e in zip(self.names, self.values, self.errors)]
         rows += [f"{n:14s} {v:16.8f} +- {e:.2e} (derived)" for n, (v, e) in self.derived.items()]
-        return "\n".join(rows + [f"chi2 = {self.chi2:.2f}, reduced {self.reduced_chi2:.3f}, {self.message}"])
+        if "lc.jitter" in self.names:  # chi2 is the objective; the reduced chi^2 is of the inflated errors
+            last = (f"-2 ln L - sum ln(2 pi sigma^2) = {self.chi2:.2f} (the objective with a free jitter), "
+                    f"chi^2 with the jitter's errors / (N - k) = {self.reduced_chi2:.3f}, {self.message}")
+        else:
+            last = f"chi2 = {self.chi2:.2f}, reduced {self.reduced_chi2:.3f}, {self.message}"
+        return "\n".join(rows + [last])
 
     def save(self, path) -> str:
         """Write the result as JSON.

@@ -187,8 +187,12 @@ def _strict(obj):
 def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
     """What ``jaxppo ttv`` prints of ``write_times_products``' summary."""
     fit = summary["fit"]
-    lines = [f"{n_times} transit times, chi^2 = {fit['chi2']:.1f} for {fit['n_points']} points "
-             f"(chi^2/(N - k) = {fit['reduced_chi2']:.3f}), {seconds:.1f} s"]
+    jitter = "lc.jitter" in fit.get("parameters", {})  # chi2 is then the objective -2 ln L + const
+    lines = [f"{n_times} transit times, " + (
+        f"-2 ln L - sum ln(2 pi sigma^2) = {fit['chi2']:.1f} (a free jitter) for {fit['n_points']} points (chi^2 "
+        f"with the jitter's errors / (N - k) = {fit['reduced_chi2']:.3f})" if jitter else
+        f"chi^2 = {fit['chi2']:.1f} for {fit['n_points']} points (chi^2/(N - k) = {fit['reduced_chi2']:.3f})")
+        + f", {seconds:.1f} s"]
     for name, (value, error) in fit.get("parameters", {}).items():
         lines.append(f"  {name} = {value:.6g} +- {error:.2g}")
     for planet, e in summary["planets"].items():

@@ -298,6 +298,11 @@ def test_fit_recovers_an_injected_offset_and_jitter():
     assert 0.85 < res.reduced_chi2 < 1.15  # chi^2 with the inflated errors
     # chi2 is the full objective: chi^2 part + sum ln(1 + s^2 / sigma^2)
     assert np.isclose(res.chi2, res.reduced_chi2 * (n - 4) + n * np.log1p((res.values[jit] / noise) ** 2), rtol=1e-9)
+    # the printed table names the objective as what it is ("chi2 = 4062.54, reduced 1.001" read as a
+    # mismatch: 4062.54 / 2452 = 1.66)
+    last = res.table().splitlines()[-1]
+    assert last.startswith(f"-2 ln L - sum ln(2 pi sigma^2) = {res.chi2:.2f} (the objective with a free jitter)")
+    assert f"chi^2 with the jitter's errors / (N - k) = {res.reduced_chi2:.3f}" in last
 
 
 def test_fit_per_window_baseline():
