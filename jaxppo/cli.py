@@ -201,27 +201,10 @@ def cmd_simulate(args) -> int:
     lc.to_csv(out)
     print(f"wrote {out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
     if args.alpha is not None:
-        print(_injected_ppos(jp.kepler20_system(radius_scale=args.radius_scale), lc.time, args.alpha, args.case))
+        from jaxppo.model._kepler20 import injection_note
+
+        print(injection_note(jp.kepler20_system(radius_scale=args.radius_scale), lc.time, args.alpha, args.case))
     return 0
-
-
-def _injected_ppos(system, time, alpha: float, case: str) -> str:
-    """Which double transits of the simulated data carry a planet-planet
-    occultation at the injected tilt (a tilt without any gives data
-    without a PPO signal: nothing for a scan to recover)."""
-    import jaxppo as jp
-    from jaxppo.model._overlap import ppo_table
-
-    time = np.asarray(time, float)
-    events = jp.multi_transits(system, float(time.min()), float(time.max()))
-    frames = [time[(time >= e.start) & (time <= e.end)] for e in events]
-    events, frames = [e for e, f in zip(events, frames) if f.size], [f for f in frames if f.size]  # those with data
-    hit = ppo_table(system, frames, np.array([float(alpha)]), case)[0]
-    if not hit.any():
-        return (f"no PPO at alpha {alpha:g} deg (case {case}) in any of the {len(events)} double transits: the data "
-                "carry no occultation signal to recover (a larger --radius-scale widens the tilts that give one)")
-    mids = ", ".join(f"{e.mid:.2f}" for e, h in zip(events, hit) if h)
-    return f"PPO at alpha {alpha:g} deg (case {case}) in {int(hit.sum())} of {len(events)} double transits (BKJD {mids})"
 
 
 _DEFAULT_FREE = "the config's [fit] free, else every planet's t0 (its transit times, tc, where listed) and radius"
@@ -304,7 +287,9 @@ def cmd_sample(args) -> int:
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
-    priors = _cli_priors(args.prior or [])
+    from jaxppo.inference._coords import priors_from_text
+
+    priors = priors_from_text(args.prior or [])
     _free_names(args)
     cfg, lc = _fit_inputs(args)
     free = _free_names(args, cfg)
@@ -325,33 +310,6 @@ def cmd_sample(args) -> int:
         res.to_netcdf(args.netcdf)
         print(f"wrote {args.netcdf} (arviz.from_netcdf reads it)")
     return 0
-
-
-_PRIORS = {"normal": ("Normal", "MEAN SD"), "uniform": ("Uniform", "LOW HIGH"),
-           "loguniform": ("LogUniform", "LOW HIGH")}
-
-
-def _cli_priors(specs) -> dict:
-    """``--prior NAME KIND A B`` -> {name: numpyro distribution}."""
-    import numpyro.distributions as dist
-
-    out = {}
-    for name, kind, a, b in specs:
-        if kind.lower() not in _PRIORS:
-            raise ValueError(f"--prior {name}: unknown kind {kind!r}; use one of {sorted(_PRIORS)}")
-        try:
-            x, y = _finite(a), _finite(b)
-        except argparse.ArgumentTypeError as err:
-            raise ValueError(f"--prior {name} {kind}: {err}") from None
-        cls, args = _PRIORS[kind.lower()]
-        if kind.lower() == "normal" and not y > 0:
-            raise ValueError(f"--prior {name} normal: SD must be > 0, got {b}")
-        if kind.lower() != "normal" and not (y > x and (kind.lower() == "uniform" or x > 0)):
-            raise ValueError(f"--prior {name} {kind}: need 0 < LOW < HIGH (uniform: LOW < HIGH), got {a} {b}")
-        if name in out:
-            raise ValueError(f"--prior {name} given twice")
-        out[name] = getattr(dist, cls)(x, y)
-    return out
 
 
 def cmd_activity(args) -> int:
@@ -401,7 +359,7 @@ def cmd_ttv(args) -> int:
     """Measure every transit time in the config's data; the table, O-C figures."""
     _enable_x64()
     import jaxppo as jp
-    from jaxppo.inference._times_report import read_times, summary_lines, write_times_products
+    from jaxppo.inference._times_report import read_references, summary_lines, write_times_products
     from jaxppo.obliquity._config import load_config
 
     out = _out_folder(args.out)
@@ -409,9 +367,7 @@ def cmd_ttv(args) -> int:
     kw = {k: v for k, v in cfg.ttv.items() if k != "reference"}
     if args.planets:
         kw["planets"] = args.planets
-    paths = list(cfg.ttv.get("reference", []))
-    names = [Path(p).name for p in paths]  # each file by its name; by its path where two share a name
-    reference = {(n if names.count(n) == 1 else str(p)): read_times(p) for n, p in zip(names, paths)}
+    reference = read_references(cfg.ttv.get("reference", []))
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)

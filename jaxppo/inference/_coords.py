@@ -34,7 +34,7 @@ from ..model._system import System
 from ._params import inc_sign_matters, is_moon, is_tc, planet_value, star_value
 
 __all__ = ["Coordinates", "default_priors", "start_q", "a_from_density", "density_from_a", "check_density",
-           "default_density", "window_priors"]
+           "default_density", "window_priors", "priors_from_text", "PRIOR_KINDS"]
 
 G_CGS = 6.67430e-8  # [cm^3 g^-1 s^-2] (CODATA 2018)
 DAY_S = 86400.0
@@ -122,6 +122,40 @@ def default_priors(model, user=None):
             out.append(dist.Uniform(v - 1.0, v + 1.0))
         else:
             out.append(_planet_prior(model.system.planets[owner], par))
+    return out
+
+
+# the kinds of ``--prior NAME KIND A B``: numpyro's distribution and its two numbers
+PRIOR_KINDS = {"normal": ("Normal", "MEAN SD"), "uniform": ("Uniform", "LOW HIGH"),
+               "loguniform": ("LogUniform", "LOW HIGH")}
+
+
+def priors_from_text(specs) -> dict:
+    """``jaxppo sample --prior NAME KIND A B`` (each a tuple of four
+    strings) -> {name: numpyro distribution}; ValueError naming the option,
+    the prior and what is wrong."""
+    import numpyro.distributions as dist
+
+    out = {}
+    for name, kind, a, b in specs:
+        if kind.lower() not in PRIOR_KINDS:
+            raise ValueError(f"--prior {name}: unknown kind {kind!r}; use one of {sorted(PRIOR_KINDS)}")
+        vals = []
+        for text in (a, b):
+            try:
+                vals.append(float(text))
+            except ValueError:
+                raise ValueError(f"--prior {name} {kind}: not a number: {text!r}") from None
+            if not np.isfinite(vals[-1]):
+                raise ValueError(f"--prior {name} {kind}: must be a finite number, got {text!r}")
+        x, y = vals
+        if kind.lower() == "normal" and not y > 0:
+            raise ValueError(f"--prior {name} normal: SD must be > 0, got {b}")
+        if kind.lower() != "normal" and not (y > x and (kind.lower() == "uniform" or x > 0)):
+            raise ValueError(f"--prior {name} {kind}: need 0 < LOW < HIGH (uniform: LOW < HIGH), got {a} {b}")
+        if name in out:
+            raise ValueError(f"--prior {name} given twice")
+        out[name] = getattr(dist, PRIOR_KINDS[kind.lower()][0])(x, y)
     return out
 
 

@@ -15,7 +15,7 @@ from ._times import TIMES_COLUMNS, linear_ephemeris
 if TYPE_CHECKING:  # astropy is imported where a table is read
     from astropy.table import Table
 
-__all__ = ["read_times", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
+__all__ = ["read_times", "read_references", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
 
 MINUTES = 1440.0
 
@@ -59,6 +59,14 @@ def read_times(path) -> "Table":
                              f"{seen[key] + 1} and {i + 1})")
         seen[key] = i
     return out
+
+
+def read_references(paths) -> dict:
+    """{label: ``read_times`` table} of the reference files ``paths``
+    (``[ttv] reference``): each labelled by its file name, or by its path
+    where two files share a name (one must not replace the other)."""
+    names = [Path(p).name for p in paths]
+    return {(n if names.count(n) == 1 else str(p)): read_times(p) for n, p in zip(names, paths)}
 
 
 def compare_times(measured, reference) -> dict:

@@ -13,7 +13,7 @@ from ._system import System
 from ._units import from_quantity
 from ._transits import multi_transits
 
-__all__ = ["kepler20_system", "PAPER_MULTI_TRANSITS", "paper_multi_transits", "simulate", "simulate_kepler20"]
+__all__ = ["kepler20_system", "PAPER_MULTI_TRANSITS", "paper_multi_transits", "simulate", "simulate_kepler20", "injection_note"]
 
 # Mid-times of the seven b + c double transits listed in the paper (Sect. 3.3.1).
 PAPER_MULTI_TRANSITS = (334.02, 670.45, 844.13, 1017.82, 1180.56, 1354.25, 1527.93)
@@ -177,3 +177,23 @@ def simulate_kepler20(seed: int = 0, noise: float = 4e-4, alpha: float | None = 
     events = paper_multi_transits(system)
     t = np.concatenate([np.arange(e.start - margin, e.end + margin, cadence) for e in events])
     return simulate(system, t, noise, 0.0 if alpha is None else alpha, case, seed)
+
+
+def injection_note(system, time, alpha: float, case: str) -> str:
+    """Which double transits in the simulated data (times ``time`` [d])
+    carry a planet-planet occultation at the injected tilt ``alpha`` [deg]
+    and ``case``, as a line of text (``jaxppo simulate`` prints it): a
+    tilt without any gives data without a PPO signal, nothing for a scan
+    to recover."""
+    from ._overlap import ppo_table
+
+    time = np.asarray(time, float)
+    events = multi_transits(system, float(time.min()), float(time.max()))
+    frames = [time[(time >= e.start) & (time <= e.end)] for e in events]
+    events, frames = [e for e, f in zip(events, frames) if f.size], [f for f in frames if f.size]  # those with data
+    hit = ppo_table(system, frames, np.array([float(alpha)]), case)[0]
+    if not hit.any():
+        return (f"no PPO at alpha {alpha:g} deg (case {case}) in any of the {len(events)} double transits: the data "
+                "carry no occultation signal to recover (a larger --radius-scale widens the tilts that give one)")
+    mids = ", ".join(f"{e.mid:.2f}" for e, h in zip(events, hit) if h)
+    return f"PPO at alpha {alpha:g} deg (case {case}) in {int(hit.sum())} of {len(events)} double transits (BKJD {mids})"

@@ -92,10 +92,12 @@ def _case_summary(case: str, runs: list[dict]) -> dict:
 _WHERE = "at the best point the sampler reached (the no-PPO mode, the modes, the densest particle)"
 
 
-def _goodness_of_fit(runs: list[dict], points: int) -> dict:
+def _goodness_of_fit(runs: list[dict], points: int, fixed, k: int) -> dict:
     """``goodness_of_fit`` of the least chi^2 the runs reached (each run's
     "chi2_best": the no-PPO mode, the modes, the densest particle; None in
-    joint.json where it was not finite) for ``points`` points. Runs
+    joint.json where it was not finite) for ``points`` points, and
+    ``reach_check`` of it against the fixed scan ``fixed`` (``k`` free
+    parameters; "ok" False with its reason where it fails). Runs
     recorded by a jaxppo that kept no chi^2 (no such key) leave it
     unchecked: "ok" True, "checked" False, with a caution."""
     if any("chi2_best" not in r for r in runs):
@@ -104,7 +106,12 @@ def _goodness_of_fit(runs: list[dict], points: int) -> dict:
             "(restart=True / --restart samples again and checks it)")}
     best = np.array([np.nan if r["chi2_best"] is None else float(r["chi2_best"]) for r in runs])
     least = float(np.min(best)) if np.all(np.isfinite(best)) else float("nan")  # any NaN run: not rated
-    return {**goodness_of_fit(least, points, _WHERE), "checked": True}
+    fit = {**goodness_of_fit(least, points, _WHERE), "checked": True}
+    # did the sampled model reach the configuration's own fit (the fixed scan's best)?
+    fit["reach"] = reach_check(fit, fixed.summary["goodness_of_fit"], k, "sampler's particles")
+    if fit["ok"] and not fit["reach"]["ok"]:
+        fit.update(ok=False, reason=fit["reach"]["reason"])
+    return fit
 
 
 def _withhold(case: dict, reason: str) -> None:
@@ -294,12 +301,8 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
         if len(seeds) < 2:
             warnings.warn(f"joint_scan: case {case}: one seed; the errors leave out the spread between runs "
                           "(seeds=(0, 1) gives it)", stacklevel=2)
-    fit = _goodness_of_fit([done[f"{c}#{s}"] for c in cfg.cases for s in seeds], len(data))
-    # did the sampled model reach the configuration's own fit? (the fixed scan, in every process)
-    fixed = _fixed_scan(cfg) if fixed is None else fixed
-    fit["reach"] = reach_check(fit, fixed.summary["goodness_of_fit"], len(free), "sampler's particles")
-    if fit["ok"] and not fit["reach"]["ok"]:
-        fit.update(ok=False, reason=fit["reach"]["reason"])
+    fixed = _fixed_scan(cfg) if fixed is None else fixed  # in every process: the reach check, the figure
+    fit = _goodness_of_fit([done[f"{c}#{s}"] for c in cfg.cases for s in seeds], len(data), fixed, len(free))
     factors, log_factors = {}, {}
     names = list(cases)
     for i, a in enumerate(names):

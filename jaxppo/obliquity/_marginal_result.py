@@ -200,6 +200,19 @@ def _other_checks(check: dict, fit: dict, grid: dict, mixing: dict) -> None:
         check.update(reliable=False, reason=mixing["reason"], withheld_by="sampler_mixing")
 
 
+def _draw_checks(chi2, fixed, samples: dict, sampler: dict) -> tuple:
+    """(fit, grid, mixing): ``goodness_of_fit`` of the least chi^2 of the
+    draws ``chi2`` [draw, case, alpha] with its ``reach_check`` against the
+    fixed scan's best ("ok" False with the reason where the draws do not
+    reach it), the fixed scan's ``alpha_grid_check`` per case, and
+    ``sampler_mixing`` of the sampler's record."""
+    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+    fit["reach"] = reach_check(fit, fixed.summary.get("goodness_of_fit") or {}, len(samples), "draws")
+    if fit["ok"] and not fit["reach"]["ok"]:
+        fit.update(ok=False, reason=fit["reach"]["reason"])
+    return fit, (fixed.summary.get("alpha_grid_check") or {}).get("cases", {}), sampler_mixing(sampler)
+
+
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
              min_ess=MIN_IMPORTANCE_ESS) -> MarginalResult:
     """The marginal scan's result from the per-draw chi^2 curves: per case
@@ -209,13 +222,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
-    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
-    # did the draws reach the configuration's own fit? (the fixed scan's best)
-    fit["reach"] = reach_check(fit, fixed.summary.get("goodness_of_fit") or {}, len(samples), "draws")
-    if fit["ok"] and not fit["reach"]["ok"]:
-        fit.update(ok=False, reason=fit["reach"]["reason"])
-    grid = (fixed.summary.get("alpha_grid_check") or {}).get("cases", {})
-    mixing = sampler_mixing(sampler)
+    fit, grid, mixing = _draw_checks(chi2, fixed, samples, sampler)
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
