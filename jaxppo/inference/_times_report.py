@@ -161,12 +161,18 @@ def write_times_products(table, out, references=None) -> dict:
             summary["figures"].append(name)
         summary["planets"][planet] = entry
     if references:
-        summary["reference"] = {label: compare_times(table, ref) for label, ref in references.items()}
+        # the times with an error (a NaN one made the planet's whole comparison NaN)
+        summary["reference"] = {label: compare_times(measured, ref) for label, ref in references.items()}
     # the O-C figures of an earlier run in this folder (planets not measured
-    # now) went with its table and summary, which this run replaces
-    for old in out.glob("oc_*.png"):
-        if old.name not in summary["figures"]:
-            old.unlink()
+    # now) went with its table and summary, which this run replaces: those
+    # its summary lists (no other file of the folder)
+    try:
+        before = json.loads((out / "ttv_summary.json").read_text()).get("figures", [])
+    except (OSError, ValueError, AttributeError):
+        before = []
+    for name in before if isinstance(before, list) else []:
+        if isinstance(name, str) and name.startswith("oc_") and name not in summary["figures"]:
+            (out / Path(name).name).unlink(missing_ok=True)
     tmp = out / "ttv_summary.json.tmp"
     tmp.write_text(json.dumps(_strict(summary), indent=2, allow_nan=False) + "\n")
     os.replace(tmp, out / "ttv_summary.json")

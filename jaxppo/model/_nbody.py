@@ -61,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike
 
-from ._planet import check_periastron, warn_if_never_transits
+from ._planet import check_periastron, never_transits, warn_if_never_transits
 
 __all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "default_dt", "R_SUN_AU", "G_AU_DAY"]
 
@@ -452,8 +452,12 @@ def nbody_setup(planets, epoch, star_mass, star_radius, dt, span):
         # a unit slip in star_radius or star_mass shows here
         why = " (Kepler's third law from its period, the masses and star_radius)"
         check_periastron(pl.name, out[-1].a, pl.e, pl.radius, why)
-        warn_if_never_transits(out[-1], orbit=f" (its osculating orbit at epoch {epoch:g}, a by Kepler's third "
-                                              "law from its period, the masses and star_radius)")
+    # a planet that does not transit is a perturber, as N-body systems have;
+    # none transiting is an inclination in radians or a unit slip
+    if all(never_transits(p) is not None for p in out):
+        for p in out:
+            warn_if_never_transits(p, orbit=f" (its osculating orbit at epoch {epoch:g}, a by Kepler's third law "
+                                            "from its period, the masses and star_radius; no planet transits)")
     return tuple(out), star_mass, star_radius, epoch, dt, span
 
 

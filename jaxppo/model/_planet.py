@@ -20,7 +20,7 @@ from ._contacts import eccentric_contacts
 from ._ttv import check_transit_times, epochs_text, mid_time, shifted_time
 from ._units import from_quantity
 
-__all__ = ["Planet", "check_periastron", "warn_if_never_transits"]
+__all__ = ["Planet", "check_periastron", "never_transits", "warn_if_never_transits"]
 
 
 def _positive(name: str, value, *, strict=True, lower=0.0) -> None:
@@ -46,21 +46,19 @@ def check_periastron(name: str, a, e, radius, why: str = "") -> None:
     peri = np.asarray(a, float) * (1.0 - np.asarray(e, float))
     if np.any(peri <= 1.0 + np.asarray(radius, float)):
         raise ValueError(
-            f"planet {name!r}: a = {np.min(np.asarray(a, float)):.4g} R*{why} and e = {e!r} put periastron at "
+            f"planet {name!r}: a = {np.min(np.asarray(a, float)):.4g} R*{why} and e = {np.max(np.asarray(e, float)):.4g} put periastron at "
             f"a (1 - e) = {np.min(peri):.4g} R* <= 1 + radius = {1.0 + np.max(np.asarray(radius, float)):.4g} R*, so "
             "the planet would hit the star")
 
 
-def warn_if_never_transits(planet, orbit: str = "") -> None:
-    """Warn when a planet's orbit never crosses the stellar disk (|b| >= 1 +
-    radius, and for an eccentric orbit no contacts): usually an inclination
-    in radians, or a unit slip in a or the star's size. A moon reaches up
-    to a_m (1 + e_m) from its planet and may transit when the planet does
-    not (no warning then). ``orbit``: what orbit is meant, for the message
-    (N-body planets: their osculating orbit at the epoch)."""
+def never_transits(planet):
+    """|b| [R*] of a planet whose orbit never crosses the stellar disk
+    (|b| >= 1 + radius, and for an eccentric orbit no contacts; a moon
+    reaches up to a_m (1 + e_m) from its planet and may transit when the
+    planet does not), else None; None too for traced values or a = None."""
     fields = (planet.a, planet.inc, planet.radius, planet.e, planet.omega)
     if any(isinstance(v, jax.core.Tracer) for v in fields) or np.any(np.isnan(np.asarray(planet.a, float))):
-        return
+        return None
     a, inc, radius, e_ = (np.asarray(v, float) for v in fields[:4])
     w_ = np.deg2rad(np.asarray(planet.omega, float))
     b = np.abs(a * np.cos(np.deg2rad(inc))) * (1.0 - e_**2) / (1.0 + e_ * np.sin(w_))
@@ -72,11 +70,21 @@ def warn_if_never_transits(planet, orbit: str = "") -> None:
     never = b >= 1.0 + np.maximum(radius, reach)
     if np.any(never) and not planet.circular:
         never = never & (np.asarray(planet.contacts()[1]) == 0)
-    if np.any(never):
+    return float(np.max(b)) if np.any(never) else None
+
+
+def warn_if_never_transits(planet, orbit: str = "") -> None:
+    """Warn when a planet's orbit never crosses the stellar disk
+    (``never_transits``): usually an inclination in radians, or a unit
+    slip in a or the star's size. ``orbit``: what orbit is meant, for the
+    message (N-body planets: their osculating orbit at the epoch)."""
+    b = never_transits(planet)
+    if b is not None:
+        inc, a = np.asarray(planet.inc, float), np.asarray(planet.a, float)
         formula = "a |cos i|" if planet.circular else "a |cos i| (1 - e^2) / (1 + e sin omega)"
         warnings.warn(
             f"planet {planet.name!r}{orbit}: inc = {inc.tolist()} deg and a = {np.max(a):.4g} R* give |b| = {formula} "
-            f"= {np.max(b):.4g} >= 1 + radius, so it never transits (inc is in degrees, a in stellar radii; a "
+            f"= {b:.4g} >= 1 + radius, so it never transits (inc is in degrees, a in stellar radii; a "
             "Quantity is converted)",
             UserWarning, stacklevel=user_stacklevel(),
         )

@@ -192,8 +192,9 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     n_moves : int, optional
         Rounds of the Metropolis kernels per step (>= 1).
     fixed : ScanResult or None, optional
-        The fixed-parameter scan of the same config, for the figure (else it
-        is computed when the figure is drawn).
+        The fixed-parameter scan of the same config, for the figure and for
+        the check that the particles reach its fit (``goodness_of_fit``
+        "reach"); else it is computed (one plain scan, after the sampler).
     figures : bool, optional
         With ``out``, draw joint.png: per case the joint posterior of alpha
         against the fixed-parameter scan's (default True).

@@ -155,9 +155,10 @@ def reach_check(fit: dict, fixed_fit: dict, k: int, what: str) -> dict:
     ``fixed_fit``: that of the fixed-parameter scan of the same data (its
     best tilt and case); ``k`` free parameters. The sampled model holds the
     configuration's parameters (unless it ties them, e.g. every a/R* to
-    one stellar density), so its draws come within about k / 2 of its best
-    chi^2, which is at most the fixed scan's: a least chi^2 more than
-    k + 3 sqrt(2 k) above the fixed scan's means the sampler's model cannot
+    one stellar density), so the chi^2 of its draws exceeds its best by
+    about a chi^2 of k degrees of freedom (mean k, sd sqrt(2 k); the least
+    of many draws by less), and its best is at most the fixed scan's: a
+    least chi^2 more than k + 3 sqrt(2 k) above the fixed scan's means the sampler's model cannot
     describe the data as well as the fixed parameters do (injected data
     whose a/R* imply two stellar densities, tied to one), or the sampler
     missed the solution; its geometry probabilities are then those of the

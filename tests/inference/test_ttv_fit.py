@@ -225,11 +225,17 @@ def test_times_products_are_strict_and_replace_an_earlier_runs_figures(tmp_path)
                    "tc_err": [1e-3, np.nan, 1e-3], "chi2": [1.0, 2.0, 3.0], "n_points": [50, 50, 50]})
     table.meta.update(success=True, chi2=6.0, n_points=150, reduced_chi2=1.0)
     (tmp_path / "oc_c.png").write_bytes(b"an earlier run's")
+    (tmp_path / "oc_mine.png").write_bytes(b"a user's own file")
+    (tmp_path / "ttv_summary.json").write_text(json.dumps({"figures": ["oc_b.png", "oc_c.png"]}))
     ref = tmp_path / "ref.csv"
     ref.write_text("planet,epoch,tc,tc_err\nb,0,10.0,0.001\nb,1,20.0,0.001\n")
     summary = write_times_products(table, tmp_path, {"ref.csv": read_times(ref)})
-    assert sorted(p.name for p in tmp_path.glob("oc_*.png")) == ["oc_b.png"] == summary["figures"]
+    assert sorted(p.name for p in tmp_path.glob("oc_*.png")) == ["oc_b.png", "oc_mine.png"]
+    assert summary["figures"] == ["oc_b.png"]
     assert summary["planets"]["b"]["transits"] == 3 and summary["planets"]["b"]["epochs_without_error"] == [1]
+    # the comparison leaves out the time without an error too (it made every statistic NaN)
+    compared = summary["reference"]["ref.csv"]["b"]
+    assert compared["n"] == 1 and compared["median_abs_z"] == 0.0 and compared["within_1sigma"] == 1.0
     json.loads((tmp_path / "ttv_summary.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     for body, match in (("b,0,10.0,nan", "row 1 \\(planet b, epoch 0\\): tc must be finite and tc_err finite"),
                         ("b,0,10.0,0", "tc_err finite and > 0"),

@@ -179,10 +179,12 @@ def test_derived_orbits_get_the_checks_of_a_keplerian_planet():
     with pytest.raises(ValueError, match="star_mass = 1.989e\\+30 M_sun is outside"):
         jp.System(star, [planet()], **{**ok, "star_mass": 1.989e30})
     with pytest.warns(UserWarning, match="planet 'b' \\(its osculating orbit at epoch 0.*never transits"):
-        jp.System(star, [planet(inc=80.0)], **ok)  # a = 19.5 R*, b = 3.4
+        jp.System(star, [planet(inc=80.0)], **ok)  # a = 19.5 R*, b = 3.4: no planet transits
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         jp.System(star, [planet(inc=89.0)], **ok)  # b = 0.34: transits, no warning
+        # a perturber that does not transit beside one that does (Kepler-88 c): no warning
+        jp.System(star, [planet(inc=89.0), planet(name="c", period=20.0, inc=80.0)], **ok)
         # a white dwarf (0.013 R_sun) and a brown dwarf host are stars
         jp.System(star, [planet(period=3.0)], **{**ok, "star_mass": 0.6, "star_radius": 0.013})
 
