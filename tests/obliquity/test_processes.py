@@ -229,7 +229,8 @@ def stand_in_joint_smc(system, data, free, density, case, alpha_ref, *, n_partic
         return -0.5 * jnp.sum(w ** 2) + jnp.log(0.05 + jnp.exp(-0.5 * (d / 4.0) ** 2))
 
     out = tempered_smc(log_gamma, 2, n_particles=n_particles, seed=seed, cess=cess, n_moves=n_moves, progress=progress)
-    out.update(modes={"stand_in": True}, found=None, chi2_best=float(len(data)))  # a model that fits
+    # a model that fits, at least as well as the fixed scan's parameters (the reach check)
+    out.update(modes={"stand_in": True}, found=None, chi2_best=0.95 * float(len(data)))
     return out
 
 
