@@ -385,7 +385,25 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     table = _result_table(Model(result.system, lc, tuple(names) + free, alpha, case, active_margin=1.0), result,
                           plan, lc)
     _warn_misfits(table)
+    _warn_understated_errors(result, lc)
     return (table, result) if return_fit else table
+
+
+def _warn_understated_errors(result: FitResult, lc) -> None:
+    """Warn where the fit's chi^2 / (N - k) says the flux errors understate
+    the scatter (above 1.25 with a chi^2 p-value below 1e-3, as the scan's
+    goodness-of-fit check) and no jitter is free: every tc_err is then too
+    small by about sqrt(chi^2 / (N - k)) (a review: 2.8, pulls of rms 2)."""
+    from scipy.special import chdtrc
+
+    if "lc.jitter" in result.names or not np.isfinite(result.reduced_chi2):
+        return
+    dof = max(len(lc) - len(result.names), 1)
+    if result.reduced_chi2 > 1.25 and chdtrc(dof, result.reduced_chi2 * dof) < 1e-3:
+        warnings.warn(f"measure_transit_times: chi^2 / (N - k) = {result.reduced_chi2:.3g} for {len(lc)} points: the "
+                      "flux errors understate the scatter, so every tc_err is too small by about "
+                      f"{np.sqrt(result.reduced_chi2):.2g}x; free a jitter (free=('lc.jitter',), [ttv] free) or "
+                      "check the errors", UserWarning, stacklevel=3)
 
 
 def _plan(system: System, lc, chosen, min_points: int, search):
