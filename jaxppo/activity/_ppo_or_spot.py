@@ -81,6 +81,20 @@ def _own_depth(star, planet, t):
     return 1.0 - System(star, [planet]).flux(t, method="exact")[0]
 
 
+def _surface_depth(star, planet, t):
+    """The depth of ``planet`` alone in front of a star with spots or a
+    surface map at t[0] [d]: the star's own flux then (a spotted star's
+    varies with time) less the flux with the planet (the "auto" method,
+    which rasterises such a star, eagerly: it is not traced)."""
+    from ..model._flux import occultation_flux
+    from ..model._system import System
+
+    x, y, r = System(star, [planet]).positions(t)
+    kw = {"times": jnp.asarray(t, float)} if getattr(star, "spots", None) is not None else {}
+    with_planet = occultation_flux(star, x, y, r, method="auto", **kw)
+    return (occultation_flux(star, x, y, jnp.zeros_like(r), method="auto", **kw) - with_planet)[0]
+
+
 def _planet_transits(system, window):
     """(name, first contact, last contact, depth bound, diameter time) of
     each planet transiting during the window [d]."""
@@ -98,7 +112,8 @@ def _planet_transits(system, window):
         p = float(pl.radius)
         speed = 2 * math.pi * float(pl.a) / period  # [R* / d]
         # the planet's own depth at mid-transit, limb-darkened: an upper bound of A
-        depth = float(_own_depth(system.star, pl, np.array([float(mid)])))
+        depth = float((_own_depth if system.star.symmetric else _surface_depth)(system.star, pl,
+                                                                                   np.array([float(mid)])))
         out.append((pl.name or "?", mid - half, mid + half, depth, 2 * p / speed))
     return out
 

@@ -14,8 +14,10 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
+import jax.numpy as jnp
 import numpy as np
 
+from ._flux import occultation_flux
 from ._overlap import case_xy, contact_frames, on_star, untilted_geometry
 from ._plan import one_disk_sum, overlap_flux
 from ._cases import CASES, case_signs
@@ -151,9 +153,10 @@ def sweep(
     signs_of = [case_signs(len(system.planets), system.tilted, c) for c in cases]  # validates
     n_c, n_a, n_t = len(cases), alpha.size, t.size
     if method != "auto" or not system.star.symmetric:
-        out = [np.asarray(system.flux(t, alpha, case=c, method=method, order=order, chunk=chunk)) for c in cases]
+        flux = _each_disk_alone if no_overlap else _all_disks
+        out = [flux(system, t, alpha, c, method, order, chunk) for c in cases]
         res = np.stack(out).reshape(n_c, n_a, n_t)
-        stats = SweepStats(frames=n_c * n_a * n_t, single=0, union=n_c * n_a * n_t)
+        stats = SweepStats(frames=n_c * n_a * n_t, single=0, union=0 if no_overlap else n_c * n_a * n_t)
         return (res, stats) if return_stats else res
 
     tilted = system.tilted
@@ -192,3 +195,28 @@ def sweep(
         n_union += ai.size
     stats = SweepStats(frames=n_c * n_a * n_t, single=n_single, union=n_union)
     return (out, stats) if return_stats else out
+
+
+def _all_disks(system: System, t, alpha, case, method: str, order, chunk) -> np.ndarray:
+    """``system.flux`` at [alpha, t] with ``method``: every disk, overlaps included."""
+    return np.asarray(system.flux(t, alpha, case=case, method=method, order=order, chunk=chunk))
+
+
+def _each_disk_alone(system: System, t, alpha, case, method: str, order, chunk) -> np.ndarray:
+    """The flux without planet-planet overlaps, at [alpha, t] with ``method``
+    (any star, spotted ones included): the star's own flux F_0 (no disk;
+    a spotted star's varies with time) plus each disk's own dip,
+    F_0 + sum_k (F_k - F_0), F_k the flux with disk k alone."""
+    alpha = jnp.asarray(alpha, float)
+    tt, aa = jnp.asarray(t, float)[None], alpha.reshape(-1, 1)
+    x, y, r = system.positions(tt, aa, case=case)
+    kw = dict(method=method, order=order, chunk=chunk)
+    if getattr(system.star, "spots", None) is not None:
+        kw["times"] = jnp.broadcast_to(tt, x.shape[:-1])
+    zero = jnp.zeros_like(r)
+    f0 = np.asarray(occultation_flux(system.star, x, y, zero, **kw))
+    total = f0.copy()
+    for k in range(r.shape[-1]):
+        alone = zero.at[..., k].set(r[..., k])
+        total += np.asarray(occultation_flux(system.star, x, y, alone, **kw)) - f0
+    return total

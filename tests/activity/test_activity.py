@@ -303,3 +303,32 @@ def test_ppo_or_spot_recovers_an_injected_bump():
     quiet = ppo_or_spot(res, system)["dips"][0]
     assert quiet["delta_bic"]["ppo"] > 0 and quiet["delta_bic"]["spot"] > 0
     assert quiet["preferred"] == "no PPO"
+
+
+def test_ppo_or_spot_on_a_spotted_star_compares_the_right_models():
+    """On a star with spots the verdict stopped with "method='exact' needs a
+    radially symmetric star; this star has a surface map" (a method the
+    user never chose), and its no-PPO model held the overlap (sweep's
+    no_overlap was not applied off the "auto" path). A tiny spot on the far
+    side now gives the plain star's chi^2 of both models and its verdict."""
+    from types import SimpleNamespace
+
+    import jaxppo as jp
+
+    b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=90.0, radius=0.1, name="b")
+    c = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=90.0, radius=0.1, name="c")
+    star = jp.Star.quadratic(0.4, 0.25)
+    spotted = star.with_spots(lat=[80.0], lon=[180.0], radius=[1.0], contrast=[0.01], period=25.0, inc=90.0)
+    t = np.arange(-0.1, 0.1, 2 / 1440)
+    plain = jp.System(star, [b, c], tilted="b")
+    y = np.asarray(jp.sweep(plain, t, [0.0], cases="same", no_overlap=True))[0, 0]
+    y = y + 1e-4 * np.random.default_rng(0).standard_normal(t.size)
+    w = SimpleNamespace(number=1, time=t, flux=y, flux_err=np.full(t.size, 1e-4), exposure=None,
+                        event=SimpleNamespace(mid=0.0))
+    dip = {"kind": "dip", "case": "same", "alpha": 90.0, "delta_chi2": -1.0, "transits": [1]}
+    res = SimpleNamespace(windows=[w], summary={"table5": [dip]})
+    got = [jp.activity.ppo_or_spot(res, jp.System(s, [b, c], tilted="b"))["dips"][0] for s in (star, spotted)]
+    assert got[0]["preferred"] == got[1]["preferred"]
+    for key in ("chi2_no_ppo", "chi2_ppo"):
+        a, s = got[0]["windows"][0][key], got[1]["windows"][0][key]
+        assert abs(a - s) < 1e-3 * a, (key, a, s)

@@ -154,3 +154,32 @@ def test_sweep_mirrors_a_planet_with_a_node_as_system_flux_does():
             got = jp.sweep(system, t, alpha, cases=case)[0]
             want = np.asarray(system.flux(t, alpha, case=case))
             assert np.abs(got - want).max() < 1e-14, (len(system.planets), case, np.abs(got - want).max())
+
+
+def test_no_overlap_holds_for_every_method_and_a_spotted_star():
+    """sweep(no_overlap=True) with method "exact" or "raster", or on a star
+    with spots (whose flux takes the non-"auto" path), returned the full
+    model with the planet-planet overlap (1.2e-2 off at the overlap); the
+    PPO-or-spot verdict of a spotted star then compared the PPO model with
+    itself. Now every path gives the model without overlaps: the star's
+    own flux plus each disk's own dip."""
+    b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=90.0, radius=0.1, name="b")
+    c = jp.Planet(period=10.0, t0=0.0, a=20.0, inc=90.0, radius=0.1, name="c")
+    star = jp.Star.quadratic(0.4, 0.25)
+    system = jp.System(star, [b, c], tilted="b")
+    t = np.array([-0.03, 0.0, 0.02])
+    auto = np.asarray(jp.sweep(system, t, [0.0, 90.0], cases=("same", "opposite"), no_overlap=True))
+    with_overlap = np.asarray(jp.sweep(system, t, [0.0], cases="same"))
+    assert with_overlap[0, 0, 1] - auto[0, 0, 1] > 0.01  # the overlap at t = 0 (two disks, concentric)
+    # without overlaps: 1 - the two planets' own dips, whatever the tilt and case
+    alone = [1.0 - np.asarray(jp.System(star, [p]).flux(t, method="exact")) for p in (b, c)]
+    np.testing.assert_allclose(auto, np.broadcast_to(1.0 - alone[0] - alone[1], auto.shape), atol=1e-13)
+    exact = np.asarray(jp.sweep(system, t, [0.0, 90.0], cases=("same", "opposite"), method="exact", no_overlap=True))
+    np.testing.assert_allclose(exact, auto, atol=1e-13)
+    raster = np.asarray(jp.sweep(system, t, [0.0, 90.0], cases=("same", "opposite"), method="raster",
+                                 no_overlap=True))
+    np.testing.assert_allclose(raster, auto, atol=1e-6)
+    # a tiny spot on the far side changes the no-overlap model by ~1e-7, not by the overlap
+    spotted = star.with_spots(lat=[80.0], lon=[180.0], radius=[1.0], contrast=[0.01], period=25.0, inc=90.0)
+    far = np.asarray(jp.sweep(jp.System(spotted, [b, c], tilted="b"), t, [0.0], cases="same", no_overlap=True))
+    np.testing.assert_allclose(far, auto[:1, :1], atol=1e-6)
