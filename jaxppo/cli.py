@@ -341,6 +341,8 @@ def cmd_activity(args) -> int:
                                    mask_transits=not args.no_transit_mask)
     rot = rep["rotation"]
     print(f"rotation period {rot['period_d']:.3f} +- {rot['period_err_d']:.3f} d ({rot['period_err_method']})")
+    if rot.get("caution"):
+        print(f"  caution: {rot['caution']}")
     if rot.get("bootstrap_percentiles_16_50_84_d"):
         lo, med, hi = rot["bootstrap_percentiles_16_50_84_d"]
         print(f"quarter bootstrap 16/50/84 %: {lo:.2f} / {med:.2f} / {hi:.2f} d")

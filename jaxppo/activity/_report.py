@@ -50,6 +50,12 @@ def _rotation_report(prep, rot, var, bmap, bootstrap, period_min, period_max, bi
             "doubled": rot.doubled,
             "delta_bic_doubled": rot.delta_bic,
             "rule": "single-sinusoid GLS peak P1, or the two-harmonic (nterms=2) peak within 10 % of 2 P1 if it lowers the BIC by > 10",
+            # the BIC counts every cadence as independent; evolving spots leave
+            # correlated residuals, and a gain of ~100 then also doubles
+            # single-spot light curves (a review: 3 of 16 simulated, P = 9 and 18 d)
+            "caution": (f"the doubling from P1 = {rot.single_peak:.2f} d rests on a BIC gain of {rot.delta_bic:.0f}, "
+                        "which counts every cadence as independent: evolving spots' correlated residuals give such "
+                        "gains to single-spot light curves too, so P1 is not excluded" if rot.doubled else None),
             "false_alarm_probability": rot.false_alarm,
             "peaks": [{"period_d": p, "power": w} for p, w in rot.peaks],
             "period_range_d": [period_min, period_max],

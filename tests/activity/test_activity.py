@@ -176,6 +176,8 @@ def test_report_writes_json_and_figures(tmp_path):
     for name in ("activity_map.png", "activity_periodogram.png", "activity_spots.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(rep["rotation"]["bootstrap_percentiles_16_50_84_d"]) == 3
+    # a doubled period says what it rests on (a BIC gain that correlated residuals also give)
+    assert (rep["rotation"]["caution"] is not None) == rep["rotation"]["doubled"]
 
 
 @pytest.mark.parametrize("call, name", [
