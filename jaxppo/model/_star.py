@@ -148,8 +148,10 @@ class Spots(eqx.Module):
     Every field but ``edge`` is an array, so ``jax.grad`` sees them (spot
     sizes, positions, contrasts and the rotation are fit parameters). The
     raster that models a spotted star places its pixel window on the host,
-    so such a flux is differentiated in eager calls; ``jax.jit`` of it
-    raises (JAX cannot convert the traced positions).
+    so such a flux is differentiated in eager calls with respect to the
+    spots and the star only; ``jax.jit`` of it, and ``jax.grad`` with
+    respect to the disks' positions or radii (the planets' parameters),
+    raise (JAX cannot convert the traced positions to place the window).
     Attach them to a star with ``Star.with_spots``; only the raster
     models a spotted star, and its flux is relative to the unspotted star's
     total flux F0 (docs/activity.md). Spots must not overlap: contrasts add
