@@ -4,11 +4,11 @@ JSON-serialisable dict, with figures (what ``jaxppo activity`` runs)."""
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
+from ..model._strict_json import strict_jsonable
 from ._map import brightness_map, plot_brightness_map, plot_periodogram, plot_spot_fit
 from ._spots import KEPLER20_SPOT_CONTRAST, fit_spots
 from ._rotation import (PAPER_ROTATION_PERIOD, PAPER_ROTATION_PERIOD_ERR, prepare_light_curve,
@@ -18,21 +18,6 @@ __all__ = ["activity_report"]
 
 # Mueller et al. (2021), Sect. 3.2: peak-to-peak 0.1-0.2 %, largest 0.6 % in Q17.
 PAPER_VARIABILITY = {"typical_percent": [0.1, 0.2], "largest_percent": 0.6, "largest_quarter": "17"}
-
-
-def _clean(x):
-    """Strict JSON: floats must be finite (NaN/Infinity become None)."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
-    return x
 
 
 def _rotation_report(prep, rot, var, bmap, bootstrap, period_min, period_max, bins) -> dict:
@@ -242,7 +227,7 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     spots, spot_fit, chunk_sel = None, None, None
     if spot_chunk is not None:
         spots, spot_fit, chunk_sel, report["spots"] = _spot_report(prep, bmap, spot_chunk, n_spots, spot_contrast)
-    report = _clean(report)
+    report = strict_jsonable(report)
     if out is not None:
         _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper)
     return report

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model._strict_json import strict_jsonable
 from ._times import TIMES_COLUMNS, linear_ephemeris
 
 if TYPE_CHECKING:  # astropy is imported where a table is read
@@ -174,28 +175,9 @@ def write_times_products(table, out, references=None) -> dict:
         if isinstance(name, str) and name.startswith("oc_") and name not in summary["figures"]:
             (out / Path(name).name).unlink(missing_ok=True)
     tmp = out / "ttv_summary.json.tmp"
-    tmp.write_text(json.dumps(_strict(summary), indent=2, allow_nan=False) + "\n")
+    tmp.write_text(json.dumps(strict_jsonable(summary), indent=2, allow_nan=False) + "\n")
     os.replace(tmp, out / "ttv_summary.json")
     return summary
-
-
-def _strict(obj):
-    """``obj`` with numbers as plain floats and every NaN or infinity as
-    None (strict JSON: a failed transit's error is NaN)."""
-    if isinstance(obj, dict):
-        return {k: _strict(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_strict(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)) or (isinstance(obj, np.ndarray) and obj.ndim == 0):
-        v = float(obj)
-        return v if np.isfinite(v) else None
-    if isinstance(obj, np.ndarray):
-        return _strict(obj.tolist())
-    return obj
 
 
 def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:

@@ -24,6 +24,7 @@ from ._config import ScanConfig
 from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
+from ..model._strict_json import strict_jsonable
 from ._stats import geometry_names, goodness_of_fit, jeffreys, reach_check
 from ._windows import windows_and_events, windows_data
 
@@ -378,17 +379,7 @@ def _fixed_scan(cfg: ScanConfig):
 
 def _strict_json(obj, indent=None) -> str:
     """JSON with every non-finite float written as null (strict JSON)."""
-    def clean(v):
-        if isinstance(v, dict):
-            return {k: clean(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(x) for x in v]
-        if isinstance(v, (float, np.floating)):
-            return float(v) if np.isfinite(v) else None
-        if isinstance(v, np.integer):
-            return int(v)
-        return v
-    return json.dumps(clean(obj), indent=indent, allow_nan=False)
+    return json.dumps(strict_jsonable(obj), indent=indent, allow_nan=False)
 
 
 def joint_lines(result: dict) -> list[str]:
