@@ -95,6 +95,16 @@ def _surface_depth(star, planet, t):
     return (occultation_flux(star, x, y, jnp.zeros_like(r), method="auto", **kw) - with_planet)[0]
 
 
+def _fine_panel(system, dip, window, params, chi2s):
+    """One panel of the figure: the no-PPO, PPO and spot models on a fine
+    grid of 300 times over the window (exposure-averaged as the fit)."""
+    fine = SimpleNamespace(time=np.linspace(window.time.min(), window.time.max(), 300), flux=np.ones(300),
+                           flux_err=np.ones(300), exposure=window.exposure)
+    tf, nf, null_f, ppo_f = _window_models(system, fine, dip["alpha"], dip["case"])
+    bump_f = exposure_mean(bump_model(tf, params["amplitude"], params["centre"], params["width"], np), nf)
+    return (dip, window, fine.time, null_f, ppo_f, null_f + bump_f, *chi2s)
+
+
 def _planet_transits(system, window):
     """(name, first contact, last contact, depth bound, diameter time) of
     each planet transiting during the window [d]."""
@@ -258,11 +268,6 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             params, c2_spot, ok, planet = best
             c2_none = float(np.sum(((y - null) / sig) ** 2))
             c2_ppo = float(np.sum(((y - ppo) / sig) ** 2))
-            # the models on a fine grid for the figure (exposure-averaged as the fit)
-            fine = SimpleNamespace(time=np.linspace(w.time.min(), w.time.max(), 300), flux=np.ones(300),
-                                   flux_err=np.ones(300), exposure=w.exposure)
-            tf, nf, null_f, ppo_f = _window_models(system, fine, d["alpha"], d["case"])
-            bump_f = exposure_mean(bump_model(tf, params["amplitude"], params["centre"], params["width"], np), nf)
             entry["windows"].append({"number": num, "mid": float(w.event.mid), "points": int(y.size),
                                      "chi2_no_ppo": c2_none, "chi2_ppo": c2_ppo, "chi2_spot": c2_spot,
                                      "bump": params, "crossing_planet": planet, "converged": ok})
@@ -270,7 +275,8 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             chi["ppo"] += c2_ppo
             chi["spot"] += c2_spot
             n_pts += int(y.size)
-            panels.append((d, w, fine.time, null_f, ppo_f, null_f + bump_f, c2_none, c2_ppo, c2_spot))
+            if out is not None and figure:
+                panels.append(_fine_panel(system, d, w, params, (c2_none, c2_ppo, c2_spot)))
         k_spot = 3 * len(entry["windows"])
         ln_n = math.log(max(n_pts, 1))
         entry.update(

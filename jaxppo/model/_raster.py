@@ -235,8 +235,11 @@ def raster_flux(star: Star, x, y, r, settings: RasterSettings | None = None, tim
         out = _spots_only(star, tf)
         idx = np.nonzero(on)[0]
         if idx.size:
-            sub = (xf[idx], yf[idx], rf[idx])
-            out = out.at[idx].set(_window_frames(star, *sub, tf[idx], s))
+            # padded to a power of two (the last frame repeated): one
+            # program per size class, not one per count of frames on the star
+            pad = np.concatenate([idx, np.full((1 << int(idx.size - 1).bit_length()) - idx.size, idx[-1])])
+            sub = _window_frames(star, xf[pad], yf[pad], rf[pad], tf[pad], s)
+            out = out.at[idx].set(sub[: idx.size])
         return out.reshape(lead)
     return _window_frames(star, xf, yf, rf, tf, s).reshape(lead)
 

@@ -210,13 +210,13 @@ def _each_disk_alone(system: System, t, alpha, case, method: str, order, chunk) 
     alpha = jnp.asarray(alpha, float)
     tt, aa = jnp.asarray(t, float)[None], alpha.reshape(-1, 1)
     x, y, r = system.positions(tt, aa, case=case)
+    k = r.shape[-1]
+    # one call over [no disk, disk 1 alone, ..., disk k alone]: one
+    # program, not k + 1 (a spotted star's raster compiles per call)
+    radii = jnp.stack([jnp.zeros_like(r)] + [jnp.zeros_like(r).at[..., j].set(r[..., j]) for j in range(k)])
+    xs, ys = (jnp.broadcast_to(v, radii.shape) for v in (x, y))
     kw = dict(method=method, order=order, chunk=chunk)
     if getattr(system.star, "spots", None) is not None:
-        kw["times"] = jnp.broadcast_to(tt, x.shape[:-1])
-    zero = jnp.zeros_like(r)
-    f0 = np.asarray(occultation_flux(system.star, x, y, zero, **kw))
-    total = f0.copy()
-    for k in range(r.shape[-1]):
-        alone = zero.at[..., k].set(r[..., k])
-        total += np.asarray(occultation_flux(system.star, x, y, alone, **kw)) - f0
-    return total
+        kw["times"] = jnp.broadcast_to(tt, radii.shape[:-1])
+    f = np.asarray(occultation_flux(system.star, xs, ys, radii, **kw))
+    return f[0] + np.sum(f[1:] - f[0], axis=0)
