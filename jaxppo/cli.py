@@ -70,6 +70,14 @@ def _out_file(path, option="--out") -> Path:
     return out
 
 
+def _not_an_input(out: Path, args, option="--out") -> None:
+    """ValueError when ``out`` is a file the command's config reads (the
+    TOML, its data, star or transit-times files)."""
+    from jaxppo.obliquity._config_files import config_inputs, refuse_overwriting_inputs
+
+    refuse_overwriting_inputs([out], config_inputs(args.config), option)
+
+
 def _enable_x64() -> None:
     """float64 for every command, and JAX's persistent compilation cache:
     a second run does not recompile what the first compiled (the default
@@ -199,7 +207,8 @@ def cmd_simulate(args) -> int:
     lc = jp.simulate_kepler20(seed=args.seed, noise=args.noise, alpha=args.alpha, case=args.case,
                               radius_scale=args.radius_scale)
     lc.to_csv(out)
-    print(f"wrote {out}: {len(lc)} points, noise {args.noise}, alpha {args.alpha}, case {args.case}, radius x{args.radius_scale}")
+    tilt = "untilted (no --alpha)" if args.alpha is None else f"alpha {args.alpha}, case {args.case}"
+    print(f"wrote {out}: {len(lc)} points, noise {args.noise}, {tilt}, radius x{args.radius_scale}")
     if args.alpha is not None:
         from jaxppo.model._kepler20 import injection_note
 
@@ -253,7 +262,7 @@ def cmd_fit(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _out_file(args.out)
+        _not_an_input(_out_file(args.out), args)
     _free_names(args)  # a repeated name fails before the config loads
     cfg, lc = _fit_inputs(args)
     free = _free_names(args, cfg)
@@ -277,13 +286,13 @@ def cmd_sample(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _out_file(args.out)
+        _not_an_input(_out_file(args.out), args)
     if args.netcdf:
         try:
             import arviz  # noqa: F401
         except ImportError:
             raise ValueError("--netcdf needs arviz: pip install 'jaxppo[arviz]'") from None
-        _out_file(args.netcdf, "--netcdf")
+        _not_an_input(_out_file(args.netcdf, "--netcdf"), args, "--netcdf")
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")

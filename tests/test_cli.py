@@ -566,3 +566,20 @@ def test_python_m_jaxppo_is_the_command():
     assert out.returncode == 2 and "no such folder" in out.stderr and "jaxppo plot" in out.stderr, out
     help_text = subprocess.run([sys.executable, "-m", "jaxppo", "--help"], capture_output=True, text=True, timeout=120)
     assert help_text.returncode == 0 and help_text.stdout.startswith("usage: jaxppo"), help_text
+
+
+@pytest.mark.parametrize("argv", [["fit", "--out", "{data}"], ["sample", "--out", "{config}"],
+                                  ["sample", "--netcdf", "{data}"]])
+def test_fit_and_sample_never_write_over_their_inputs(argv, tmp_path, capsys):
+    """``jaxppo fit --out DATA.csv`` replaced the light curve it had just
+    read with the fit's JSON."""
+    cfg = _synthetic_copy(tmp_path / "c")
+    files = {"config": cfg, "data": cfg.parent / "kepler20_synthetic_bc.csv"}
+    before = {k: p.read_bytes() for k, p in files.items()}
+    args = [argv[0], str(cfg), *(a.format(**files) for a in argv[1:])]
+    if "--netcdf" in argv:
+        pytest.importorskip("arviz")
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "that file is an input of this run" in err and err.count("\n") == 1, err
+    assert {k: p.read_bytes() for k, p in files.items()} == before

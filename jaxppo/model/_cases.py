@@ -109,6 +109,9 @@ def scan_cases(system: "System", cases) -> tuple[str, ...]:
             cases = [cases]
         else:
             return tuple(case_label(c) for c in hemisphere_cases(system))
+    if isinstance(cases, (bytes, dict)) or not hasattr(cases, "__iter__"):
+        raise ValueError(f"cases must be 'all', a case or a list of cases ('same', 'opposite', or '+'/'-' signs), "
+                         f"got {cases!r}")
     cases = list(cases)
     if not cases:
         raise ValueError("cases must not be empty")

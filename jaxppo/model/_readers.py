@@ -20,7 +20,7 @@ __all__ = ["COLUMN_ROLES", "QUALITY_FLAGS", "QUALITY_BITMASKS", "TIME_ZERO", "qu
 COLUMN_ROLES = {
     "time": ("time", "time_bkjd", "bkjd", "t"),
     "flux": ("flux", "pdcsap_flux", "f"),
-    "flux_err": ("flux_err", "pdcsap_flux_err", "err", "sigma"),
+    "flux_err": ("flux_err", "pdcsap_flux_err", "err", "error", "flux_error", "sigma"),
     "quality": ("quality", "sap_quality"),
     "quarter": ("quarter",),
 }
@@ -318,6 +318,9 @@ def read_csv_columns(path: Path, columns: dict):
     else:
         names, cells = _astropy_csv(path, text)
     header = [h.strip().lower() for h in names]
+    if twice := sorted({h for h in header if h and header.count(h) > 1}):
+        raise ValueError(f"{path}: the header names column(s) {twice} more than once (names are case-insensitive); "
+                         f"header is {header}")
 
     def col(role, required=True):
         if role in columns:
@@ -334,6 +337,14 @@ def read_csv_columns(path: Path, columns: dict):
         return None
 
     idx = {r: col(r, r in ("time", "flux")) for r in COLUMN_ROLES}
+    if idx["flux_err"] is None:
+        used = {i for i in idx.values() if i is not None}
+        if like := [h for i, h in enumerate(header) if i not in used and any(k in h for k in ("err", "sig", "unc"))]:
+            import warnings
+
+            warnings.warn(f"{path}: no error column under the usual names {list(COLUMN_ROLES['flux_err'])}, so the "
+                          f"errors are estimated from the scatter; column {like[0]!r} is not used: if it holds the "
+                          f"flux errors, set columns.flux_err = {like[0]!r}", UserWarning, stacklevel=2)
 
     def read(role):
         c = cells[names[idx[role]]]

@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality_bitmask
-from ..model._phoenix import data_path, phoenix_star
+from ..model._phoenix import data_path
 from ..model._star import Star
 from ..model._cases import CASES, scan_cases
 from ..model._planet import Planet
 from ..model._system import System, require_keplerian
 from ..model._units import from_quantity
+from ._config_files import default_config_path, star_file_digest, star_from_table
 from ._ttv_config import planet_ttv_dict, transit_times_from, ttv_digest, ttv_settings
 
 __all__ = ["ScanConfig", "require_scan_system", "alpha_grid", "check_alpha_grid", "check_scan_settings", "config_from_arguments",
@@ -26,11 +27,6 @@ __all__ = ["ScanConfig", "require_scan_system", "alpha_grid", "check_alpha_grid"
 
 _PLANET_FIELDS = ("period", "t0", "a", "inc", "radius")
 _PLANET_OPTIONAL = {"e": 0.0, "omega": 90.0}  # circular unless given
-
-
-def default_config_path() -> Path:
-    """The bundled default scan: real Kepler-20 long-cadence data."""
-    return data_path("kepler20_real_llc.toml")
 
 
 def synthetic_config_path() -> Path:
@@ -144,10 +140,12 @@ class ScanConfig:
         # what only the marginalised scan uses stays out: changing the number
         # of draws must not discard the plain scan's progress
         raw = {k: v for k, v in self.raw.items() if k not in ("fit", "ttv")}
-        drop = ("marginalize",) + tuple(scan_keys)
+        # nor does ``block``: how often progress is saved, not what is computed
+        drop = ("marginalize", "block") + tuple(scan_keys)
         if isinstance(raw.get("scan"), dict):
             raw["scan"] = {k: v for k, v in raw["scan"].items() if k not in drop}
         raw.update(ttv_digest(self.system))  # transit times from a file: their values count
+        raw.update(star_file_digest(self.raw.get("star"), self.system.star))  # so do a star file's
         payload = json.dumps({"config": raw, "jaxppo": __version__, "supersampling": nsub},
                              sort_keys=True, default=str).encode()
         data = np.concatenate([self.lightcurve.time, self.lightcurve.flux, self.lightcurve.flux_err]).tobytes()
@@ -164,7 +162,7 @@ def _err(source, msg):
 SECTIONS = ("star", "system", "planet", "data", "scan", "fit", "ttv")
 STAR_KEYS = {
     "uniform": ("law",), "quadratic": ("law", "coefficients"), "nonlinear": ("law", "coefficients"),
-    "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation"),
+    "power2": ("law", "coefficients"), "tabulated": ("law", "mu", "intensity", "path", "interpolation", "pad_ends"),
     "phoenix": ("law", "path", "limb"),
 }
 PLANET_KEYS = ("name",) + _PLANET_FIELDS + tuple(_PLANET_OPTIONAL) + ("tilted", "transit_times", "transit_epochs",
@@ -195,20 +193,11 @@ def _star_from(section: dict, base: Path, source: str) -> Star:
     law = str(section["law"]).lower()
     if law in STAR_KEYS:
         _check_keys(section, STAR_KEYS[law], f"[star] (law = {law!r})", source)
-    if law == "phoenix":
-        if "path" not in section:
-            raise _err(source, "[star] law = 'phoenix' needs path = a PHOENIX SPECINT FITS file")
-        return phoenix_star(base / section["path"], limb=section.get("limb", "rescale"))
-    if law == "tabulated":
-        if "mu" in section and "intensity" in section:
-            return Star.tabulated(section["mu"], section["intensity"], interpolation=section.get("interpolation", "sqrt-poly"))
-        if "path" in section:
-            p = base / section["path"]
-            if not p.exists():
-                raise _err(source, f"[star] table file not found: {p}")
-            tab = np.loadtxt(p, delimiter=",", comments="#", ndmin=2)
-            return Star.tabulated(tab[:, 0], tab[:, 1], interpolation=section.get("interpolation", "sqrt-poly"))
-        raise _err(source, "[star] law = 'tabulated' needs mu = [...] and intensity = [...], or path = 'table.csv'")
+    if law in ("phoenix", "tabulated"):
+        try:
+            return star_from_table(section, law, base)
+        except ValueError as e:
+            raise _err(source, str(e)) from e
     try:
         return Star.from_law(law, section.get("coefficients", []))
     except ValueError as e:
@@ -292,10 +281,9 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
         raise _err(source, f"[data] columns must be a table of column names, e.g. {{time = 'bjd', flux_err = 'error'}}, got {columns!r}")
     exposure = data.get("exposure")
     if exposure is not None:
-        try:
-            exposure = float(exposure)
-        except (TypeError, ValueError):
-            raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}") from None
+        if not _is_number(exposure):
+            raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}")
+        exposure = float(exposure)
     bitmask = data.get("quality_bitmask", "default")
     mission = data.get("mission")
     try:
@@ -331,7 +319,29 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             lc = dataclasses.replace(lc, exposure=exposure)
     except ValueError as e:
         raise _err(source, f"[data] {e}") from e
+    _warn_instantaneous(lc, source)
     return lc
+
+
+LONG_CADENCE = 5.0 / 1440.0
+"""Median spacing [d] above which data without an exposure get a warning:
+the model of such points must be averaged over their integration."""
+
+
+def _warn_instantaneous(lc: LightCurve, source: str) -> None:
+    """UserWarning when points spaced more than ``LONG_CADENCE`` apart have no
+    exposure: an instantaneous model of 29.4-min Kepler points differs from
+    the integrated one by far more than their noise in ingress and egress."""
+    if lc.exposure is not None or lc.time.size < 2:
+        return
+    spacing = float(np.median(np.diff(np.sort(lc.time))))
+    if spacing > LONG_CADENCE:
+        import warnings
+
+        warnings.warn(f"{source}: [data] exposure is not set, so every point is modelled at one instant, but the "
+                      f"points are {spacing * 1440:.1f} min apart (median): if each integrates over that time (Kepler "
+                      "long cadence: exposure = 0.0204, 29.4 min), set [data] exposure = its length in days", UserWarning,
+                      stacklevel=3)
 
 
 def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
@@ -378,7 +388,7 @@ def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
     >>> jp.load_config(path, alpha=[0, 180, 1])
     Traceback (most recent call last):
     ...
-    ValueError: ...: [scan] alpha = [0, 180, 1]: alpha covers 0 .. 179 deg (180 angles): ...
+    ValueError: alpha = [0, 180, 1]: alpha covers 0 .. 179 deg (180 angles): ...
     >>> real = jp.load_config()  # the bundled real Kepler-20 data
     >>> real.lightcurve.time.size, real.detrend
     (64792, 2)
@@ -394,14 +404,18 @@ def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{source}: not valid TOML: {e}") from e
     if alpha is not None:
+        alpha_grid(alpha, "alpha")  # a clear error naming alpha, before the file's
         new = [float(v) for v in alpha]
         try:
             same = [float(v) for v in raw["scan"]["alpha"]] == new
         except (KeyError, TypeError, ValueError):
             same = False
         # the same grid written differently (ints) keeps the digest, so a
-        # finished scan is still recognised
-        if isinstance(raw.get("scan"), dict) and not same:
+        # finished scan is still recognised; a config without [scan] gets one
+        # (unless the grid is the default, which it already scans)
+        if "scan" not in raw and new != [0.0, 360.0, 1.0]:
+            raw["scan"] = {"alpha": new}
+        elif isinstance(raw.get("scan"), dict) and not same:
             raw["scan"] = dict(raw["scan"], alpha=new)
     # absolute: the saved config.json (jaxppo plot) works from any folder
     return config_from_dict(raw, path.resolve().parent, source)
@@ -653,6 +667,8 @@ def _fit_from(raw: dict, system: System, source: str):
         bad = [v for v in free if v not in valid]
         if bad:
             raise _err(source, f"[fit] free: unknown parameter(s) {bad}; valid: {list(valid)}")
+        if twice := sorted({v for v in free if free.count(v) > 1}):
+            raise _err(source, f"[fit] free names {', '.join(twice)} more than once: {free}")
         free = tuple(free)
     rho = fit.get("stellar_density")
     if rho is not None and not (isinstance(rho, list) and len(rho) == 2

@@ -355,6 +355,33 @@ def _clear_outputs(out: Path) -> None:
     """--restart: remove the previous scan's outputs before anything new is
     written, the finished-scan marker (summary.json) first, so an interrupted
     restart never leaves old results beside a new config."""
+    for name in _output_names(out):
+        p = out / name
+        if p.is_file():
+            p.unlink()
+
+
+def _refuse_foreign_files(out: Path, cfg: ScanConfig) -> None:
+    """ValueError when ``out`` holds files a scan would write over that are
+    not an earlier scan's (no progress file beside them: the user's own
+    files, which jaxppo never overwrites, --restart or not), or that are
+    inputs of this scan (its config, data, star or transit-times files)."""
+    from ._config_files import config_inputs, refuse_overwriting_inputs
+
+    present = [n for n in _output_names(out) if (out / n).exists()]
+    src = Path(cfg.source)
+    refuse_overwriting_inputs([out / n for n in present], config_inputs(src, cfg.raw) if src.is_file() else set(),
+                              f"--out {out}: a scan there would write")
+    if present and not (out / PROGRESS).is_file():
+        raise ValueError(
+            f"{out} holds {', '.join(present[:6])}{' and more' if len(present) > 6 else ''} but no scan progress "
+            f"({PROGRESS}): not an earlier scan's results, and a scan there would overwrite them; use another --out "
+            "folder (or move those files away)")
+
+
+def _output_names(out: Path) -> list:
+    """The files a scan (and its marginal and joint runs) writes into
+    ``out``: the finished-scan marker (summary.json) first."""
     figures = []
     summ = out / "summary.json"
     if summ.exists():
@@ -363,11 +390,9 @@ def _clear_outputs(out: Path) -> None:
         except (json.JSONDecodeError, OSError, AttributeError, TypeError):
             figures = []
     names = ["summary.json", "scan.csv", "pairs.csv", "scan.ecsv", "table5.csv", "table5.md", "marginal.csv", "marginal.json",
-             "marginal.png", "marginal_draws.json", "marginal_progress.jsonl", "ppo_or_spot.png"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
-    for name in dict.fromkeys(names):
-        p = out / name
-        if p.is_file():
-            p.unlink()
+             "marginal.png", "marginal_draws.json", "marginal_progress.jsonl", "ppo_or_spot.png", "joint.json",
+             "joint.csv", "joint.png"] + figures + list(_FIGURE_NAMES) + ["config.json", PROGRESS]
+    return list(dict.fromkeys(n for n in names if n and "/" not in n and n not in (".", "..")))
 
 
 # The figure files scan_figures writes (also removed by --restart when the old
@@ -461,7 +486,7 @@ def what_changed(out: Path, cfg: ScanConfig) -> str:
     keys = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
     if keys:
         return "changed: " + ", ".join(keys[:8]) + (f" and {len(keys) - 8} more" if len(keys) > 8 else "")
-    return "the config's keys are the same: the data's contents, a transit-times file or jaxppo's version changed"
+    return "the config's keys are the same: the data's contents, a star or transit-times file or jaxppo's version changed"
 
 
 def _open_progress(cfg: ScanConfig, out: Path, digest: str, restart: bool):
@@ -635,6 +660,7 @@ def _read_state(cfg: ScanConfig, out: Path, digest: str, restart: bool):
 
     def read():
         out.mkdir(parents=True, exist_ok=True)
+        _refuse_foreign_files(out, cfg)
         done, notes = _open_progress(cfg, out, digest, restart)
         complete = all((c, round(float(a), 9)) in done for c in cfg.cases for a in cfg.alpha)
         return done, notes, _finished_result(out, cfg, digest) if complete and not notes else None

@@ -432,3 +432,111 @@ def test_docs_nbody_example_is_the_bundled_config_and_unnamed_moons_match_python
     p.write_text(p.read_text().replace('name = "I"\n', "").replace('free = ["b.I.t0"]', 'free = ["b.moon0.t0"]'))
     cfg = load_config(p)
     assert cfg.system.planets[0].moons[0].name == "" and cfg.fit_free == ("b.moon0.t0",)
+
+
+# ---- review of the config surface (2026-11-29) --------------------------------------
+
+def _tab_config(tmp_path, table_text, star_extra=""):
+    lc = _lc()
+    lc.to_csv(tmp_path / "d.csv")
+    (tmp_path / "ld.csv").write_text(table_text)
+    text = BASE.format(data='path = "d.csv"').replace(
+        'law = "quadratic"\ncoefficients = [0.495, 0.154]', f'law = "tabulated"\npath = "ld.csv"{star_extra}')
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    return p
+
+
+def test_a_star_files_content_is_part_of_the_digest(tmp_path):
+    """The digest covered the star file's path only: after the file was
+    edited a rerun reported the earlier results as this config's ("nothing
+    recomputed"), with another limb darkening."""
+    mu = np.linspace(0, 1, 11)
+    p = _tab_config(tmp_path, "".join(f"{m},{1 - 0.6 * (1 - m)}\n" for m in mu))
+    before = load_config(p).digest
+    (tmp_path / "ld.csv").write_text("".join(f"{m},{1 - 0.3 * (1 - m)}\n" for m in mu))
+    assert load_config(p).digest != before
+    # an analytic star's digest does not involve any file
+    q = tmp_path / "q.toml"
+    q.write_text(BASE.format(data='path = "d.csv"'))
+    assert load_config(q).digest == load_config(q).digest
+
+
+def test_a_star_table_with_a_header_and_its_errors(tmp_path):
+    """The documented header row (mu,intensity) failed with "could not
+    convert string 'mu'"; errors named neither [star] nor the file."""
+    mu = np.linspace(0, 1, 11)
+    rows = "".join(f"{m} {1 - 0.6 * (1 - m)}\n" for m in mu)
+    cfg = load_config(_tab_config(tmp_path, "mu,intensity\n" + rows))
+    assert float(cfg.system.star.intensity(1.0)) > float(cfg.system.star.intensity(0.0))
+    with pytest.raises(ValueError, match=r"\[star\] law = 'tabulated' \(path = 'ld.csv'\): .*ld.csv, line 3: .* not two numbers"):
+        load_config(_tab_config(tmp_path, "mu,intensity\n0,0.4\nx,y\n"))
+    with pytest.raises(ValueError, match=r"\[star\] law = 'tabulated' \(path = 'ld.csv'\): .*mu"):
+        load_config(_tab_config(tmp_path, "0.2,0.5\n0.6,0.8\n1,1\n"))
+    assert load_config(_tab_config(tmp_path, "0.2,0.5\n0.6,0.8\n1,1\n", "\npad_ends = true")).digest
+    with pytest.raises(ValueError, match=r"takes mu = \[...\] and intensity = \[...\] or path = 'table.csv', not both"):
+        load_config(_tab_config(tmp_path, rows, "\nmu = [0, 1]\nintensity = [0.4, 1]"))
+    p = _tab_config(tmp_path, rows)
+    p.write_text(p.read_text().replace('law = "tabulated"', 'law = "phoenix"'))
+    with pytest.raises(ValueError, match=r"\[star\] path = 'ld.csv' \(.*ld.csv\): "):
+        load_config(p)
+
+
+def test_alpha_applies_to_a_config_without_a_scan_section(tmp_path):
+    """load_config(path, alpha=...) (the command line's --alpha) was
+    silently ignored when the config had no [scan] section: the 1-deg
+    default grid was scanned instead."""
+    p = tmp_path / "c.toml"
+    p.write_text(_valid(tmp_path).partition("[scan]")[0])
+    assert load_config(p, alpha=[0, 360, 30]).alpha.size == 12
+    assert load_config(p, alpha=[0, 360, 1]).digest == load_config(p).digest
+    for bad in (5, [0, 360, None], "abc"):
+        with pytest.raises(ValueError, match=r"^alpha must be"):
+            load_config(p, alpha=bad)
+    p.write_text(_valid(tmp_path) + "cases = 5\n")
+    with pytest.raises(ValueError, match=r"\[scan\] cases = 5: cases must be 'all', a case or a list of cases"):
+        load_config(p)
+
+
+def test_names_and_free_parameters_that_fits_cannot_take(tmp_path):
+    """A planet named "b.x" loaded and then failed in fit ("no planet named
+    'b'"); a repeated [fit] free name failed only when a fit ran."""
+    p = tmp_path / "c.toml"
+    p.write_text(_valid(tmp_path).replace('name = "b"', 'name = "b.x"'))
+    with pytest.raises(ValueError, match=r"planet name 'b.x' contains '.'"):
+        load_config(p)
+    p.write_text(_valid(tmp_path) + '[fit]\nfree = ["b.t0", "b.t0"]\n')
+    with pytest.raises(ValueError, match=r"\[fit\] free names b.t0 more than once"):
+        load_config(p)
+
+
+def test_unintegrated_long_cadence_and_quoted_exposure(tmp_path):
+    """29.4-min points without [data] exposure ran an instantaneous model
+    (chi^2_0 162.2 instead of 130.4 on the real data) without a word; a
+    quoted exposure was converted silently."""
+    t = np.arange(0.0, 2.0, 0.0204336)
+    _csv(tmp_path / "d.csv", "time,flux,flux_err", [t, np.ones_like(t), np.full_like(t, 1e-4)])
+    with pytest.warns(UserWarning, match=r"\[data\] exposure is not set.*29.4 min apart"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"'))
+    with pytest.raises(ValueError, match=r"\[data\] exposure must be a number of days, got '0.0204'"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"\nexposure = "0.0204"'))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_config(_cfg(tmp_path, 'path = "d.csv"\nexposure = 0.0204'))
+
+
+def test_error_columns_under_other_names_and_repeated_header(tmp_path):
+    """An "error" column (the docs' own example name) was ignored and the
+    errors estimated without a word; a repeated header name was read."""
+    t = np.arange(0.0, 1.0, 0.001)
+    _csv(tmp_path / "d.csv", "time,flux,error", [t, np.ones_like(t), np.full_like(t, 3e-4)])
+    assert np.allclose(load_config(_cfg(tmp_path, 'path = "d.csv"')).lightcurve.flux_err, 3e-4)
+    noisy = 1 + 3e-4 * np.random.default_rng(1).standard_normal(t.size)
+    _csv(tmp_path / "d.csv", "time,flux,ferrs", [t, noisy, np.full_like(t, 3e-4)])
+    with pytest.warns(UserWarning, match=r"column 'ferrs' is not used: if it holds the flux errors, set columns.flux_err"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"'))
+    _csv(tmp_path / "d.csv", "time,flux,Flux", [t, np.ones_like(t), np.ones_like(t)])
+    with pytest.raises(ValueError, match=r"header names column\(s\) \['flux'\] more than once"):
+        load_config(_cfg(tmp_path, 'path = "d.csv"'))

@@ -578,6 +578,46 @@ def test_restart_removes_the_old_outputs_first(tmp_path, monkeypatch):
     run_scan(cfg2, out, progress=False)  # resumes the restarted scan
     assert json.loads((out / "summary.json").read_text())["config_digest"] == cfg2.digest
 
+    # an earlier joint run's outputs go too (they stayed beside the new scan)
+    for name in ("joint.json", "joint.csv", "joint.png"):
+        (out / name).write_text("old joint run")
+    run_scan(cfg, out, restart=True, progress=False)
+    assert not any((out / n).exists() for n in ("joint.json", "joint.csv", "joint.png"))
+
+
+def test_a_scan_never_writes_over_files_it_did_not_write(tmp_path):
+    """--out onto a folder of the user's own files replaced them (config.json,
+    scan.csv, ...), and a scan whose data file was named scan.csv in --out
+    replaced its own input; --restart did the same."""
+    cfg = _small(tmp_path)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "scan.csv").write_text("my own table")
+    for restart in (False, True):
+        with pytest.raises(ValueError, match=r"holds scan.csv but no scan progress"):
+            run_scan(cfg, mine, restart=restart, progress=False)
+    assert (mine / "scan.csv").read_text() == "my own table"
+    # the data file itself where the scan would write scan.csv
+    text = (tmp_path / "scan.toml").read_text().replace('path = "data.csv"', 'path = "scan.csv"')
+    (tmp_path / "scan.csv").write_bytes((tmp_path / "data.csv").read_bytes())
+    (tmp_path / "in.toml").write_text(text)
+    before = (tmp_path / "scan.csv").read_bytes()
+    with pytest.raises(ValueError, match=r"a scan there would write .*scan.csv: that file is an input of this run"):
+        run_scan(load_config(tmp_path / "in.toml"), tmp_path, progress=False)
+    assert (tmp_path / "scan.csv").read_bytes() == before
+
+
+def test_another_block_size_resumes(tmp_path):
+    """``block`` only sets how often progress is saved; a rerun with another
+    was refused as "a different configuration (changed: scan.block)"."""
+    cfg = _small(tmp_path)
+    run_scan(cfg, tmp_path / "out", progress=False)
+    text = (tmp_path / "scan.toml").read_text().replace("block = 6", "block = 10")
+    (tmp_path / "scan.toml").write_text(text)
+    cfg2 = load_config(tmp_path / "scan.toml")
+    assert cfg2.block == 10 and cfg2.digest == cfg.digest
+    run_scan(cfg2, tmp_path / "out", progress=False)
+
 
 # ---- public API ---------------------------------------------------------------------
 
