@@ -338,6 +338,13 @@ def cmd_activity(args) -> int:
     # the transits of all five known Kepler-20 planets are masked (b-f; d's
     # 0.08 % transits would otherwise remain in the stellar signal)
     system = None if args.no_transit_mask else load_config(_FIVE_PLANETS).system
+    if not 1 <= args.spots <= 6:
+        raise ValueError(f"--spots must be an integer in 1..6, got {args.spots}")
+    if args.bootstrap < 0:
+        raise ValueError(f"--bootstrap must be >= 0, got {args.bootstrap}")
+    if not 0 < args.period_min < args.period_max:
+        raise ValueError(f"--period-min and --period-max must satisfy 0 < min < max [d], got {args.period_min:g} and "
+                         f"{args.period_max:g}")
     spot_chunk = args.spot_chunk
     if spot_chunk is not None and spot_chunk != "all":
         try:
@@ -510,7 +517,7 @@ def _add_activity(sub) -> None:
                    help="quarter-bootstrap draws for the period spread, 0: none (default: 50)")
     p.add_argument("--spot-chunk", default=None, metavar="N|all",
                    help="map chunk to invert with spots, or 'all' (default: no inversion)")
-    p.add_argument("--spots", type=int, default=3, help="spots per chunk (default: 3)")
+    p.add_argument("--spots", type=int, default=3, help="spots per chunk, 1..6 (default: 3)")
     p.add_argument("--no-transit-mask", action="store_true",
                    help="keep the planets' transits in (default: mask Kepler-20 b-f)")
     p.set_defaults(func=cmd_activity)

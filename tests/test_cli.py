@@ -330,6 +330,8 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
     (["demo", "--out", "a_file"], "error: --out a_file: a_file is a file, not a folder"),
     (["init", "sub/x.toml"], "error: PATH sub/x.toml: the folder sub does not exist"),
     (["scan", "--qiet"], "error: unrecognized arguments: --qiet"),
+    (["activity", "--spots", "-2"], "error: --spots must be an integer in 1..6, got -2"),
+    (["activity", "--period-min", "9", "--period-max", "3"], "error: --period-min and --period-max must satisfy"),
 ])
 def test_errors_are_one_line(argv, needle, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
