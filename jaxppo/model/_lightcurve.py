@@ -438,7 +438,9 @@ class LightCurve:
             The light curves; their exposures must agree unless ``exposure``
             is given.
         exposure : float or None, optional
-            Integration time of the joined light curve [d].
+            Integration time of the joined light curve [d]; a part that
+            has another one gets a UserWarning (its points would be
+            averaged over the wrong length).
 
         Returns
         -------
@@ -455,11 +457,22 @@ class LightCurve:
         parts = list(parts)
         if not parts:
             raise ValueError("concatenate needs at least one light curve")
+        exps = {p.exposure for p in parts}
         if exposure is None:
-            exps = {p.exposure for p in parts}
             if len(exps) > 1:
-                raise ValueError(f"the files have different exposures {sorted(exps, key=str)}; set exposure")
+                raise ValueError(
+                    f"the light curves have different exposures {sorted(exps, key=str)} [d]: a light curve has one "
+                    "exposure, over which every point's model is averaged; set exposure only if one length is right "
+                    "for every part (e.g. parts of one instrument read without it), else model each instrument's "
+                    "light curve on its own (docs/api.md, LightCurve)")
             exposure = parts[0].exposure
+        elif other := sorted(e for e in exps - {None} if abs(e - exposure) > 1e-3 * exposure):
+            import warnings
+
+            warnings.warn(f"concatenate: parts with exposures {other} [d] are modelled "
+                          f"with exposure = {exposure} d: a point integrated over another length gets the wrong "
+                          "average (a 2-min TESS cadence smeared over 29.4 min rounds its ingress and egress)",
+                          UserWarning, stacklevel=2)
         t = np.concatenate([p.time for p in parts])
         if np.unique(t).size != t.size:
             raise ValueError(f"the files share {t.size - np.unique(t).size} time stamps (the same data twice?)")

@@ -495,3 +495,20 @@ def test_negative_errors_are_reported_as_such():
     assert "2 non-finite or with error <= 0" in lc.report_line()
     with pytest.raises(ValueError, match=r"flux_err must be > 0, found -0.001"):
         jp.LightCurve(t, np.ones(6), np.array([1e-3, -1e-3, 1e-3, 1e-3, 1e-3, 1e-3]))
+
+
+def test_concatenating_instruments_of_different_exposures():
+    """Kepler (29.4 min) and TESS (2 min) points joined with one exposure
+    were averaged over the wrong length without a word."""
+    tk, tt = np.arange(98) * 0.0204, 10.0 + np.arange(40) * 0.0014
+    kep = jp.LightCurve(tk, np.ones(tk.size), np.full(tk.size, 1e-4), exposure=0.0204)
+    tess = jp.LightCurve(tt, np.ones(tt.size), np.full(tt.size, 1e-4), exposure=0.0014)
+    with pytest.raises(ValueError, match=r"different exposures \[0.0014, 0.0204\] \[d\]: a light curve has one"):
+        jp.LightCurve.concatenate([kep, tess])
+    with pytest.warns(UserWarning, match=r"parts with exposures \[0.0014\] \[d\] are modelled with exposure = 0.0204"):
+        jp.LightCurve.concatenate([kep, tess], exposure=0.0204)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the same length to rounding: no warning
+        jp.LightCurve.concatenate([kep], exposure=0.0204 * (1 + 1e-6))
