@@ -20,6 +20,8 @@ def test_scan_example(tmp_path):
     res = _load("scan_kepler20").main(["--out", str(tmp_path / "o"), "--step", "4"])
     assert (tmp_path / "o" / "scan.csv").exists() and (tmp_path / "o" / "delta_chi2_api.png").exists()
     assert res.summary["points"] > 100 and 0.8 < res.chi2_0["same"] / res.summary["points"] < 1.3  # real data, errors from scatter
+    # the README's scan (the config's [scan] settings; the example once dropped them: 125 points, 146.2)
+    assert res.summary["points"] == 111 and abs(res.chi2_0["same"] - 130.4) < 0.05, (res.summary["points"], res.chi2_0)
 
 
 def test_injected_ppo_example():

@@ -48,7 +48,7 @@ class SweepStats:
             raise KeyError(key)
         warnings.warn(
             f"SweepStats is a dataclass now: use stats.{key} instead of stats[{key!r}] "
-            "(dict access is deprecated and will be removed in the next release)",
+            "(dict access is deprecated and will be removed in 1.0)",
             DeprecationWarning,
             stacklevel=2,
         )

@@ -37,7 +37,7 @@ class MarginalResult(DeprecatedSummaryAccess):
 
     ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
     ``summary`` (the result used to be that dict) but warn: deprecated, gone
-    in the next release.
+    in 1.0.
 
     Attributes
     ----------

@@ -79,7 +79,7 @@ class ScanResult(DeprecatedSummaryAccess):
 
     ``result["key"]``, ``result.get(key)`` and ``key in result`` still read
     ``summary`` (the result used to be that dict) but warn: deprecated, gone
-    in the next release.
+    in 1.0.
 
     Attributes
     ----------

@@ -1,10 +1,10 @@
-"""Read-only dict access to a result's ``summary``, kept for one release.
+"""Read-only dict access to a result's ``summary``, kept until 1.0.
 
 ``jaxppo.ScanResult`` and ``jaxppo.MarginalResult`` used to be
 dict subclasses (the summary itself). They are frozen dataclasses now, with
 the summary in their ``summary`` field; ``result["key"]``, ``result.get``,
 ``key in result``, ``keys()``, ``items()`` and ``values()`` still read it but
-warn (DeprecationWarning) and go away in the next release."""
+warn (DeprecationWarning) and go away in 1.0."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ class DeprecatedSummaryAccess:
     summary: dict
 
     def _warn(self, what: str) -> None:
-        warnings.warn(f"{type(self).__name__}{what} is deprecated and will be removed in the next release; "
+        warnings.warn(f"{type(self).__name__}{what} is deprecated and will be removed in 1.0; "
                       f"read result.summary{what} (or an attribute) instead", DeprecationWarning, stacklevel=3)
 
     def __getitem__(self, key):
