@@ -21,7 +21,7 @@ from ..model._system import System
 from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region_steps
 from ._minimum import DECREMENT, assess, chi2_at, newton_decrement, precompile
 from ._model import Model
-from ._params import as_lightcurve, inc_sign_matters, planet_value, star_value
+from ._params import PERTURBER_PARAMS, as_lightcurve, inc_sign_matters, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["fit", "FitResult", "CONDITION_WARN"]
@@ -545,9 +545,16 @@ def _warn_if_degenerate(free, verdict) -> None:
 
 
 def _transit_problems(model: Model, system: System) -> list:
-    """Planets with a free parameter that do not transit in any model frame."""
+    """Planets with a free parameter that do not transit in any model frame.
+
+    An N-body planet's ``PERTURBER_PARAMS`` (mass, lnode, period, t0) are
+    exempt: they act on the transiting planets through gravity. With only
+    such parameters (or the star's, or the light curve's) free, at least
+    one planet must transit."""
     x, y, r = system.positions(np.asarray(model.t_model), model.alpha, model.case, xp=np)
-    owners = sorted({o for o, _ in model.slots if o not in ("star", "lc")})
+    nbody = system.orbits == "nbody"
+    owners = sorted({o for o, p in model.slots
+                     if o not in ("star", "lc") and not (nbody and isinstance(p, str) and p in PERTURBER_PARAMS)})
     if not owners:
         owners = list(range(len(system.planets)))
         need_all = False

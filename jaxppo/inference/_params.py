@@ -34,7 +34,7 @@ from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
 
-__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "PERTURBER_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "expand_tc", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
@@ -49,6 +49,16 @@ NBODY_PARAMS = {"planet": ("mass", "lnode"), "star": ("mass", "radius")}
 longitude of the ascending node [deg], the star's mass [M_sun] and radius
 [R_sun] (coordinates: logarithms, except lnode); there a planet's ``a`` is
 derived, not free."""
+PERTURBER_PARAMS = ("mass", "lnode", "period", "t0")
+"""The parameters of an N-body planet that a fit may free although the
+planet does not transit (a perturber: the classic TTV inference of a
+non-transiting planet's mass): each acts on the transiting planets through
+gravity (t0, the time of inferior conjunction of its osculating orbit,
+sets its orbital phase). Its radius and inclination stay under the rule
+that a planet with a free parameter must transit: the radius acts on no
+light then, and the fit's and NUTS's coordinate of the inclination is
+the impact parameter of a transiting planet."""
+
 STAR_PARAMS = {"quadratic": ("u1", "u2"), "nonlinear": ("c1", "c2", "c3", "c4"), "power2": ("c", "alpha")}
 """The limb-darkening coefficients of each law, in ``Star.params`` order."""
 LC_PARAMS = ("offset", "jitter", "baseline", "baseline2")

@@ -11,6 +11,8 @@ Keplerian orbit; the planet recoils from its moons.
 
 from __future__ import annotations
 
+import warnings
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -21,7 +23,7 @@ from ..core.geometry import orbit_position
 from ._planet import Planet
 from ._units import from_quantity
 
-__all__ = ["Moon", "hierarchical_positions", "group_offsets"]
+__all__ = ["Moon", "hierarchical_positions", "group_offsets", "warn_if_outside_hill"]
 
 
 def _check(name: str, value, lower=None, upper=None, strict_lower=True, strict_upper=False) -> None:
@@ -104,6 +106,14 @@ class Moon(eqx.Module):
         a, radius <= 0; mass_ratio < 0; inc outside [0, 180] deg; e
         outside [0, 1)), or is a Quantity of the wrong kind.
 
+    Warns
+    -----
+    UserWarning
+        When ``mass_ratio`` > 1 (the "moon" is heavier than its planet:
+        mass_ratio is m_moon / m_planet). A System also warns when a moon's
+        orbit reaches outside its planet's Hill sphere
+        (:func:`warn_if_outside_hill`).
+
     See Also
     --------
     hierarchical_positions : the planet and its moons on the sky.
@@ -144,6 +154,13 @@ class Moon(eqx.Module):
         for k, val in v.items():
             setattr(self, k, jnp.asarray(val, float))
         self.name = str(name)
+        q = v["mass_ratio"]
+        if not isinstance(q, jax.core.Tracer) and np.any(np.asarray(q, float) > 1.0):
+            from ._planet import user_stacklevel
+
+            warnings.warn(f"{label}mass_ratio = {np.asarray(q, float).tolist()} makes the moon heavier than its "
+                          "planet (mass_ratio is m_moon / m_planet; the planet's orbit is that of their barycentre)",
+                          UserWarning, stacklevel=user_stacklevel())
 
     def in_domain(self, xp=jnp):
         """Whether the parameters are ones the constructor accepts.
@@ -416,3 +433,62 @@ def add_moons(system, t, alpha, signs, bary, xp, kepler: bool):
     z = xp.concatenate([pz] + mz, -1)
     r = xp.where(z > 0, xp.concatenate([radius] + mr), 0.0)
     return x, y, r
+
+
+def warn_if_outside_hill(system) -> None:
+    """Warn (UserWarning) for each moon whose orbit reaches outside its
+    planet's Hill sphere, where the star, not the planet, holds it.
+
+    The moon's apoapsis a_m (1 + e_m) is compared with the Hill radius at
+    the planet's periastron, r_H = a (1 - e) (mu / 3)^(1/3) [R*], mu the
+    mass ratio of the planet (with its moons) to the star, capped at 1.
+    N-body planets: mu = mass / star_mass. Keplerian planets carry no
+    mass, so mu is the one the moon's own orbit implies by Kepler's third
+    law, mu = (a_m / a)^3 (P / P_m)^2 (a moon's period and a are
+    independent parameters); for circular orbits the test is then
+    P_m > P / sqrt(3), free of any mass. Traced values are not checked.
+
+    Parameters
+    ----------
+    system : jaxppo.System
+        The system whose planets' moons are checked.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import jaxppo as jp
+    >>> moon = jp.Moon(period=1.2, t0=0.0, a=500.0, inc=90.0, radius=0.01, name="I")
+    >>> planet = jp.Planet(period=40.0, t0=0.0, a=60.0, inc=90.0, radius=0.1, moons=[moon], name="b")
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     system = jp.System(jp.Star.uniform(), [planet])  # System() calls warn_if_outside_hill
+    >>> print("outside the planet's Hill sphere" in str(caught[0].message))
+    True
+    """
+    for pl in system.planets:
+        if not pl.moons:
+            continue
+        values = [pl.a, pl.e, pl.period, pl.mass] + [v for m in pl.moons for v in (m.a, m.e, m.period)]
+        if system.orbits == "nbody":
+            values.append(system.star_mass)
+        if any(isinstance(v, jax.core.Tracer) for v in values) or any(np.ndim(v) for v in values):
+            continue
+        a, e, period = float(pl.a), float(pl.e), float(pl.period)
+        for k, m in enumerate(pl.moons):
+            apo = float(m.a) * (1.0 + float(m.e))
+            if system.orbits == "nbody":
+                mu = float(pl.mass) / float(system.star_mass)
+                why = f"planet-to-star mass ratio {mu:.3g} (its mass, with its moons)"
+            else:
+                mu = (float(m.a) / a) ** 3 * (period / float(m.period)) ** 2
+                why = (f"planet-to-star mass ratio {mu:.3g}{' (more than the star: taken as 1)' if mu > 1 else ''}, "
+                       "the one the moon's a and period imply by Kepler's third law (a Keplerian planet has no mass)")
+            r_hill = a * (1.0 - e) * (min(mu, 1.0) / 3.0) ** (1.0 / 3.0)
+            if apo > r_hill:
+                from ._planet import user_stacklevel
+
+                warnings.warn(
+                    f"moon {m.name or f'moon{k}'!r} of planet {pl.name!r}: its orbit reaches {apo:.4g} R* from the "
+                    f"planet, outside the planet's Hill sphere ({r_hill:.4g} R* at the planet's periastron, for a "
+                    f"{why}), where the star and not the planet holds it: the Keplerian moon orbit is not "
+                    "physical (a is in stellar radii, period in days)", UserWarning, stacklevel=user_stacklevel())

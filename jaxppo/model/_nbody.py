@@ -63,7 +63,8 @@ from jaxtyping import Array, ArrayLike
 
 from ._planet import check_periastron, never_transits, warn_if_never_transits
 
-__all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "default_dt", "R_SUN_AU", "G_AU_DAY"]
+__all__ = ["nbody_positions", "nbody_xyz", "semi_major_axis", "default_dt", "check_reliable", "ENERGY_TOLERANCE",
+           "HILL_TOLERANCE", "R_SUN_AU", "G_AU_DAY"]
 
 #: Nominal solar radius (IAU 2015 B3, 695 700 km) in au (IAU 2012, 149 597 870.7 km).
 R_SUN_AU = 695700.0 / 149597870.7
@@ -163,8 +164,9 @@ def _concrete(value, name: str, why: str) -> np.ndarray:
         raise ValueError(f"{name} must be concrete ({why})") from None
 
 
-def _grid(t, epoch: float, dt: float, t_range) -> tuple[int, int]:
-    """Numbers of forward and backward map steps that cover the times (rounded up by :func:`_bucket`)."""
+def _grid(t, epoch: float, dt: float, t_range) -> tuple[int, int, float, float]:
+    """Numbers of forward and backward map steps that cover the times (rounded up by :func:`_bucket`), and
+    the span (t_min, t_max) they must cover."""
     if t_range is None:
         tc = _concrete(t, "t", "it fixes the integration grid; under jit pass t_range=(t_min, t_max)")
         if tc.size == 0 or not np.all(np.isfinite(tc)):
@@ -176,7 +178,7 @@ def _grid(t, epoch: float, dt: float, t_range) -> tuple[int, int]:
             raise ValueError(f"t_range must be finite (t_min, t_max) with t_min <= t_max, got {t_range!r}")
     n_fwd = _bucket(max(1, int(np.floor((hi - epoch) / dt + 0.5)) + 1))
     n_bwd = _bucket(int(np.floor((epoch - lo) / dt + 0.5)) + 1) if lo < epoch else 0
-    return n_fwd, n_bwd
+    return n_fwd, n_bwd, lo, hi
 
 
 def _bucket(n: int) -> int:
@@ -184,9 +186,10 @@ def _bucket(n: int) -> int:
     return max(64, 1 << (int(n) - 1).bit_length())
 
 
-def _grid_states(elements, epoch, dt: float, n_fwd: int, n_bwd: int) -> tuple[Array, Array]:
+def _grid_states(elements, epoch, dt: float, n_fwd: int, n_bwd: int) -> tuple[Array, Array, tuple]:
     """The map's states at t_k = epoch + k dt for k = -n_bwd..-1, 1..n_fwd: [n_bwd + n_fwd, 2, n_planets, 3]
-    (Jacobi positions and velocities [au, au/d]), and the masses [M_sun] (star first).
+    (Jacobi positions and velocities [au, au/d]), the masses [M_sun] (star first) and the states'
+    :func:`_reliability` (energy error, closest pair in mutual Hill radii, that pair), each [n_bwd + n_fwd].
 
     jnkepler's ``integrate_xv`` returns each state dt/2 past t_k (after the
     closing half drift); a drift of -dt/2 brings it back. A backward run
@@ -195,13 +198,57 @@ def _grid_states(elements, epoch, dt: float, n_fwd: int, n_bwd: int) -> tuple[Ar
     x0, v0, masses = jk["init"](elements, epoch)
     if not n_bwd:
         _, xv = jk["integrate_xv"](x0, v0, masses, epoch + dt * jnp.arange(n_fwd + 1))
-        return jnp.stack(jk["drift"](xv[:, 0], xv[:, 1], masses, -0.5 * dt), axis=1), masses
+        states = jnp.stack(jk["drift"](xv[:, 0], xv[:, 1], masses, -0.5 * dt), axis=1)
+        return states, masses, _reliability(x0, v0, states, masses)
     n = max(n_fwd, n_bwd)
     sign = jnp.array([1.0, -1.0])
     times = epoch + dt * sign[:, None] * jnp.arange(n + 1)
     _, xv = jax.vmap(jk["integrate_xv"], (None, None, None, 0))(x0, v0, masses, times)
     xv = jnp.stack(jax.vmap(jk["drift"], (0, 0, None, 0))(xv[:, :, 0], xv[:, :, 1], masses, -0.5 * dt * sign), axis=2)
-    return jnp.concatenate([xv[1, :n_bwd][::-1], xv[0, :n_fwd]], axis=0), masses
+    states = jnp.concatenate([xv[1, :n_bwd][::-1], xv[0, :n_fwd]], axis=0)
+    return states, masses, _reliability(x0, v0, states, masses)
+
+
+#: The largest relative change |E / E_0 - 1| of the total energy (in the
+#: centre-of-mass frame) over the integrated span that a System accepts.
+#: Stable systems at the default step stay far below it (docs/photodynamics.md:
+#: Kepler-51 3.6e-8, two Jupiters near 2:1 2.4e-7, near 5:3 4.3e-7 over
+#: 1,500-2,850 d, each falling as dt^2); planets that scatter exceed it.
+ENERGY_TOLERANCE = 1e-5
+#: The least separation of two planets, in mutual Hill radii, that a System
+#: accepts: closer, their pull on each other exceeds the star's tidal pull
+#: (a close encounter), which the Wisdom-Holman map in Jacobi coordinates
+#: cannot follow at a fixed step. Stable systems keep well above it (2.2 for
+#: a planet at 8 d inside a brown dwarf at 17.6 d; 3.4-13 for the others above).
+HILL_TOLERANCE = 1.0
+
+
+def _reliability(x0, v0, states, masses) -> tuple[Array, Array, Array]:
+    """Per grid state [n]: the relative change of the total energy from the
+    initial state (x0, v0), the least separation of two planets in mutual
+    Hill radii ((m_i + m_j) / (3 M*))^(1/3) (r_i + r_j) / 2 (r: astrocentric
+    distances), and the index of that pair in ``np.triu_indices(n_planets, 1)``.
+    Not differentiated (they only decide whether the result is kept)."""
+    jk = _jnkepler()
+    xj = jax.lax.stop_gradient(jnp.concatenate([x0[None], states[:, 0]]))
+    vj = jax.lax.stop_gradient(jnp.concatenate([v0[None], states[:, 1]]))
+    m = jax.lax.stop_gradient(masses)
+    xa, va = jk["to_astro"](xj, vj, m)  # [n + 1, n_planets, 3]
+    mp, ms = m[1:], m[0]
+    v_cm = jnp.sum(mp[:, None] * va, axis=1) / jnp.sum(m)  # the barycentre's velocity, astrocentric
+    kinetic = 0.5 * ms * jnp.sum(v_cm**2, -1) + 0.5 * jnp.sum(mp * jnp.sum((va - v_cm[:, None]) ** 2, -1), -1)
+    r = jnp.sqrt(jnp.sum(xa**2, -1))
+    potential = -G_AU_DAY * ms * jnp.sum(mp / r, -1)
+    i, j = np.triu_indices(mp.size, 1)
+    if i.size:
+        d = jnp.sqrt(jnp.sum((xa[:, i] - xa[:, j]) ** 2, -1))
+        potential = potential - G_AU_DAY * jnp.sum(mp[i] * mp[j] / d, -1)
+        hill = d / (((mp[i] + mp[j]) / (3.0 * ms)) ** (1.0 / 3.0) * 0.5 * (r[:, i] + r[:, j]))
+        closest, pair = jnp.min(hill[1:], -1), jnp.argmin(hill[1:], -1)
+    else:
+        closest, pair = jnp.full(states.shape[0], jnp.inf), jnp.zeros(states.shape[0], int)
+    energy = kinetic + potential
+    return jnp.abs(energy[1:] / energy[0] - 1.0), closest, pair
 
 
 def _read_out(t, states, masses, epoch, dt: float, n_fwd: int, n_bwd: int) -> Array:
@@ -269,7 +316,9 @@ def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses
     Returns
     -------
     x, y, z : jax.Array
-        Coordinates [R*], each [*t.shape, n_planets]; z > 0 in front of the star.
+        Coordinates [R*], each [*t.shape, n_planets]; z > 0 in front of the star. The
+        integration's reliability is not checked here (an N-body System checks
+        it: :func:`check_reliable`).
 
     Raises
     ------
@@ -288,6 +337,16 @@ def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses
     >>> print(f"|x| = {abs(float(x[0, 0])):.6f}, y = {float(y[0, 0]):.4f}")  # mid-transit: x = 0, y = b = a cos i
     |x| = 0.000000, y = 0.3409
     """
+    return _integrate(t, periods=periods, eccs=eccs, omegas=omegas, incs=incs, lnodes=lnodes, tics=tics,
+                      masses=masses, star_mass=star_mass, star_radius=star_radius, epoch=epoch, dt=dt,
+                      t_range=t_range)[:3]
+
+
+def _integrate(t, *, periods, eccs, omegas, incs, lnodes, tics, masses, star_mass, star_radius, epoch, dt,
+               t_range):
+    """:func:`nbody_xyz`'s (x, y, z) and the integration's reliability on the grid points within a step of
+    the span: (t_k, energy error, closest pair in mutual Hill radii, that pair), each [n_k] (see
+    :func:`_reliability`; :func:`check_reliable` reads them)."""
     if dt is None:
         dt = default_dt(_concrete(periods, "periods", "the default dt depends on the periods; pass dt"),
                         _concrete(eccs, "eccs", "the default dt depends on the eccentricities; pass dt"),
@@ -304,14 +363,16 @@ def nbody_xyz(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses
     if not jax.config.jax_enable_x64:
         warnings.warn("N-body orbits in float32 drift (Kepler-51 over 1450 d: 0.04 R*, 3e-6 R* in float64); "
                       'enable float64: jax.config.update("jax_enable_x64", True)', UserWarning, stacklevel=2)
-    n_fwd, n_bwd = _grid(t, epoch, dt, t_range)
+    n_fwd, n_bwd, lo, hi = _grid(t, epoch, dt, t_range)
     elements = {"period": period, "ecc": ecc, "omega": jnp.deg2rad(omega), "cosi": jnp.cos(jnp.deg2rad(inc)),
                 "lnode": jnp.deg2rad(lnode), "tic": tic, "pmass": mass, "smass": jnp.asarray(star_mass, float)}
     t = jnp.asarray(t, float)
-    states, masses_all = _states_jit(elements, epoch, dt=dt, n_fwd=n_fwd, n_bwd=n_bwd)
+    states, masses_all, (err, hill, pair) = _states_jit(elements, epoch, dt=dt, n_fwd=n_fwd, n_bwd=n_bwd)
     xa = _read_out_jit(t.reshape(-1), states, masses_all, epoch, dt=dt, n_fwd=n_fwd, n_bwd=n_bwd)
     xa = xa.reshape(t.shape + xa.shape[1:]) / (jnp.asarray(star_radius, float) * R_SUN_AU)
-    return -xa[..., 0], xa[..., 1], xa[..., 2]
+    tk = epoch + dt * np.concatenate([np.arange(-n_bwd, 0), np.arange(1, n_fwd + 1)])
+    sel = (tk >= lo - dt) & (tk <= hi + dt)  # the grid runs on to a power of two: that part is not used
+    return -xa[..., 0], xa[..., 1], xa[..., 2], (jnp.asarray(tk[sel]), err[sel], hill[sel], pair[sel])
 
 
 def nbody_positions(t: ArrayLike, *, periods, eccs, omegas, incs, lnodes, tics, masses, radii, star_mass,
@@ -480,13 +541,19 @@ def _elements(system, signs, extra_node):
                 star_mass=system.star_mass, star_radius=system.star_radius)
 
 
-def system_xyz(system, t, alpha, signs, t_range=None):
+def system_xyz(system, t, alpha, signs, t_range=None, checks=False):
     """Sky positions (x, y, z) [R*] of an N-body System's planets at times t,
     the tilted planet's node turned by alpha [deg] (each tilt is its own
     integration: the tilt changes the mutual inclinations and so the
     dynamics). ``alpha`` is a scalar, or [n_alpha, 1, ...] against t of
     shape [1, ...] (one light curve per tilt). ``t_range``: the span the
-    grid covers (default the System's ``span``, else that of t)."""
+    grid covers (default the System's ``span``, else that of t).
+
+    The integration's reliability (:func:`check_reliable`): concrete
+    results of an unreliable integration raise ValueError; traced ones
+    (jit, grad: a fit's or a sampler's model) are NaN, so that the fit
+    refuses the step and NUTS the proposal. ``checks=True`` applies neither
+    and returns ((x, y, z), the reliability) for the caller to check."""
     t_range = system.span if t_range is None else t_range
     if isinstance(t, jax.core.Tracer) and t_range is None:
         raise ValueError("an N-body System evaluated at traced times (jit) needs span=(t_min, t_max) [d]: "
@@ -496,20 +563,27 @@ def system_xyz(system, t, alpha, signs, t_range=None):
         if tc.size:
             lo, hi = float(tc.min()), float(tc.max())
             t_range = (lo, hi) if t_range is None else (min(lo, t_range[0]), max(hi, t_range[1]))
-    xyz = _xyz(system, t, alpha, signs, dict(epoch=system.epoch, dt=system.dt, t_range=t_range))
-    if not isinstance(t, jax.core.Tracer):
+    xyz, rel = _xyz(system, t, alpha, signs, dict(epoch=system.epoch, dt=system.dt, t_range=t_range))
+    if checks:
+        return xyz, rel
+    if not any(isinstance(v, jax.core.Tracer) for v in (t, *xyz, *rel)):
+        check_reliable(system, rel)
         return xyz
-    # the traced policy: a time beyond the grid (more than a step outside the span) gets NaN positions,
-    # never the error of a long read-out step
-    lo, hi = t_range
-    outside = (jnp.asarray(t) < lo - system.dt) | (jnp.asarray(t) > hi + system.dt)
+    # the traced policy: an unreliable integration, or a time beyond the grid (more than a step outside the
+    # span), gets NaN positions, never the error of a long read-out step or a scattered orbit
+    bad = jnp.any(rel[1] > ENERGY_TOLERANCE) | jnp.any(rel[2] < HILL_TOLERANCE)
+    if t_range is None:
+        outside = bad
+    else:
+        outside = bad | (jnp.asarray(t) < t_range[0] - system.dt) | (jnp.asarray(t) > t_range[1] + system.dt)
     return tuple(jnp.where(jnp.broadcast_to(outside, v.shape[:-1])[..., None], jnp.nan, v) for v in xyz)
 
 
 def _xyz(system, t, alpha, signs, opts):
-    """``system_xyz`` on its grid ``opts`` (epoch, dt, t_range)."""
+    """``system_xyz``'s positions on its grid ``opts`` (epoch, dt, t_range), and the reliability."""
     if jnp.ndim(alpha) == 0 or jnp.size(alpha) == 1:
-        return nbody_xyz(t, **_elements(system, signs, jnp.reshape(alpha, ())), **opts)
+        x, y, z, rel = _integrate(t, **_elements(system, signs, jnp.reshape(alpha, ())), **opts)
+        return (x, y, z), rel
     alpha = jnp.asarray(alpha)
     if any(n != 1 for n in alpha.shape[1:]) or (jnp.ndim(t) >= alpha.ndim and jnp.shape(t)[jnp.ndim(t) - alpha.ndim] != 1):
         raise ValueError(f"an N-body System takes one tilt, or tilts [n_alpha, 1, ...] against times [1, ...]; got "
@@ -518,9 +592,70 @@ def _xyz(system, t, alpha, signs, opts):
     lead = t_in.ndim - alpha.ndim
     if lead >= 0:
         t_in = t_in.reshape(t_in.shape[:lead] + t_in.shape[lead + 1:])
-    xyz = jax.vmap(lambda a: nbody_xyz(t_in, **_elements(system, signs, a), **opts))(alpha.reshape(-1))
+    x, y, z, rel = jax.vmap(lambda a: _integrate(t_in, **_elements(system, signs, a), **opts))(alpha.reshape(-1))
     shape = np.broadcast_shapes(jnp.shape(t), alpha.shape)
-    return tuple(v.reshape(shape + (len(system.planets),)) for v in xyz)
+    return tuple(v.reshape(shape + (len(system.planets),)) for v in (x, y, z)), rel
+
+
+def check_reliable(system, reliability) -> None:
+    """Raise ValueError when a concrete N-body integration is not reliable.
+
+    Two checks on the map's states at every grid point t_k = epoch + k dt
+    within a step of the span (as N-body codes do: REBOUND reports the
+    relative energy error; a close encounter breaks a Wisdom-Holman map in
+    Jacobi coordinates): the total energy in the centre-of-mass frame
+    changed by more than :data:`ENERGY_TOLERANCE` relative to its value at
+    the epoch, or two planets came closer than :data:`HILL_TOLERANCE`
+    mutual Hill radii ((m_i + m_j) / (3 M*))^(1/3) (r_i + r_j) / 2.
+
+    Parameters
+    ----------
+    system : jaxppo.System
+        The N-body System (its planets' names and masses, star mass, ``dt``).
+    reliability : tuple of array_like
+        (t_k [d], relative energy error, least pair separation [mutual Hill
+        radii], that pair's index in ``np.triu_indices(n_planets, 1)``), as
+        ``system_xyz(..., checks=True)`` returns them.
+
+    Raises
+    ------
+    ValueError
+        Naming the planets that met, when and how close, the largest energy
+        error and when it first passed the tolerance, and the step dt: the
+        system is unstable, or dt too large.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from jaxppo.model._nbody import check_reliable
+    >>> check_reliable(None, (np.array([1.0]), np.array([1e-9]), np.array([5.0]), np.array([0])))  # reliable
+    """
+    # under a vmap over tilts each is [n_alpha, n_k] (t_k repeated): flat, they stay aligned
+    tk, err, hill, pair = (np.asarray(v).reshape(-1) for v in reliability)
+    with np.errstate(invalid="ignore"):
+        hot, close = err > ENERGY_TOLERANCE, hill < HILL_TOLERANCE
+    if not (hot.any() or close.any()):
+        return
+    names = [p.name or str(k) for k, p in enumerate(system.planets)]
+    i, j = np.triu_indices(len(names), 1)
+    why = []
+    if close.any():
+        k = int(np.nanargmin(hill))
+        first = int(np.argmax(close))
+        why.append(f"planets {names[i[pair[k]]]} and {names[j[pair[k]]]} came within {hill[k]:.3g} mutual Hill "
+                   f"radii of each other at t = {tk[k]:.6g} d (closer than {HILL_TOLERANCE:g} first at t = "
+                   f"{tk[first]:.6g} d: a close encounter, which the Wisdom-Holman map cannot follow)")
+    if hot.any():
+        k, first = int(np.nanargmax(err)), int(np.argmax(hot))
+        why.append(f"the total energy changed by {err[k]:.3g} (relative, at t = {tk[k]:.6g} d; more than "
+                   f"{ENERGY_TOLERANCE:g} first at t = {tk[first]:.6g} d)")
+    ratios = ", ".join(f"{p.name or k}: {float(p.mass) / float(system.star_mass):.3g}"
+                       for k, p in enumerate(system.planets))
+    raise ValueError(f"the N-body integration is not reliable over t = {np.min(tk):.6g}..{np.max(tk):.6g} d: "
+                     + "; ".join(why) + f". The system is unstable (its planets scatter: no N-body step gives "
+                     f"meaningful transit times or fluxes), or the step dt = {system.dt:.4g} d is too large for "
+                     f"these planets (planet-to-star mass ratios {ratios}): a stable system's energy error "
+                     f"falls as dt^2, so try dt / 4")
 
 
 def _check_finite(system, t, xyz) -> None:
@@ -581,14 +716,16 @@ def nbody_transit_times(system, t_start: float, t_end: float) -> list[tuple[int,
     grid = lo + h * np.arange(int(np.ceil((hi - lo) / h)) + 1)
     span = (float(grid[0]) - 1.0, float(grid[-1]) + 1.0)
 
-    def state(t):  # (x, y, z) and the sky-plane g = x vx + y vy, [n_times, n_planets]
-        (x, y, z), (vx, vy, _) = jax.jvp(lambda tt: system_xyz(system, tt, 0.0, signs, span), (t,),
-                                         (jnp.ones_like(t),))
-        return x, y, z, x * vx + y * vy
+    def state(t):  # (x, y, z), the sky-plane g = x vx + y vy, [n_times, n_planets], and the reliability
+        (x, y, z), (vx, vy, _), rel = jax.jvp(lambda tt: system_xyz(system, tt, 0.0, signs, span, checks=True),
+                                              (t,), (jnp.ones_like(t),), has_aux=True)
+        return x, y, z, x * vx + y * vy, rel
 
     state_jit = jax.jit(state)
-    x, y, z, g = (np.asarray(v) for v in state_jit(jnp.asarray(grid)))
+    *out, rel = state_jit(jnp.asarray(grid))
+    x, y, z, g = (np.asarray(v) for v in out)
     _check_finite(system, grid, (x, y, z))  # a diverged integration finds a few transits, then none
+    check_reliable(system, rel)  # one that scattered its planets finds meaningless ones
     k, j = np.nonzero((g[:-1] < 0) & (g[1:] >= 0) & (z[:-1] + z[1:] > 0))
     if k.size == 0:
         return []
@@ -611,7 +748,7 @@ def nbody_transit_times(system, t_start: float, t_end: float) -> list[tuple[int,
         t = t_new
         if done:
             break
-    x, y, z, _ = (np.asarray(v) for v in state_jit(jnp.asarray(t)))
+    x, y, z, _ = (np.asarray(v) for v in state_jit(jnp.asarray(t))[:4])
     rows = []
     for planet in range(n_pl):
         mine = np.nonzero(j == planet)[0]

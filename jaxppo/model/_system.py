@@ -188,6 +188,10 @@ class System(eqx.Module):
             self.orbits = "nbody"
         else:
             raise ValueError(f"orbits must be 'kepler' or 'nbody', got {orbits!r}")
+        if any(pl.moons for pl in self.planets):
+            from ._moon import warn_if_outside_hill
+
+            warn_if_outside_hill(self)  # a UserWarning, not an error: the model is still defined
 
     def index(self, name: str) -> int:
         """Index of the planet named ``name``.

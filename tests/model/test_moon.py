@@ -287,3 +287,43 @@ def test_no_never_transits_warning_when_a_moon_can_transit():
         assert any("never transits" in str(w.message) for w in caught) == warns, moons
     with pytest.warns(UserWarning, match="never transits"):  # |b| = 1.57: the moon cannot reach the star either
         jp.Planet(period=40.0, t0=0.0, a=60.0, inc=88.5, radius=0.05, moons=[moon], name="b")
+
+
+def test_a_moon_outside_its_planets_hill_sphere_or_heavier_than_it_warns():
+    """Found by a review, accepted silently before: a moon at a = 500 R* about a planet at 60 R*, a moon
+    50 times heavier than its planet, a moon outside the planet's Hill sphere. A Keplerian planet has no
+    mass: the moon's own a and period give it (Kepler's third law), so for circular orbits the Hill test
+    is P_moon > P / sqrt(3) = 23.1 d here; an N-body planet's mass gives it directly. Each warns (a
+    UserWarning: the model is still defined); the moons of the other tests do not."""
+    import warnings
+
+    def system(**kw):
+        moon = jp.Moon(**{**dict(period=1.2, t0=0.15, a=0.35, inc=88.0, radius=0.04, mass_ratio=0.05, name="I"),
+                          **kw})
+        return jp.System(jp.Star.quadratic(0.4, 0.25),
+                         [jp.Planet(period=40.0, t0=0.0, a=60.0, inc=89.9, radius=0.09, moons=[moon], name="b")])
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        system()
+        system(period=20.0)  # inside: 20 d < 23.1 d
+    with pytest.warns(UserWarning, match=r"moon 'I' of planet 'b': its orbit reaches 500 R\* .*outside the planet's "
+                                         r"Hill sphere \(41\.6 R\*"):
+        system(a=500.0)
+    with pytest.warns(UserWarning, match=r"outside the planet's Hill sphere \(0\.294 R\*"):
+        system(period=30.0)
+    with pytest.warns(UserWarning, match=r"mass_ratio = 50\.0 makes the moon heavier than its planet"):
+        system(mass_ratio=50.0)
+    if importlib.util.find_spec("jnkepler") is not None:  # N-body: r_H = 19.5 R* (3.7e-5 / 3)^(1/3) = 0.451 R*
+        def nbody(a):
+            moon = jp.Moon(period=1.2, t0=0.1, a=a, inc=88.0, radius=0.03, mass_ratio=0.02, name="I")
+            planet = jp.Planet(period=10.0, t0=101.0, a=None, inc=89.5, radius=0.05, mass=3.7e-5, name="b",
+                               moons=[moon])
+            return jp.System(jp.Star.uniform(), [planet], orbits="nbody", epoch=100.0, star_mass=1.0,
+                             star_radius=1.0)
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            nbody(0.3)
+        with pytest.warns(UserWarning, match=r"Hill sphere \(0\.451\d R\* .*mass ratio 3\.7e-05 \(its mass"):
+            nbody(0.6)

@@ -392,3 +392,30 @@ def test_a_diverging_integration_is_an_error_naming_the_masses():
         system.flux(np.linspace(-0.2, 0.2, 5))
     with pytest.raises(ValueError, match=r"integration diverged"):  # it listed a few transits, then none
         system.transit_times(0.0, 200.0)
+
+
+def test_a_scattering_system_is_an_error_not_meaningless_transit_times():
+    """Two Jupiter-mass planets at 45 and 50 d scatter (b out to 180-290 R*, c in to 22 R*): transit_times
+    over 155-3000 d returned 126 transits that changed by tens of days with the step, and no error (the
+    positions stay finite). The integration's reliability is now checked: b and c came within 0.36 mutual
+    Hill radii near 910 d and the energy changed by 7.2e-5 (a stable system at the default step: below
+    5e-7, Kepler-51 4e-8), so transit_times and flux raise naming both; traced (jit), positions are NaN.
+    Kepler-51 keeps its energy error and closest approach far from the limits."""
+    from jaxppo.model._nbody import ENERGY_TOLERANCE, HILL_TOLERANCE, system_xyz
+
+    pls = [jp.Planet(period=45.1541, t0=159.1103, a=None, inc=89.8, radius=0.07, e=0.044, omega=-112.89,
+                     mass=3e-3, name="b"),
+           jp.Planet(period=50.0, t0=295.321, a=None, inc=89.5, radius=0.06, e=0.04, omega=-61.53, mass=3e-3,
+                     name="c")]
+    s = jp.System(jp.Star.quadratic(0.43, 0.11), pls, orbits="nbody", epoch=155.0, star_mass=1.0, star_radius=0.81)
+    want = r"not reliable .*planets b and c came within 0\.3\d+ mutual Hill radii .*energy changed by 7\.\de-05.*dt = 0\.1926"
+    with pytest.raises(ValueError, match=want):
+        s.transit_times(155.0, 3000.0)
+    with pytest.raises(ValueError, match=want):
+        s.flux(np.linspace(155.0, 3000.0, 50))
+    traced = s.replace(span=(155.0, 3000.0))  # under jit: NaN positions (a fit refuses the step)
+    x, y, z = jax.jit(lambda t: system_xyz(traced, t, 0.0, np.ones(2)))(jnp.linspace(155.0, 3000.0, 50))
+    assert np.all(np.isnan(np.asarray(x))) and np.all(np.isnan(np.asarray(z)))
+    k51 = _kepler51_system()
+    _, (_, energy, hill, _) = system_xyz(k51, np.linspace(155.0, 1600.0, 50), 0.0, np.ones(3), checks=True)
+    assert float(np.max(energy)) < 1e-2 * ENERGY_TOLERANCE and float(np.min(hill)) > 10.0 * HILL_TOLERANCE
