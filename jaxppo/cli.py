@@ -66,7 +66,8 @@ def _out_file(path, option="--out") -> Path:
         raise ValueError(f"{option} {out} is a folder; give a file name")
     parent = out.parent if str(out.parent) else Path(".")
     if not parent.is_dir():
-        raise ValueError(f"{option} {out}: the folder {parent} does not exist")
+        raise ValueError(f"{option} {out}: {parent} is a file, not a folder" if parent.exists() else
+                         f"{option} {out}: the folder {parent} does not exist")
     return out
 
 

@@ -329,6 +329,7 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
     (["scan", "--out", "a_file/sub"], "error: --out a_file/sub: a_file is a file, not a folder"),
     (["demo", "--out", "a_file"], "error: --out a_file: a_file is a file, not a folder"),
     (["init", "sub/x.toml"], "error: PATH sub/x.toml: the folder sub does not exist"),
+    (["simulate", "--out", "a_file/x.csv"], "error: --out a_file/x.csv: a_file is a file, not a folder"),
     (["scan", "--qiet"], "error: unrecognized arguments: --qiet"),
     (["activity", "--spots", "-2"], "error: --spots must be an integer in 1..6, got -2"),
     (["activity", "--period-min", "9", "--period-max", "3"], "error: --period-min and --period-max must satisfy"),
