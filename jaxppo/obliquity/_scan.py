@@ -368,7 +368,9 @@ def _refuse_foreign_files(out: Path, cfg: ScanConfig) -> None:
     inputs of this scan (its config, data, star or transit-times files)."""
     from ._config_files import config_inputs, refuse_overwriting_inputs
 
-    present = [n for n in _output_names(out) if (out / n).exists()]
+    # the plain scan's own outputs (a marginal or joint run's files, which
+    # such runs write beside their own progress, are not the scan's to judge)
+    present = [n for n in _output_names(out) if (out / n).exists() and not n.startswith(("marginal", "joint"))]
     src = Path(cfg.source)
     refuse_overwriting_inputs([out / n for n in present], config_inputs(src, cfg.raw) if src.is_file() else set(),
                               f"--out {out}: a scan there would write")

@@ -597,6 +597,11 @@ def test_a_scan_never_writes_over_files_it_did_not_write(tmp_path):
         with pytest.raises(ValueError, match=r"holds scan.csv but no scan progress"):
             run_scan(cfg, mine, restart=restart, progress=False)
     assert (mine / "scan.csv").read_text() == "my own table"
+    # a marginal run's files (jp.marginal_scan(cfg, out=DIR) writes no scan progress) are not in the way
+    (mine / "scan.csv").unlink()
+    (mine / "marginal.csv").write_text("a marginal run's table")
+    run_scan(cfg, mine, progress=False)
+    assert (mine / "marginal.csv").exists()
     # the data file itself where the scan would write scan.csv
     text = (tmp_path / "scan.toml").read_text().replace('path = "data.csv"', 'path = "scan.csv"')
     (tmp_path / "scan.csv").write_bytes((tmp_path / "data.csv").read_bytes())
