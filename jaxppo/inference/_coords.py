@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._system import System
+from ._ecc import ECC_PARAMS, ecc_cap
 from ._params import inc_sign_matters, is_moon, is_tc, planet_value, star_value
 
 __all__ = ["Coordinates", "default_priors", "start_q", "a_from_density", "density_from_a", "check_density",
@@ -120,6 +121,9 @@ def default_priors(model, user=None):
         elif owner == "star":
             v = float(model.system.star.params[par])
             out.append(dist.Uniform(v - 1.0, v + 1.0))
+        elif par in ECC_PARAMS:  # uniform in the disk e < e_cap: ``Coordinates.log_prior`` cuts the corners
+            c = float(np.sqrt(ecc_cap(model.system, owner)))
+            out.append(dist.Uniform(-c, c))
         else:
             out.append(_planet_prior(model.system.planets[owner], par))
     return out
@@ -286,6 +290,9 @@ class Coordinates:
         self.folded = [k for k, (owner, par) in enumerate(self.slots)
                        if fold and par == "inc" and not inc_sign_matters(model.system, owner)]
         self.priors = list(priors)
+        # (secosw, sesinw) slot pairs: the prior is the disk e < e_cap
+        self.ecc = [(self.index[(o, "secosw")], self.index[(o, "sesinw")], float(ecc_cap(model.system, o)))
+                    for o, par in self.slots if par == "secosw" and (o, "sesinw") in self.index]
         self.a_max = {k: float(np.asarray(pr.support.upper_bound)) for k, pr in enumerate(priors)
                       if self.slots[k][1] == "a" and self.slots[k][0] in self.duration}
 
@@ -376,6 +383,9 @@ class Coordinates:
         inside = jnp.all(jnp.stack([pr.support(v[j]) for j, pr in enumerate(pri)]))
         lp = sum(pr.log_prob(v[j]) for j, pr in enumerate(pri))
         q = self.to_q(u)
+        for kx, ky, cap in self.ecc:  # uniform e, omega: the square's prior, cut to the disk e < e_cap
+            inside = inside & (q[kx] ** 2 + q[ky] ** 2 < cap)
+            lp = lp + np.log(4.0 / np.pi)  # normalised on the disk
         for owner in self.duration:
             # the T14 map covers a in (1 + p, a_max): a's Uniform(1, a_max)
             # renormalised on that range, so the prior in u integrates to one

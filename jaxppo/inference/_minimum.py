@@ -38,7 +38,7 @@ def precompile(model: Model, theta) -> None:
     theta = jnp.asarray(theta)
     k = theta.shape[0]
     residuals_batch.precompile(jnp.zeros((2 * k + 1, k), theta.dtype), model.data(), jnp.asarray(0, jnp.int32))
-    physical_jacobian.precompile(theta, model.data(), bool(model.derived_names()))
+    physical_jacobian.precompile(theta, model.data())
 
 
 def assess(model: Model, theta, jac=None, r=None) -> dict:

@@ -21,6 +21,7 @@ from ..model._overlap import on_star, pairs_in_contact
 from ..model._planet import Planet
 from ..model._programs import stored
 from ..model._system import System
+from ._ecc import ECC_PARAMS, e_omega, ecc_cap, pair_from_theta, pair_of, periastron_ok, theta_from_pair
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
 
@@ -217,6 +218,9 @@ class Model(eqx.Module):
                 out.append(jnp.log(pl.a - 1.0))
             elif par == "radius":
                 out.append(jnp.log(pl.radius))
+            elif par in ECC_PARAMS:
+                x = theta_from_pair(*pair_of(pl.e, pl.omega), ecc_cap(self.system, owner))
+                out.append(x[ECC_PARAMS.index(par)])
             else:  # inc -> b = (1 + p) tanh(theta)
                 b = pl.a * jnp.cos(jnp.deg2rad(pl.inc))
                 out.append(jnp.arctanh(jnp.clip(b / (1.0 + pl.radius), -0.999999, 0.999999)))
@@ -256,6 +260,9 @@ class Model(eqx.Module):
                 out.append(v)
             elif par == "a":
                 out.append(jnp.log(v - 1.0))
+            elif par in ECC_PARAMS:
+                pair = (named[(owner, "secosw")], named[(owner, "sesinw")])
+                out.append(theta_from_pair(*pair, ecc_cap(self.system, owner))[ECC_PARAMS.index(par)])
             elif ref is None:
                 out.append(jnp.arctanh(jnp.clip(v, -1 + 1e-12, 1 - 1e-12)))
             else:
@@ -268,24 +275,25 @@ class Model(eqx.Module):
     def physical(self, theta) -> jnp.ndarray:
         """The free parameters in physical units (days, degrees, R*;
         q1, q2; offset, jitter [relative flux], baseline coefficients)."""
-        return _physical(theta, self.to_system(theta), self.slots)
+        return _physical(theta, self.to_system(theta), self.slots, self.system)
 
     def derived_names(self) -> tuple:
         """Quantities implied by the free parameters: "star.u1", "star.u2"
-        when Kipping's q1 or q2 is free."""
-        return ("star.u1", "star.u2") if any(p in ("q1", "q2") for _, p in self.slots) else ()
+        when Kipping's q1 or q2 is free; "<p>.e", "<p>.omega" [deg] of each
+        planet whose secosw, sesinw are free."""
+        names = ("star.u1", "star.u2") if any(p in ("q1", "q2") for _, p in self.slots) else ()
+        return names + tuple(f"{self.system.planets[o].name or o}.{x}" for o in _ecc_planets(self.slots)
+                             for x in ("e", "omega"))
 
     def derived(self, theta) -> jnp.ndarray:
         """Values of ``derived_names`` at theta."""
-        if not self.derived_names():
-            return jnp.zeros(0)
-        return self.to_system(theta).star.params[:2]
+        return _derived(self.to_system(theta), self.slots)
 
     def physical_jacobian(self, theta):
         """(d q / d theta, q) of q = ``physical`` followed by ``derived``:
         one stored program (eager differentiation cost 0.3 s of every new
         process's fit)."""
-        return physical_jacobian(theta, self.data(), bool(self.derived_names()))
+        return physical_jacobian(theta, self.data())
 
     # ---- model ----------------------------------------------------------------
     def data(self) -> "ModelData":
@@ -412,7 +420,8 @@ class ModelData(eqx.Module):
         return ModelData(system, jnp.asarray(np.asarray(model.t_model)[act]), jnp.asarray(act), jnp.asarray(union),
                      model.y, model.sigma, jnp.asarray(model.alpha, float), jnp.asarray(model.basis, float),
                      tuple(model.slots), int(model.nsub),
-                     int(model.t_model.size), case, tuple(not pl.circular for pl in model.system.planets))
+                     int(model.t_model.size), case,
+                     tuple(not pl.circular or k in _ecc_planets(model.slots) for k, pl in enumerate(model.system.planets)))
 
 
 def system_at(theta, base: System, slots, eccentric=None) -> System:
@@ -432,7 +441,7 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             planets[k].update(e=p.e, omega=p.omega)
     star_params = base.star.params
     options = base.nbody_options()
-    b_theta, q = {}, {}
+    b_theta, q, ecc = {}, {}, {}
     for k, (owner, par) in enumerate(slots):
         v = theta[k]
         if owner == "lc":
@@ -463,8 +472,13 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
             planets[owner]["a"] = 1.0 + jnp.exp(v)
         elif par == "radius":
             planets[owner]["radius"] = jnp.exp(v)
+        elif par in ECC_PARAMS:
+            ecc.setdefault(owner, {})[par] = v
         else:
             b_theta[owner] = v
+    for owner, xy in ecc.items():  # (secosw, sesinw) in the disk e < e_cap (._ecc)
+        e, w = e_omega(*pair_from_theta(xy["secosw"], xy["sesinw"], ecc_cap(base, owner)))
+        planets[owner].update(e=e, omega=w)
     if nbody:  # a is derived (Kepler's third law, Jacobi masses): from the masses at theta
         from ..model._nbody import semi_major_axis
 
@@ -492,6 +506,8 @@ def _flux(theta, d: ModelData) -> jnp.ndarray:
 
     sysm = system_at(theta, d.system, d.slots, d.eccentric)
     x, y, r = sysm.positions(d.t, d.alpha, d.case)
+    for o in _ecc_planets(d.slots):  # an orbit through the star: NaN (._ecc)
+        x = jnp.where(periastron_ok(sysm.planets[o]), x, jnp.nan)
     fa = separate_frames(sysm.star, x, y, r, 24)
     if d.union.size:
         u = d.union
@@ -594,12 +610,28 @@ def residuals_batch(thetas, d: ModelData, count):
                              lambda i, acc: acc.at[i].set(residuals(thetas[i], d)), out)
 
 
-def _physical(theta, system: System, slots) -> jnp.ndarray:
+def _ecc_planets(slots) -> list:
+    """The planets whose secosw, sesinw are free, in slot order."""
+    return list(dict.fromkeys(o for o, p in slots if p in ECC_PARAMS))
+
+
+def _derived(system: System, slots) -> jnp.ndarray:
+    """``Model.derived`` of ``system``, the system at theta."""
+    out = [system.star.params[:2]] if any(p in ("q1", "q2") for _, p in slots) else []
+    out += [jnp.stack([system.planets[o].e, system.planets[o].omega]) for o in _ecc_planets(slots)]
+    return jnp.concatenate(out) if out else jnp.zeros(0)
+
+
+def _physical(theta, system: System, slots, base: System) -> jnp.ndarray:
     """The free parameters in physical units (``Model.physical``) of
-    ``system``, the system at theta."""
+    ``system``, the system at theta (``base``: the start)."""
     out = []
+    index = {slot: k for k, slot in enumerate(slots)}
     for k, (owner, par) in enumerate(slots):
-        if par in ("q1", "q2"):
+        if par in ECC_PARAMS:  # from theta: sqrt(e) has no derivative at e = 0
+            xy = (theta[index[(owner, "secosw")]], theta[index[(owner, "sesinw")]])
+            out.append(pair_from_theta(*xy, ecc_cap(base, owner))[ECC_PARAMS.index(par)])
+        elif par in ("q1", "q2"):
             out.append(jax.nn.sigmoid(theta[k]))
         elif par == "jitter":
             out.append(jnp.exp(theta[k]))
@@ -611,13 +643,12 @@ def _physical(theta, system: System, slots) -> jnp.ndarray:
 
 
 @stored(filtered=True)
-def physical_jacobian(theta, d: ModelData, derived: bool):
+def physical_jacobian(theta, d: ModelData):
     """(d q / d theta, q): q the free parameters in physical units, then
-    the star's u1, u2 where ``derived`` (Kipping's q1 or q2 free)."""
+    the derived quantities (``Model.derived``)."""
     def values(th):
         system = system_at(th, d.system, d.slots, d.eccentric)
-        q = _physical(th, system, d.slots)
-        q = jnp.concatenate([q, system.star.params[:2]]) if derived else q
+        q = jnp.concatenate([_physical(th, system, d.slots, d.system), _derived(system, d.slots)])
         return q, q
 
     return jax.jacfwd(values, has_aux=True)(theta)

@@ -33,6 +33,7 @@ import numpy as np
 from ..model._lightcurve import LightCurve, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
+from ._ecc import ECC_PARAMS, pair_of
 
 __all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "PERTURBER_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "expand_tc", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
@@ -174,6 +175,8 @@ def planet_value(pl, par):
     of a ("tc", k) slot, or a moon's element of a ("moon", k, name) slot."""
     if is_moon(par):
         return getattr(pl.moons[par[1]], par[2])
+    if par in ECC_PARAMS:
+        return pair_of(pl.e, pl.omega)[ECC_PARAMS.index(par)]
     return pl.transit_times[par[1]] if is_tc(par) else getattr(pl, par)
 
 
@@ -252,7 +255,8 @@ def parameter_names(system: System) -> list[str]:
 
     Per planet (labelled by its name, or its index when it has none):
     ``"<p>.t0"`` [d], ``"<p>.period"`` [d], ``"<p>.a"`` [R*], ``"<p>.inc"``
-    [deg], ``"<p>.radius"`` [R*] (N-body systems: also ``"<p>.mass"``
+    [deg], ``"<p>.radius"`` [R*], ``"<p>.secosw"``, ``"<p>.sesinw"``
+    (sqrt(e) cos omega, sqrt(e) sin omega; freed together) (N-body systems: also ``"<p>.mass"``
     [M_sun] and ``"<p>.lnode"`` [deg], no ``a``, which is derived, and
     ``"star.mass"`` [M_sun], ``"star.radius"`` [R_sun]), each moon's
     ``"<p>.<moon>.<element>"`` (``MOON_PARAMS``; <moon> its name, or
@@ -284,15 +288,15 @@ def parameter_names(system: System) -> list[str]:
     >>> import jaxppo as jp
     >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")
     >>> jp.parameter_names(jp.System(jp.Star.quadratic(0.4, 0.25), [b]))
-    ['b.t0', 'b.period', 'b.a', 'b.inc', 'b.radius', 'star.u1', 'star.u2', 'star.q1', 'star.q2',
+    ['b.t0', 'b.period', 'b.a', 'b.inc', 'b.radius', 'b.secosw', 'b.sesinw', 'star.u1', 'star.u2', 'star.q1', 'star.q2',
      'lc.offset', 'lc.jitter', 'lc.baseline', 'lc.baseline2']
 
     A planet with listed transit times has one name per epoch and no t0:
 
     >>> b = jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b",
     ...               transit_times=[0.001, 2.999], transit_epochs=[0, 1])
-    >>> jp.parameter_names(jp.System(jp.Star.uniform(), [b]))[:6]
-    ['b.period', 'b.a', 'b.inc', 'b.radius', 'b.tc[0]', 'b.tc[1]']
+    >>> jp.parameter_names(jp.System(jp.Star.uniform(), [b]))[:8]
+    ['b.period', 'b.a', 'b.inc', 'b.radius', 'b.secosw', 'b.sesinw', 'b.tc[0]', 'b.tc[1]']
     """
     names = []
     nbody = system.orbits == "nbody"
@@ -302,6 +306,7 @@ def parameter_names(system: System) -> list[str]:
         # fix the orbit's phase and t0 cancels (check_ttv_free refuses it)
         names += [f"{label}.{p}" for p in PLANET_PARAMS if not (p == "t0" and pl.transit_times is not None)
                   and not (p == "a" and nbody)]
+        names += [f"{label}.{p}" for p in ECC_PARAMS]
         names += [f"{label}.{p}" for p in NBODY_PARAMS["planet"] if nbody]
         names += [f"{label}.{moon_label(m, k)}.{p}" for k, m in enumerate(pl.moons) for p in MOON_PARAMS]
         if pl.transit_times is not None:
@@ -357,8 +362,8 @@ def _split(name: str, system: System):
     if par in NBODY_PARAMS["planet"] and not nbody:
         what = "planet masses are parameters" if par == "mass" else "the node lnode is a parameter"
         raise ValueError(f"free parameter {name!r}: {what} of N-body orbits only (System(..., orbits='nbody'))")
-    if par not in PLANET_PARAMS + NBODY_PARAMS["planet"]:
-        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS} (N-body systems: also "
+    if par not in PLANET_PARAMS + ECC_PARAMS + NBODY_PARAMS["planet"]:
+        raise ValueError(f"free parameter {name!r}: planet parameters are {PLANET_PARAMS + ECC_PARAMS} (N-body systems: also "
                          f"{NBODY_PARAMS['planet']}, and no 'a') and, for a planet with transit_times, its listed "
                          "mid-times 'tc[<epoch>]' (or 'tc' for all)")
     if par == "mass" and not float(np.asarray(system.planets[idx].mass)) > 0:
@@ -424,6 +429,11 @@ def expand_free(free, system: System, time: np.ndarray):
                          "has its own constant term c0): name one of them")
     if sum(1 for n in free if n.startswith("lc.baseline")) > 1:
         raise ValueError(f"free parameters name the baseline twice: {[n for n in free if n.startswith('lc.baseline')]}")
+    for o in {o for o, p in slots if p in ECC_PARAMS}:
+        if not all((o, p) in slots for p in ECC_PARAMS):
+            label = system.planets[o].name or str(o)
+            raise ValueError(f"free parameters name one of '{label}.secosw' and '{label}.sesinw': free both (together "
+                             "they are e and omega) or neither")
     star = {p for o, p in slots if o == "star"}
     if star & {"q1", "q2"} and star & {0, 1}:
         raise ValueError("free parameters name both u1/u2 and q1/q2 of the star: name one pair "
