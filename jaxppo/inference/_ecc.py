@@ -23,10 +23,37 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-__all__ = ["ECC_PARAMS", "ecc_cap", "pair_from_theta", "theta_from_pair", "e_omega", "pair_of", "periastron_ok"]
+__all__ = ["ECC_PARAMS", "ECC_START", "off_circular", "ecc_cap", "pair_from_theta", "theta_from_pair", "e_omega", "pair_of", "periastron_ok"]
 
 ECC_PARAMS = ("secosw", "sesinw")
 """The eccentricity pair of each planet a fit or a sampler may free."""
+
+
+ECC_START = 0.01
+"""The eccentricity a fit or a sampler starts from when the pair is free
+and the planet's start is circular: at e = 0 chi^2 is stationary in
+(secosw, sesinw) (e cos omega and e sin omega are second order in them),
+so a start there never moves (the fit stopped with "the data do not
+constrain" the pair)."""
+
+
+def off_circular(system, slots):
+    """``system`` with every planet whose pair is free (``slots``: the
+    model's (planet, parameter) slots) and whose concrete e is 0 moved to
+    e = ``ECC_START``, omega = 90 deg (periastron at transit: the same
+    transit to first order)."""
+    owners = sorted({o for o, p in slots if p in ECC_PARAMS and o != "star" and o != "lc"})
+    planets = list(system.planets)
+    moved = False
+    for k in owners:
+        try:
+            circular = float(planets[k].e) == 0.0
+        except TypeError:  # traced: left as it is
+            circular = False
+        if circular:
+            planets[k] = planets[k].replace(e=ECC_START, omega=90.0)
+            moved = True
+    return system.replace(planets=planets) if moved else system
 
 
 def ecc_cap(base, k: int):

@@ -44,6 +44,7 @@ from ..model._lightcurve import LightCurve
 from ..model._system import System
 from ._diagnostics import rank_diagnostics
 from ._model import Model
+from ._ecc import off_circular
 from ._coords import Coordinates, default_priors, start_q, window_priors
 from ._start import find_mode, laplace_factor
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
@@ -481,6 +482,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     # disk near the limb for long): compute the frames within 1 R* of the
     # star at the start, so that sampling again (below) is rarely needed.
     model = Model(system, lightcurve, free, alpha, case, active_margin=1.0)
+    system = off_circular(system, model.slots)  # a free (secosw, sesinw) never starts at e = 0
     _check_priors(model, system, priors)
     fold_inc = fold_inc and system.orbits == "kepler"  # N-body orbits keep the sign of cos i
     u0, chol, start = _start_point(model, start_q(model, system), priors, fold_inc, optimise)
