@@ -71,12 +71,12 @@ def _out_file(path, option="--out") -> Path:
     return out
 
 
-def _not_an_input(out: Path, args, option="--out") -> None:
-    """ValueError when ``out`` is a file the command's config reads (the
-    TOML, its data, star or transit-times files)."""
+def _not_an_input(targets, config, option="--out") -> None:
+    """ValueError when a file of ``targets`` is one the ``config`` reads
+    (the TOML, its data, star or transit-times files)."""
     from jaxppo.obliquity._config_files import config_inputs, refuse_overwriting_inputs
 
-    refuse_overwriting_inputs([out], config_inputs(args.config), option)
+    refuse_overwriting_inputs(targets, config_inputs(config), option)
 
 
 def _enable_x64() -> None:
@@ -263,7 +263,7 @@ def cmd_fit(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _not_an_input(_out_file(args.out), args)
+        _not_an_input([_out_file(args.out)], args.config)
     _free_names(args)  # a repeated name fails before the config loads
     cfg, lc = _fit_inputs(args)
     free = _free_names(args, cfg)
@@ -287,13 +287,13 @@ def cmd_sample(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _not_an_input(_out_file(args.out), args)
+        _not_an_input([_out_file(args.out)], args.config)
     if args.netcdf:
         try:
             import arviz  # noqa: F401
         except ImportError:
             raise ValueError("--netcdf needs arviz: pip install 'jaxppo[arviz]'") from None
-        _not_an_input(_out_file(args.netcdf, "--netcdf"), args, "--netcdf")
+        _not_an_input([_out_file(args.netcdf, "--netcdf")], args.config, "--netcdf")
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
@@ -383,6 +383,8 @@ def cmd_ttv(args) -> int:
 
     out = _out_folder(args.out)
     cfg = load_config(args.config)
+    products = ["transit_times.ecsv", "ttv_summary.json"] + [f"oc_{pl.name}.png" for pl in cfg.system.planets]
+    _not_an_input([out / n for n in products], args.config, f"--out {out}: ttv would write")
     kw = {k: v for k, v in cfg.ttv.items() if k != "reference"}
     if args.planets:
         kw["planets"] = args.planets

@@ -586,3 +586,32 @@ def test_fit_and_sample_never_write_over_their_inputs(argv, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "that file is an input of this run" in err and err.count("\n") == 1, err
     assert {k: p.read_bytes() for k, p in files.items()} == before
+
+
+def test_ttv_and_demo_never_write_over_inputs_or_a_scans_summary(tmp_path, capsys):
+    """``jaxppo ttv`` replaced a [ttv] reference table that lay where it
+    writes transit_times.ecsv (an earlier run's, as docs/ttv.md suggests
+    using them); ``jaxppo demo --out`` replaced a finished scan's
+    summary.json; a config's data given as a list was not protected."""
+    from jaxppo.model._phoenix import data_path
+    from jaxppo.obliquity._config_files import config_inputs
+
+    src = data_path("kepler51/kepler51_llc.toml").parent
+    for name in ("kepler51_llc.toml", "kepler51_llc_no_overlap.csv", "kepler51_transit_times_jnkepler.csv"):
+        (tmp_path / name).write_bytes((src / name).read_bytes())
+    text = (tmp_path / "kepler51_llc.toml").read_text()
+    text = text.replace('reference = ["kepler51_transit_times_holczer2016.csv", "kepler51_transit_times_jnkepler.csv"]',
+                        'reference = ["out/transit_times.ecsv"]')
+    (tmp_path / "k.toml").write_text(text)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "transit_times.ecsv").write_bytes((tmp_path / "kepler51_transit_times_jnkepler.csv").read_bytes())
+    assert main(["ttv", str(tmp_path / "k.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "ttv would write" in capsys.readouterr().err
+    (tmp_path / "scan").mkdir()
+    (tmp_path / "scan" / "summary.json").write_text('{"config_digest": "x"}')
+    (tmp_path / "scan" / "scan_progress.jsonl").write_text("")
+    assert main(["demo", "--out", str(tmp_path / "scan")]) == 2
+    assert "holds a summary.json the demo did not write" in capsys.readouterr().err
+    assert (tmp_path / "scan" / "summary.json").read_text() == '{"config_digest": "x"}'
+    (tmp_path / "l.toml").write_text(text.replace('path = "kepler51_llc_no_overlap.csv"', 'path = ["a.csv", "b.csv"]'))
+    assert {(tmp_path / n).resolve() for n in ("a.csv", "b.csv")} <= config_inputs(tmp_path / "l.toml")

@@ -322,6 +322,11 @@ def parameter_names(system: System) -> list[str]:
 def _split(name: str, system: System):
     if not isinstance(name, str) or "." not in name:
         raise ValueError(f"free parameter {name!r} must look like 'b.t0' or 'star.u1'")
+    for pl in system.planets:
+        if pl.name and "." in pl.name and name.startswith(pl.name + "."):
+            raise ValueError(f"free parameter {name!r}: the planet name {pl.name!r} contains '.', which parameter "
+                             "names ('<planet>.<parameter>') cannot address; fits and samplers need planet names "
+                             f"without one (e.g. {pl.name.replace('.', '_')!r})")
     owner, par = name.split(".", 1)
     nbody = system.orbits == "nbody"
     if owner == "star":

@@ -339,7 +339,7 @@ def read_csv_columns(path: Path, columns: dict):
     idx = {r: col(r, r in ("time", "flux")) for r in COLUMN_ROLES}
     if idx["flux_err"] is None:
         used = {i for i in idx.values() if i is not None}
-        if like := [h for i, h in enumerate(header) if i not in used and any(k in h for k in ("err", "sig", "unc"))]:
+        if like := [h for i, h in enumerate(header) if i not in used and any(k in h for k in ("err", "sigma", "uncert"))]:
             import warnings
 
             warnings.warn(f"{path}: no error column under the usual names {list(COLUMN_ROLES['flux_err'])}, so the "

@@ -155,9 +155,6 @@ class System(eqx.Module):
         names = [pl.name for pl in planets if pl.name]
         if len(names) != len(set(names)):
             raise ValueError(f"planet names must be unique, got {names}")
-        if dotted := [n for n in names if "." in n]:
-            raise ValueError(f"planet name {dotted[0]!r} contains '.': names head the parameter names of fits "
-                             "(\"b.t0\", \"b.moon.a\"), so they cannot contain one")
         labels = [pl.name for pl in planets]
         if isinstance(tilted, str) and tilted in labels:
             tilted = labels.index(tilted)  # the tilted planet by name

@@ -280,7 +280,10 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
     if not isinstance(columns, dict) or not all(isinstance(v, str) for v in columns.values()):
         raise _err(source, f"[data] columns must be a table of column names, e.g. {{time = 'bjd', flux_err = 'error'}}, got {columns!r}")
     exposure = data.get("exposure")
-    if exposure is not None:
+    instantaneous = exposure == 0 and _is_number(exposure)  # said so: no warning about long cadences
+    if instantaneous:
+        exposure = None
+    elif exposure is not None:
         if not _is_number(exposure):
             raise _err(source, f"[data] exposure must be a number of days, got {exposure!r}")
         exposure = float(exposure)
@@ -319,7 +322,10 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             lc = dataclasses.replace(lc, exposure=exposure)
     except ValueError as e:
         raise _err(source, f"[data] {e}") from e
-    _warn_instantaneous(lc, source)
+    if instantaneous and lc.exposure is not None:
+        lc = dataclasses.replace(lc, exposure=None)  # a FITS file's TIMEDEL too
+    if not instantaneous:
+        _warn_instantaneous(lc, source)
     return lc
 
 

@@ -54,8 +54,8 @@ def star_from_table(section: dict, law: str, base: Path) -> Star:
 
 
 def star_table(p: Path):
-    """(mu, intensity) from a CSV table file: two columns separated by
-    commas (or white space), '#' comments, an optional header row (e.g.
+    """(mu, intensity) from a CSV table file: the first two columns
+    (further ones are not used), separated by commas (or white space), '#' comments, an optional header row (e.g.
     ``mu,intensity``). ValueError naming the file and the row otherwise."""
     if not p.is_file():
         raise ValueError(f"table file not found: {p}")
@@ -64,7 +64,7 @@ def star_table(p: Path):
         text = line.split("#", 1)[0].strip()
         if not text:
             continue
-        cells = text.replace(",", " ").split()
+        cells = [c.strip() for c in text.split(",")] if "," in text else text.split()
         try:
             values = [float(c) for c in cells]
         except ValueError:
@@ -72,9 +72,9 @@ def star_table(p: Path):
                 header = True  # the one header row, before the numbers
                 continue
             raise ValueError(f"{p}, line {n}: {line.strip()!r} is not two numbers (mu, intensity)") from None
-        if len(values) != 2:
-            raise ValueError(f"{p}, line {n}: {line.strip()!r} has {len(values)} columns, not 2 (mu, intensity)")
-        rows.append(values)
+        if len(values) < 2:
+            raise ValueError(f"{p}, line {n}: {line.strip()!r} has {len(values)} column, not 2 (mu, intensity)")
+        rows.append(values[:2])  # further columns (an error, a flag) are not used
     if not rows:
         raise ValueError(f"{p} holds no rows of mu, intensity")
     tab = np.asarray(rows, float)
@@ -97,8 +97,8 @@ def config_inputs(path, raw: dict | None = None) -> set:
     found = [path]
     for section in ("data", "star"):
         sec = raw.get(section)
-        if isinstance(sec, dict) and isinstance(sec.get("path"), str):
-            found.append(sec["path"])
+        paths = sec.get("path") if isinstance(sec, dict) else None
+        found += [v for v in (paths if isinstance(paths, list) else [paths]) if isinstance(v, str)]
     planets = raw.get("planet")
     for pl in planets if isinstance(planets, list) else ():
         if isinstance(pl, dict) and isinstance(pl.get("transit_times"), str):

@@ -27,11 +27,29 @@ def demo_events(system):
     return events, [by_mid[round(ev.mid, 2)] for ev in events]
 
 
+def _refuse_foreign_summary(out: Path) -> None:
+    """ValueError when ``out`` holds a summary.json that is not a demo's (no
+    ``event_numbers``), or a scan's folder (its finished-scan marker)."""
+    summ = out / "summary.json"
+    if not summ.exists():
+        return
+    try:
+        ours = "event_numbers" in json.loads(summ.read_text())
+    except (OSError, ValueError, TypeError):
+        ours = False
+    if not ours or (out / "scan_progress.jsonl").exists():
+        raise ValueError(f"--out {out} holds a summary.json the demo did not write (a scan's folder?); the demo "
+                         "writes its own there: use another folder")
+
+
 def double_transit_demo(out) -> dict:
     """Light curves of the seven Kepler-20 b + c double transits for a few tilt
     angles, both hemisphere cases: ``out``/kepler20_double_transits.png and
     .csv, and summary.json (events with the scan's numbers, alphas, alpha
-    limits, ``points``, ``seconds``), which it returns."""
+    limits, ``points``, ``seconds``), which it returns. A summary.json in
+    ``out`` that the demo did not write (a scan's, or the user's) is a
+    ValueError: the demo never replaces it."""
+    _refuse_foreign_summary(Path(out))
     import matplotlib
 
     matplotlib.use("Agg")

@@ -419,3 +419,23 @@ def test_a_scattering_system_is_an_error_not_meaningless_transit_times():
     k51 = _kepler51_system()
     _, (_, energy, hill, _) = system_xyz(k51, np.linspace(155.0, 1600.0, 50), 0.0, np.ones(3), checks=True)
     assert float(np.max(energy)) < 1e-2 * ENERGY_TOLERANCE and float(np.min(hill)) > 10.0 * HILL_TOLERANCE
+
+
+def test_float32_round_off_is_not_called_an_unstable_system():
+    """With x64 off the bundled Kepler-51 system over 155-9000 d drifted by
+    1.6e-5 in energy from round-off alone and was refused as "unstable, or
+    dt too large: try dt / 4" (which drifted more); in float32 the energy
+    test takes 1e-3 (close encounters are caught by the Hill test either
+    way), and an error says float32."""
+    from jaxppo.model._nbody import ENERGY_TOLERANCE, ENERGY_TOLERANCE_32, check_reliable, energy_tolerance
+
+    rel = (np.array([0.0, 1.0]), np.array([0.0, 1.6e-5]), np.array([12.0, 12.0]), np.array([0, 0]))
+    s = _kepler51_system()
+    with pytest.raises(ValueError, match=r"changed by 1\.6e-05"):
+        check_reliable(s, rel)
+    with jax.enable_x64(False):
+        assert energy_tolerance() == ENERGY_TOLERANCE_32
+        check_reliable(s, rel)
+        with pytest.raises(ValueError, match=r"more than 0\.001 first at t = 1 d, float32"):
+            check_reliable(s, (rel[0], np.array([0.0, 2e-3]), rel[2], rel[3]))
+    assert energy_tolerance() == ENERGY_TOLERANCE

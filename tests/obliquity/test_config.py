@@ -471,6 +471,10 @@ def test_a_star_table_with_a_header_and_its_errors(tmp_path):
     assert float(cfg.system.star.intensity(1.0)) > float(cfg.system.star.intensity(0.0))
     with pytest.raises(ValueError, match=r"\[star\] law = 'tabulated' \(path = 'ld.csv'\): .*ld.csv, line 3: .* not two numbers"):
         load_config(_tab_config(tmp_path, "mu,intensity\n0,0.4\nx,y\n"))
+    cfg3 = load_config(_tab_config(tmp_path, "".join(f"{m},{1 - 0.6 * (1 - m)},0.01\n" for m in mu)))  # a third column
+    assert float(cfg3.system.star.intensity(0.5)) == float(cfg.system.star.intensity(0.5))
+    with pytest.raises(ValueError, match=r"line 2: '0.5,,0.7' is not two numbers"):
+        load_config(_tab_config(tmp_path, "0,0.4\n0.5,,0.7\n1,1\n"))
     with pytest.raises(ValueError, match=r"\[star\] law = 'tabulated' \(path = 'ld.csv'\): .*mu"):
         load_config(_tab_config(tmp_path, "0.2,0.5\n0.6,0.8\n1,1\n"))
     assert load_config(_tab_config(tmp_path, "0.2,0.5\n0.6,0.8\n1,1\n", "\npad_ends = true")).digest
@@ -499,12 +503,14 @@ def test_alpha_applies_to_a_config_without_a_scan_section(tmp_path):
 
 
 def test_names_and_free_parameters_that_fits_cannot_take(tmp_path):
-    """A planet named "b.x" loaded and then failed in fit ("no planet named
-    'b'"); a repeated [fit] free name failed only when a fit ran."""
+    """A planet named "b.x" (a candidate's name, KOI-94.01, is one) failed
+    in fit with "no planet named 'b'"; a repeated [fit] free name failed
+    only when a fit ran."""
     p = tmp_path / "c.toml"
     p.write_text(_valid(tmp_path).replace('name = "b"', 'name = "b.x"'))
-    with pytest.raises(ValueError, match=r"planet name 'b.x' contains '.'"):
-        load_config(p)
+    cfg = load_config(p)  # a scan takes it
+    with pytest.raises(ValueError, match=r"the planet name 'b.x' contains '.', .* \(e.g. 'b_x'\)"):
+        jp.fit(cfg.system, cfg.lightcurve, free=["b.x.t0"])
     p.write_text(_valid(tmp_path) + '[fit]\nfree = ["b.t0", "b.t0"]\n')
     with pytest.raises(ValueError, match=r"\[fit\] free names b.t0 more than once"):
         load_config(p)
@@ -525,6 +531,7 @@ def test_unintegrated_long_cadence_and_quoted_exposure(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_config(_cfg(tmp_path, 'path = "d.csv"\nexposure = 0.0204'))
+        assert load_config(_cfg(tmp_path, 'path = "d.csv"\nexposure = 0')).lightcurve.exposure is None  # said so
 
 
 def test_error_columns_under_other_names_and_repeated_header(tmp_path):
