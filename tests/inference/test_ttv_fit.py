@@ -317,7 +317,9 @@ def test_parameter_names_lists_only_names_fit_accepts():
     names = jp.parameter_names(system)
     assert "b.t0" not in names and "c.t0" in names and {"b.tc[0]", "b.tc[1]"} <= set(names)
     for name in names:
-        Model(system, lc, (name,))  # raises for a name fit / sample refuse
+        owner, _, par = name.rpartition(".")
+        pair = (f"{owner}.secosw", f"{owner}.sesinw") if par in ("secosw", "sesinw") else (name,)  # freed together
+        Model(system, lc, pair)  # raises for a name fit / sample refuse
 
 
 def test_linear_ephemeris_against_numpy_and_its_refusals():
