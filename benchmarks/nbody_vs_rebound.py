@@ -32,6 +32,7 @@ set before JAX starts; run this script with and without it to compare.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -40,7 +41,11 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-import rebound  # noqa: E402
+
+try:
+    import rebound
+except ImportError:
+    sys.exit("nbody_vs_rebound.py needs REBOUND: pip install rebound")
 
 from jaxppo.model._nbody import G_AU_DAY, R_SUN_AU, nbody_xyz  # noqa: E402
 

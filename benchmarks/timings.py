@@ -39,7 +39,9 @@ def _run(cmd: list[str], env: dict) -> tuple[float, str]:
     t = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
     dt = time.perf_counter() - t
-    if proc.returncode not in (0, 1):
+    # 1: also `jaxppo fit` / `ttv` whose fit did not converge (timed); a crash is not a timing
+    crashed = "Traceback (most recent call last)" in proc.stderr or ": internal error:" in proc.stderr
+    if proc.returncode not in (0, 1) or crashed:
         raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
     return dt, proc.stdout + proc.stderr
 
