@@ -24,6 +24,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "core"))
 import jaxppo as jp  # noqa: E402
 import jaxppo.model._plan  # noqa: E402
 from helpers import adversarial_classes, pad_scenes  # noqa: E402
@@ -89,7 +90,8 @@ def main(n: int) -> None:
             row.append(np.max(gerr) if finite.all() else np.inf)
             for key, v in zip(("exact64", "auto64", "exact32", "auto32", "grad64"), row):
                 overall[key] = np.nanmax([overall.get(key, 0.0), v])
-            cells = " ".join(f"{v:8.1e}" for v in row[:2]) + f" {int(keep.sum()):4d} " + " ".join(f"{v:8.1e}" for v in row[2:])
+            cells = " ".join(f"{v:8.1e}" for v in row[:2]) + f" {int(keep.sum()):4d} " + " ".join(
+                f"{'-':>8s}" if np.isnan(v) else f"{v:8.1e}" for v in row[2:])  # '-': no float32 scenes
             print(f"{cname:36s} {law:10s} {len(cfgs):4d} {cells}")
     print("-" * len(head))
     print("worst: " + ", ".join(f"{k} {v:.1e}" for k, v in overall.items()))
