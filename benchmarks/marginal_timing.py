@@ -34,6 +34,11 @@ def load():
     return "load average %.2f %.2f %.2f" % os.getloadavg()
 
 
+def pct(p):
+    """A probability in per cent, or 'withheld' (None: too few effective draws)."""
+    return "withheld" if p is None else f"{100 * p:.2f} %"
+
+
 def real(n, free, warmup, out):
     cfg = jp.load_config(ROOT / "jaxppo/data/kepler20_real_llc.toml")
     t = time.perf_counter()
@@ -47,23 +52,24 @@ def real(n, free, warmup, out):
     m = marginal_scan(cfg, draws=n, out=out, num_warmup=warmup, progress=False, restart=True, free=free)
     total = time.perf_counter() - t
     s = m.summary["seconds"]
-    print(f"marginal scan N = {n} ({len(m['sampler'].get('diagnostics') or [])} free, {warmup} warmup): end to end {total:.1f} s = sampler {s.get('sampler_s', 0):.1f} s "
+    print(f"marginal scan N = {n} ({len(m.summary['sampler'].get('diagnostics') or [])} free, {warmup} warmup): end to end {total:.1f} s = sampler {s.get('sampler_s', 0):.1f} s "
           f"+ chi^2 of all draws {s['chi2_s']:.1f} s ({1e3 * s['per_draw_chi2']:.0f} ms per draw = "
           f"{s['per_draw_chi2'] / t_scan:.3f} x one warm plain scan) + rest [{load()}]")
     for case, c in m.summary["cases"].items():
         geo = c["geometries"]
         names = [k for k in geo if isinstance(geo[k], dict)]
-        fx = fixed["probabilities"][case]
+        fx = fixed.probabilities[case]
         print(f"  case {case}: " + "; ".join(
-            f"{nm}: marginal {100 * geo[nm]['probability']:.2f} % (draws {100 * c['probability_spread_over_draws'][nm]['p16']:.2f}"
-            f"-{100 * c['probability_spread_over_draws'][nm]['p84']:.2f}), fixed {100 * fx[nm]['probability']:.2f} %"
-            for nm in names) + f"; K = {geo['bayes_factor']:.4f} ({geo['jeffreys']}); importance ESS min "
-            f"{c['importance_ess']['min']:.1f} of {n}")
+            f"{nm}: marginal {pct(geo[nm]['probability'])} (draws {100 * c['probability_spread_over_draws'][nm]['p16']:.2f}"
+            f"-{100 * c['probability_spread_over_draws'][nm]['p84']:.2f}), fixed {pct(fx[nm]['probability'])}"
+            for nm in names) + f"; K = {'withheld' if geo['bayes_factor'] is None else format(geo['bayes_factor'], '.4f')} "
+            f"({geo['jeffreys']}); importance ESS min {c['importance_ess']['min']:.1f} of {n}")
     if m.summary["sampler"].get("diagnostics"):
         d = m.summary["sampler"]["diagnostics"]
         print("  NUTS r_hat max %.3f, n_eff min %.0f" % (max(v["r_hat"] or np.nan for v in d.values()),
                                                          min(v["n_eff"] or np.nan for v in d.values())))
-    print(f"  alpha_ref {m['sampler'].get('alpha_ref')}: quiet for {m['alpha_ref_quiet_fraction']} of the draws")
+    print(f"  alpha_ref {m.summary['sampler'].get('alpha_ref')}: quiet for {m.summary['alpha_ref_quiet_fraction']} "
+          "of the draws")
 
 
 def fragility(n, free, warmup, out):
@@ -84,13 +90,22 @@ def fragility(n, free, warmup, out):
     total = time.perf_counter() - t
     for case in ("same", "opposite"):
         tt = m.table[m.table["case"] == case]
+        head = (f"marginal scan N = {n} ({len(m.summary['sampler'].get('diagnostics') or [])} free, {warmup} warmup), "
+                f"wrong config, case {case}: ")
+        if not np.isfinite(tt["posterior"]).any():  # too few effective draws: no posterior, no peak
+            print(head + f"posterior withheld ({m.summary['cases'][case]['geometries'].get('withheld')})")
+            continue
         i = int(np.argmax(tt["posterior"]))
-        print(f"marginal scan N = {n} ({len(m['sampler'].get('diagnostics') or [])} free, {warmup} warmup), wrong config, case {case}: posterior peak alpha = "
-              f"{tt['alpha'][i]:g} deg (marginal Delta chi^2 {tt['marginal_delta_chi2'][i]:.1f}); "
+        print(head + f"posterior peak alpha = {tt['alpha'][i]:g} deg (marginal Delta chi^2 "
+              f"{tt['marginal_delta_chi2'][i]:.1f}); "
               f"p(|alpha - 147| <= 3) = {tt['posterior'][np.abs(tt['alpha'] - 147) <= 3].sum():.3f}")
+    med = {k: v["median"] for k, v in m.summary["parameters"].items()}
+    # the sampler's t0 are at the transit nearest the data's middle: the truth at that epoch
+    tc = float(c.t0) + float(c.period) * round((med.get("c.t0", float(c.t0)) - float(c.t0)) / float(c.period))
     print(f"  {total:.1f} s [{load()}]; posterior medians: " +
-          ", ".join(f"{k} {v['median']:.6g}" for k, v in m.summary["parameters"].items() if k in ("b.a", "c.t0")) +
-          f" (true b.a {float(b.a):.6g}, c.t0 {float(c.t0):.6g})")
+          ", ".join(f"{k} {v:.6g}" for k, v in med.items() if k in ("b.a", "c.t0")) +
+          f" (true b.a {float(b.a):.6g}, c.t0 {tc:.6g} at the same epoch"
+          + (f": c.t0 off by {1440 * (med['c.t0'] - tc):+.2f} min)" if "c.t0" in med else ")"))
 
 
 if __name__ == "__main__":
