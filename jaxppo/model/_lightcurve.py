@@ -101,7 +101,9 @@ class LightCurve:
     def __post_init__(self):
         if is_lightkurve(self.time):
             raise ValueError("a lightkurve LightCurve goes through LightCurve.from_lightkurve(lc)")
-        t, note = to_days(self.time, self.time_zero)
+        t, note, zero = to_days(self.time, self.time_zero)
+        if self.time_zero is None and zero is not None:
+            object.__setattr__(self, "time_zero", zero)  # an astropy Time's BKJD / BTJD
         f, e, _ = flux_values(self.flux, self.flux_err, False)
         if t.ndim != 1 or f.shape != t.shape or e.shape != t.shape:
             raise ValueError(f"time, flux and flux_err must be 1D of equal length, got {t.shape}, {f.shape}, {e.shape}")
@@ -181,7 +183,7 @@ class LightCurve:
     # ---- loading ----------------------------------------------------------------
     @classmethod
     def _from_columns(cls, t, f, e, q, exposure, source, normalize=True, segment=None, bitmask=(-1, "any flag"),
-                      time_note=None, extra=None) -> "LightCurve":
+                      time_note=None, extra=None, time_zero=None) -> "LightCurve":
         """Drop flagged (``q & bitmask != 0``; a missing flag counts as
         flagged), non-finite and repeated-time points (the first of each
         repeated stamp is kept), counting each in ``report``; divide each
@@ -243,7 +245,7 @@ class LightCurve:
             report["flux_err"] = ("estimated: no error column; 1.4826 MAD of successive differences / sqrt(2), "
                                   "per segment")
             report["flux_err_estimate"] = estimated["0"] if segment is None else estimated
-        return cls(t, flux, err, exposure=exposure, report=report, errors_estimated=not has_err)
+        return cls(t, flux, err, exposure=exposure, report=report, errors_estimated=not has_err, time_zero=time_zero)
 
     @classmethod
     def from_arrays(cls, time, flux, flux_err=None, quality=None, *, exposure: float | None = None,
@@ -298,14 +300,14 @@ class LightCurve:
             errors cannot be estimated, the bitmask or mission is unknown,
             or the time has no known zero point.
         """
-        t, note = to_days(time, time_zero)
+        t, note, zero = to_days(time, time_zero)
         f, e, normalize = flux_values(flux, flux_err, normalize)
         q = None if quality is None else plain_values(quality, "quality")[0]
         if normalize is None:
             finite = f[np.isfinite(f)]
             normalize = bool(finite.size > 0 and np.median(finite) > 10)
         return cls._from_columns(t, f, e, q, exposure, source, normalize, None,
-                                 resolve_bitmask(quality_bitmask, mission), note)
+                                 resolve_bitmask(quality_bitmask, mission), note, time_zero=zero)
 
     @classmethod
     def from_lightkurve(cls, lc, flux_column: str = "flux", quality_bitmask="default", exposure: float | None = None,
@@ -357,14 +359,14 @@ class LightCurve:
         label = meta.get("LABEL") or meta.get("OBJECT") or meta.get("TARGETID") or ""
         extra = {"lightkurve_quality_bitmask": meta["QUALITY_BITMASK"]} if "QUALITY_BITMASK" in meta else {}
         extra = {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in extra.items()}
-        t, note = to_days(lc.time, time_zero)
+        t, note, zero = to_days(lc.time, time_zero)
         fv, ev, normalize = flux_values(f, e, normalize)
         if normalize is None:
             finite = fv[np.isfinite(fv)]
             normalize = bool(finite.size > 0 and np.median(finite) > 10)
         qv = None if q is None else plain_values(q, "quality")[0]
         return cls._from_columns(t, fv, ev, qv, exposure, f"lightkurve {type(lc).__name__} {label}".strip(), normalize,
-                                 None, resolve_bitmask(quality_bitmask, mission), note, extra)
+                                 None, resolve_bitmask(quality_bitmask, mission), note, extra, zero)
 
     @classmethod
     def from_csv(cls, path, exposure: float | None = None, normalize: bool | None = None,
@@ -436,7 +438,9 @@ class LightCurve:
         ----------
         parts : iterable of LightCurve
             The light curves; their exposures must agree unless ``exposure``
-            is given.
+            is given, and their times must count from one zero point (a
+            TESS light curve joins Kepler data after
+            ``to_time_zero("bkjd")``).
         exposure : float or None, optional
             Integration time of the joined light curve [d]; a part that
             has another one gets a UserWarning (its points would be
@@ -446,17 +450,28 @@ class LightCurve:
         -------
         LightCurve
             All points, sorted by time; ``report["sources"]`` holds the
-            parts' reports.
+            parts' reports; ``time_zero`` is the parts' common zero point
+            (None where a part's is unknown).
 
         Raises
         ------
         ValueError
-            When ``parts`` is empty, the exposures differ and ``exposure`` is
-            not given, or two parts share a time stamp.
+            When ``parts`` is empty, two parts' known zero points differ
+            (BTJD beside BKJD: ``time_zero``, or a Kepler or TESS file's),
+            the exposures differ and ``exposure`` is not given, or two parts
+            share a time stamp.
         """
         parts = list(parts)
         if not parts:
             raise ValueError("concatenate needs at least one light curve")
+        zeros = [_known_zero(p) for p in parts]
+        known = sorted({z for z in zeros if z is not None})
+        if len(known) > 1:
+            # BTJD points beside BKJD ones sit 2167 d (6 years) off: every transit in the wrong place, no error
+            names = ", ".join(f"{z:.1f}" + (f" ({_ZERO_LABEL[z]})" if z in _ZERO_LABEL else "") for z in known)
+            raise ValueError(f"the light curves count time from different zero points, BJD_TDB - {names} [JD]: move "
+                             "them onto one first, e.g. tess.to_time_zero('bkjd') beside Kepler data")
+        time_zero = known[0] if known and None not in zeros else None
         exps = {p.exposure for p in parts}
         if exposure is None:
             if len(exps) > 1:
@@ -477,8 +492,11 @@ class LightCurve:
         if np.unique(t).size != t.size:
             raise ValueError(f"the files share {t.size - np.unique(t).size} time stamps (the same data twice?)")
         report = {"sources": [p.report for p in parts], "kept": int(t.size)}
+        if time_zero is not None:
+            label = f" ({_ZERO_LABEL[time_zero]})" if time_zero in _ZERO_LABEL else ""
+            report["time"] = f"BJD_TDB - {time_zero:.1f} [d]{label}"
         return cls(t, np.concatenate([p.flux for p in parts]), np.concatenate([p.flux_err for p in parts]),
-                   exposure, report, errors_estimated=any(p.errors_estimated for p in parts))
+                   exposure, report, errors_estimated=any(p.errors_estimated for p in parts), time_zero=time_zero)
 
     @classmethod
     def from_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default",
@@ -528,9 +546,9 @@ class LightCurve:
             raise ValueError(f"light-curve file not found: {path}")
         if path.is_dir():
             raise ValueError(f"light-curve path is a folder, not a file: {path}")
-        t, f, e, q, exposure, mission, note = read_fits_columns(path, flux_column, mission)
+        t, f, e, q, exposure, mission, note, zero = read_fits_columns(path, flux_column, mission)
         return cls._from_columns(t, f, e, q, exposure, path, True, None, resolve_bitmask(quality_bitmask, mission),
-                                 note, {"mission": mission})
+                                 note, {"mission": mission}, zero)
 
     @classmethod
     def from_kepler_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default") -> "LightCurve":
@@ -728,6 +746,18 @@ class LightCurve:
             When ``n`` is not a positive integer.
         """
         return supersampled_times(self.time, self.exposure, n)
+
+
+_ZERO_LABEL = {v[0]: v[1] for v in TIME_ZERO.values()}
+
+
+def _known_zero(lc: LightCurve) -> float | None:
+    """The zero point [JD] of a light curve's times: its ``time_zero``, else
+    its mission's (a Kepler or TESS file), else None (unknown)."""
+    if lc.time_zero is not None:
+        return float(lc.time_zero)
+    mission = lc.report.get("mission")
+    return TIME_ZERO[mission][0] if mission in TIME_ZERO else None
 
 
 def _zero_point(value, name: str) -> float:

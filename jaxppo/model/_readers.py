@@ -144,8 +144,9 @@ def plain_values(x, what: str, unit=None):
     return (v, xunit) if unit is None else v
 
 
-def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
-    """Times [d] and a statement of their zero point.
+def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None, float | None]:
+    """Times [d], a statement of their zero point, and the zero point [JD]
+    (None where the times are plain numbers of unknown zero).
 
     An astropy ``Time`` becomes BJD_TDB - ``time_zero`` [d], computed from the
     two-double (jd1, jd2) representation so that no precision is lost. Its
@@ -156,7 +157,7 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
     a barycentric correction is not applied (give barycentric times). A time
     Quantity is converted to days; plain numbers are taken as days."""
     if _isplain_values(t):
-        return np.asarray(t, float), None
+        return np.asarray(t, float), None, None
     from astropy.time import Time
     import astropy.units as u
 
@@ -175,12 +176,12 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
         tdb = t.tdb
         days = (np.asarray(tdb.jd1, float) - zero) + np.asarray(tdb.jd2, float)
         note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if label else "") + f", from astropy Time ({fmt}, {t.scale})"
-        return np.atleast_1d(days), note
+        return np.atleast_1d(days), note, zero
     if type(t).__name__ == "TimeDelta" or any(c.__name__ == "TimeDelta" for c in type(t).__mro__):
-        return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None
+        return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None, None
     if isinstance(t, u.Quantity) or (hasattr(t, "unmasked") and isinstance(getattr(t, "unmasked"), u.Quantity)):
-        return plain_values(t, "time", u.day), None
-    return plain_values(t, "time", None)[0], None
+        return plain_values(t, "time", u.day), None, None
+    return plain_values(t, "time", None)[0], None, None
 
 
 def _isplain_values(x) -> bool:
@@ -383,7 +384,7 @@ def _astropy_csv(path: Path, text: str):
 def read_fits_columns(path: Path, flux_column: str, mission: str | None):
     """The columns of a Kepler, K2 or TESS SPOC light-curve FITS file:
     (time [d], flux, flux_err, quality, exposure [d], mission, a statement
-    of the time system). The mission comes from the primary header
+    of the time system, its zero point [JD]). The mission comes from the primary header
     (TELESCOP, else MISSION) unless given; it picks the quality column and
     the time zero (``TIME_ZERO``, or BJDREFI + BJDREFF from the header)."""
     from astropy.io import fits
@@ -434,7 +435,7 @@ def read_fits_columns(path: Path, flux_column: str, mission: str | None):
         zero = zero_default
     note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if abs(zero - zero_default) < 1e-9 else "")
     return (col("TIME"), col(flux_column.upper()), col(flux_column.upper() + "_ERR"), col(qcol),
-            kepler_exposure(hdr), mission, note)
+            kepler_exposure(hdr), mission, note, zero)
 
 
 def lightkurve_columns(lc, flux_column: str):

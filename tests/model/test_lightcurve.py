@@ -512,3 +512,31 @@ def test_concatenating_instruments_of_different_exposures():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the same length to rounding: no warning
         jp.LightCurve.concatenate([kep], exposure=0.0204 * (1 + 1e-6))
+
+
+def test_concatenate_refuses_mixed_time_zero_points():
+    """A BTJD light curve joined to a BKJD one was taken as is: its points sat
+    2167 d off, every transit in the wrong place, without a word. The zero
+    points (time_zero, a Kepler / TESS file's, an astropy Time's) are now
+    compared, kept through concatenate, and known for lightkurve-style
+    Time inputs (to_time_zero needed current= for a BTJD Time)."""
+    from astropy.time import Time
+
+    tt = 1689.0 + np.arange(40) * 0.0014
+    tess = jp.LightCurve(tt, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014, report={"mission": "tess"})
+    bk = tess.to_time_zero("bkjd")
+    later = jp.LightCurve(tt + 30.0, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014,
+                          time_zero=2454833.0)
+    with pytest.raises(ValueError, match=r"different zero points, BJD_TDB - 2454833.0 \(BKJD\), 2457000.0 \(BTJD\)"):
+        jp.LightCurve.concatenate([tess, later])
+    both = jp.LightCurve.concatenate([bk, later])
+    assert both.time_zero == 2454833.0 and "(BKJD)" in both.report["time"]
+    np.testing.assert_allclose(both.to_time_zero("btjd").time[-tt.size:], tt, rtol=0, atol=1e-9)
+    unknown = jp.LightCurve(tt + 60.0, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014)
+    assert jp.LightCurve.concatenate([bk, unknown]).time_zero is None  # one part's zero is not known
+    # an astropy Time in BTJD carries its zero point
+    t = jp.LightCurve.from_arrays(Time(tt, format="btjd", scale="tdb"), np.ones(tt.size), np.full(tt.size, 1e-3))
+    assert t.time_zero == 2457000.0
+    np.testing.assert_allclose(t.to_time_zero("bkjd").time, tt + 2167.0, rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="different zero points"):
+        jp.LightCurve.concatenate([t, later])
