@@ -456,14 +456,21 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When ``parts`` is empty, two parts' known zero points differ
+            When ``parts`` is one light curve, empty or holds anything but
+            jaxppo LightCurves, two parts' known zero points differ
             (BTJD beside BKJD: ``time_zero``, or a Kepler or TESS file's),
             the exposures differ and ``exposure`` is not given, or two parts
             share a time stamp.
         """
+        if isinstance(parts, LightCurve) or is_lightkurve(parts):
+            raise ValueError("concatenate takes a list of light curves, got one light curve")
         parts = list(parts)
         if not parts:
             raise ValueError("concatenate needs at least one light curve")
+        for k, p in enumerate(parts):
+            if not isinstance(p, LightCurve):
+                hint = " (LightCurve.from_lightkurve(lc) first)" if is_lightkurve(p) else ""
+                raise ValueError(f"concatenate: part {k} must be a jaxppo LightCurve, got {type(p).__name__}{hint}")
         zeros = [_known_zero(p) for p in parts]
         known = sorted({z for z in zeros if z is not None})
         if len(known) > 1:
@@ -649,9 +656,11 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the mask keeps no point.
+            When the mask is not one bool per point or keeps no point.
         """
         mask = np.asarray(mask, bool)
+        if mask.shape != self.time.shape:
+            raise ValueError(f"mask must hold one bool per point, shape {self.time.shape}, got shape {mask.shape}")
         if not mask.any():
             raise ValueError("the selection keeps no points")
         return LightCurve(self.time[mask], self.flux[mask], self.flux_err[mask], self.exposure, dict(self.report),
@@ -673,10 +682,15 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When no point lies in any window.
+            When an interval is not a (start, end) pair or no point lies in
+            any window.
         """
         keep = np.zeros(self.time.size, bool)
-        for a, b in intervals:
+        for window in intervals:
+            if np.shape(window) != (2,):
+                raise ValueError(f"intervals must be (start, end) pairs [d], e.g. [(3856.5, 3857.5)], got {window!r} "
+                                 "among them")
+            a, b = window
             keep |= (self.time >= a) & (self.time <= b)
         return self.select(keep)
 

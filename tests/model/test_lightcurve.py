@@ -540,3 +540,19 @@ def test_concatenate_refuses_mixed_time_zero_points():
     np.testing.assert_allclose(t.to_time_zero("bkjd").time, tt + 2167.0, rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="different zero points"):
         jp.LightCurve.concatenate([t, later])
+
+
+def test_concatenate_select_windows_name_bad_inputs():
+    """Bad inputs gave AttributeError, TypeError or numpy's IndexError; now a
+    ValueError that names the argument."""
+    t = np.arange(10) * 0.0014
+    lc = jp.LightCurve(t, np.ones(10), np.full(10, 1e-3))
+    with pytest.raises(ValueError, match="concatenate: part 1 must be a jaxppo LightCurve, got NoneType"):
+        jp.LightCurve.concatenate([lc, None])
+    with pytest.raises(ValueError, match="a list of light curves, got one light curve"):
+        jp.LightCurve.concatenate(lc)
+    with pytest.raises(ValueError, match=r"mask must hold one bool per point, shape \(10,\), got shape \(5,\)"):
+        lc.select(np.ones(5, bool))
+    with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
+        lc.windows((0.0, 0.005))
+    assert len(lc.windows([(0.0, 0.005)])) == 4
