@@ -10,7 +10,7 @@ import numpy as np
 
 from ._exposure import supersampled_times
 from ._units import from_quantity
-from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, kepler_exposure, lightkurve_columns,
+from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, lightkurve_columns, lightkurve_exposure,
                        plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days, TIME_ZERO)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
 from ._readers import QUALITY_BITMASKS as QUALITY_BITMASKS
@@ -334,7 +334,9 @@ class LightCurve:
         quality_bitmask : str or int, optional
             "none", "default" (default), "hard", "hardest" or an integer.
         exposure : float or None, optional
-            Integration time [d]; default TIMEDEL from ``lc.meta``.
+            Integration time [d]; default: the bin size of a binned light
+            curve (its ``time_bin_size``; ``lc.meta`` keeps the unbinned
+            TIMEDEL), else TIMEDEL from ``lc.meta``.
         normalize : bool or None, optional
             Divide by the median flux; default (None): for fluxes with a
             physical unit or a median > 10.
@@ -349,13 +351,25 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When ``lc`` lacks time, flux or meta, or no point is usable.
+            When ``lc`` lacks time, flux or meta, its bins differ in size
+            and ``exposure`` is not given, or no point is usable.
+
+        Warns
+        -----
+        UserWarning
+            When the time's format (bkjd, btjd) names another mission than
+            ``lc.meta`` (a light curve stitched from Kepler and TESS data:
+            its TIMEDEL and quality bits are one part's).
         """
         if not (hasattr(lc, "time") and hasattr(lc, "flux") and hasattr(lc, "meta")):
             raise ValueError(f"lc must be a lightkurve LightCurve (with time, flux, meta), got {type(lc).__name__}")
         f, e, q, mission, meta = lightkurve_columns(lc, flux_column)
         if exposure is None:
-            exposure = kepler_exposure(meta)
+            exposure, mixed = lightkurve_exposure(lc, meta)
+            if mixed:
+                import warnings
+
+                warnings.warn(f"from_lightkurve: {mixed}", UserWarning, stacklevel=2)
         label = meta.get("LABEL") or meta.get("OBJECT") or meta.get("TARGETID") or ""
         extra = {"lightkurve_quality_bitmask": meta["QUALITY_BITMASK"]} if "QUALITY_BITMASK" in meta else {}
         extra = {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in extra.items()}

@@ -556,3 +556,29 @@ def test_concatenate_select_windows_name_bad_inputs():
     with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
         lc.windows((0.0, 0.005))
     assert len(lc.windows([(0.0, 0.005)])) == 4
+
+
+def test_from_lightkurve_binned_and_stitched_exposure(tmp_path):
+    """A lightkurve light curve binned to 29.4 min (TESS 2-min data binned to
+    Kepler's cadence, to join them) keeps the 2-min TIMEDEL in its meta, and
+    from_lightkurve modelled every 29.4-min bin over 2 minutes without a word:
+    the exposure is now the bin size. A Kepler + TESS stitch carries one
+    part's meta (TIMEDEL, mission) for all points: a warning says so."""
+    import lightkurve as lk
+    from pathlib import Path
+
+    fits_path = Path(jp.__file__).parent / "data" / "kepler51" / "tess2019198215352-s0014-0000000027846348-0150-s_lc.fits"
+    _lc_fits(tmp_path / "k.fits", n=200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tess = lk.read(str(fits_path))[:3000]
+        kep = lk.read(str(tmp_path / "k.fits"))
+        binned = tess.bin(time_bin_size=0.0204335982)
+        stitched = lk.LightCurveCollection([kep, tess]).stitch()
+    assert binned.meta["TIMEDEL"] == pytest.approx(2.0 / 1440)
+    got = jp.LightCurve.from_lightkurve(binned)
+    assert got.exposure == pytest.approx(0.0204335982, rel=1e-9)
+    assert jp.LightCurve.from_lightkurve(tess).exposure == pytest.approx(2.0 / 1440)  # unbinned: TIMEDEL
+    assert jp.LightCurve.from_lightkurve(binned, exposure=0.02).exposure == 0.02  # given: taken as is
+    with pytest.warns(UserWarning, match=r"time is in BKJD \(kepler\) but its meta names tess: one stitched"):
+        jp.LightCurve.from_lightkurve(stitched)
