@@ -467,6 +467,13 @@ class LightCurve:
             parts' reports; ``time_zero`` is the parts' common zero point
             (None where a part's is unknown).
 
+        Warns
+        -----
+        UserWarning
+            When a part of unknown zero point (a CSV file's) joins parts of
+            a known one (a TESS file's BTJD): nothing tells whether its times
+            are on the same scale.
+
         Raises
         ------
         ValueError
@@ -493,6 +500,15 @@ class LightCurve:
             raise ValueError(f"the light curves count time from different zero points, BJD_TDB - {names} [JD]: move "
                              "them onto one first, e.g. tess.to_time_zero('bkjd') beside Kepler data")
         time_zero = known[0] if known and None not in zeros else None
+        if known and None in zeros:
+            import warnings
+
+            label = f"{known[0]:.1f}" + (f" ({_ZERO_LABEL[known[0]]})" if known[0] in _ZERO_LABEL else "")
+            unknown = [k for k, z in enumerate(zeros) if z is None]
+            warnings.warn(f"concatenate: part(s) {unknown} have no known time zero point (e.g. read from CSV) beside "
+                          f"parts in BJD_TDB - {label}: they are joined as they are, so their times must be on that "
+                          "scale too (Kepler BKJD and TESS BTJD are 2167 d apart); declare it, e.g. "
+                          "part.to_time_zero('bkjd', current='bkjd'), to silence this", UserWarning, stacklevel=2)
         exps = {p.exposure for p in parts}
         if exposure is None:
             if len(exps) > 1:

@@ -520,6 +520,7 @@ def test_concatenate_refuses_mixed_time_zero_points():
     points (time_zero, a Kepler / TESS file's, an astropy Time's) are now
     compared, kept through concatenate, and known for lightkurve-style
     Time inputs (to_time_zero needed current= for a BTJD Time)."""
+    import lightkurve  # noqa: F401  (registers astropy's "btjd" Time format)
     from astropy.time import Time
 
     tt = 1689.0 + np.arange(40) * 0.0014
@@ -533,7 +534,11 @@ def test_concatenate_refuses_mixed_time_zero_points():
     assert both.time_zero == 2454833.0 and "(BKJD)" in both.report["time"]
     np.testing.assert_allclose(both.to_time_zero("btjd").time[-tt.size:], tt, rtol=0, atol=1e-9)
     unknown = jp.LightCurve(tt + 60.0, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014)
-    assert jp.LightCurve.concatenate([bk, unknown]).time_zero is None  # one part's zero is not known
+    with pytest.warns(UserWarning, match=r"part\(s\) \[1\] have no known time zero point .* BJD_TDB - 2454833.0 \(BKJD\)"):
+        assert jp.LightCurve.concatenate([bk, unknown]).time_zero is None  # one part's zero is not known
+    declared = unknown.to_time_zero("bkjd", current="bkjd")
+    assert np.array_equal(declared.time, unknown.time)
+    assert jp.LightCurve.concatenate([bk, declared]).time_zero == 2454833.0
     # an astropy Time in BTJD carries its zero point
     t = jp.LightCurve.from_arrays(Time(tt, format="btjd", scale="tdb"), np.ones(tt.size), np.full(tt.size, 1e-3))
     assert t.time_zero == 2457000.0
