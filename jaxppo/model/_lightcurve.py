@@ -191,6 +191,11 @@ class LightCurve:
         median flux when ``normalize``; ``e=None`` (no errors in the file):
         estimate one error per segment from the point-to-point scatter."""
         t, f = np.asarray(t, float), np.asarray(f, float)
+        shapes = {k: np.shape(v) for k, v in (("time", t), ("flux", f), ("flux_err", e), ("quality", q),
+                                              ("segment", segment)) if v is not None}
+        if t.ndim != 1 or any(v != t.shape for v in shapes.values()):
+            raise ValueError(f"{source}: {', '.join(shapes)} must be 1D of equal length (one value per point), got "
+                             + ", ".join(f"{k} {v}" for k, v in shapes.items()))
         has_err = e is not None
         e = np.asarray(e, float) if has_err else np.ones_like(f)
         mask_int, mask_name = bitmask
@@ -296,7 +301,8 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When no point is usable, the median flux is 0 or not finite, the
+            When time, flux, flux_err and quality are not 1D of equal length,
+            no point is usable, the median flux is 0 or not finite, the
             errors cannot be estimated, the bitmask or mission is unknown,
             or the time has no known zero point.
         """

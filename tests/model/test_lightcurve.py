@@ -587,3 +587,16 @@ def test_from_lightkurve_binned_and_stitched_exposure(tmp_path):
     assert jp.LightCurve.from_lightkurve(binned, exposure=0.02).exposure == 0.02  # given: taken as is
     with pytest.warns(UserWarning, match=r"time is in BKJD \(kepler\) but its meta names tess: one stitched"):
         jp.LightCurve.from_lightkurve(stitched)
+
+
+def test_from_arrays_refuses_columns_of_other_shapes():
+    """A scalar error, a 2D time or a quality column of another length gave
+    numpy's IndexError or broadcast errors; now a ValueError with the shapes."""
+    t = np.linspace(0.0, 1.0, 10)
+    with pytest.raises(ValueError, match=r"arrays: time, flux, flux_err must be 1D of equal length .* flux_err \(\)"):
+        jp.LightCurve.from_arrays(t, np.ones(10), 1e-3)
+    with pytest.raises(ValueError, match=r"quality must be 1D of equal length .* quality \(3,\)"):
+        jp.LightCurve.from_arrays(t, np.ones(10), np.full(10, 1e-3), quality=np.zeros(3))
+    with pytest.raises(ValueError, match=r"time \(1, 10\)"):
+        jp.LightCurve.from_arrays(t[None], np.ones((1, 10)), np.full((1, 10), 1e-3))
+    assert len(jp.LightCurve.from_arrays(t, 1 + 1e-3 * np.sin(7 * t))) == 10  # no flux_err: estimated
