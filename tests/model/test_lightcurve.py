@@ -600,3 +600,14 @@ def test_from_arrays_refuses_columns_of_other_shapes():
     with pytest.raises(ValueError, match=r"time \(1, 10\)"):
         jp.LightCurve.from_arrays(t[None], np.ones((1, 10)), np.full((1, 10), 1e-3))
     assert len(jp.LightCurve.from_arrays(t, 1 + 1e-3 * np.sin(7 * t))) == 10  # no flux_err: estimated
+
+
+def test_fits_time_zero_comes_from_the_header(tmp_path):
+    """A TESS file read with mission='kepler' (its quality bits taken as
+    Kepler's) was shifted by to_time_zero with Kepler's zero point: BTJD
+    taken for BKJD, 0 d instead of +2167 d, without a word. The zero point is
+    the file's BJDREFI + BJDREFF."""
+    _lc_fits(tmp_path / "t.fits", mission="tess")
+    lc = jp.LightCurve.from_fits(tmp_path / "t.fits", mission="kepler")
+    assert lc.time_zero == 2457000.0
+    np.testing.assert_allclose(lc.to_time_zero("bkjd").time, lc.time + 2167.0, rtol=0, atol=1e-9)
