@@ -722,11 +722,7 @@ class LightCurve:
             any window.
         """
         keep = np.zeros(self.time.size, bool)
-        for window in intervals:
-            if np.shape(window) != (2,):
-                raise ValueError(f"intervals must be (start, end) pairs [d], e.g. [(3856.5, 3857.5)], got {window!r} "
-                                 "among them")
-            a, b = window
+        for a, b in _pairs(intervals):
             keep |= (self.time >= a) & (self.time <= b)
         return self.select(keep)
 
@@ -752,11 +748,16 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When a window has fewer than 4 out-of-transit points.
+            When an interval is not a (start, end) pair, ``in_transit`` is
+            not one bool per point, or a window has fewer than 4
+            out-of-transit points.
         """
         in_transit = np.asarray(in_transit, bool)
+        if in_transit.shape != self.time.shape:
+            raise ValueError(f"in_transit must hold one bool per point, shape {self.time.shape}, got shape "
+                             f"{in_transit.shape}")
         flux, err = self.flux.copy(), self.flux_err.copy()
-        for a, b in intervals:
+        for a, b in _pairs(intervals):
             win = (self.time >= a) & (self.time <= b)
             out = win & ~in_transit
             if out.sum() < 4:
@@ -799,6 +800,17 @@ class LightCurve:
 
 
 _ZERO_LABEL = {v[0]: v[1] for v in TIME_ZERO.values()}
+
+
+def _pairs(intervals) -> list:
+    """The (start, end) windows [d] of ``intervals``; a ValueError for anything else (a bare pair)."""
+    out = []
+    for window in intervals:
+        if np.shape(window) != (2,):
+            raise ValueError(f"intervals must be (start, end) pairs [d], e.g. [(3856.5, 3857.5)], got {window!r} "
+                             "among them")
+        out.append((float(window[0]), float(window[1])))
+    return out
 
 
 def _known_zero(lc: LightCurve) -> float | None:

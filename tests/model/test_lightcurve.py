@@ -561,6 +561,10 @@ def test_concatenate_select_windows_name_bad_inputs():
     with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
         lc.windows((0.0, 0.005))
     assert len(lc.windows([(0.0, 0.005)])) == 4
+    with pytest.raises(ValueError, match=r"in_transit must hold one bool per point, shape \(10,\), got shape \(5,\)"):
+        lc.normalized([(0.0, 0.02)], np.zeros(5, bool))
+    with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
+        lc.normalized((0.0, 0.02), np.zeros(10, bool))
 
 
 def test_from_lightkurve_binned_and_stitched_exposure(tmp_path):
