@@ -429,12 +429,12 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the file does not exist, is a folder or cannot be read (no
-            header row, a cell that is not a number), ``columns`` names an
+            When ``path`` is not one file, the file does not exist, is a
+            folder or cannot be read (no header row, a cell that is not a number), ``columns`` names an
             unknown role or column, a needed column is missing, the bitmask
             or mission is unknown, or no point is usable.
         """
-        path = Path(path)
+        path = _one_file(path)
         if not path.exists():
             raise ValueError(f"light-curve file not found: {path}")
         if path.is_dir():
@@ -578,13 +578,16 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the bitmask name is unknown, the file does not exist, is a
+            When the bitmask name is unknown, ``flux_column`` is not a
+            string, ``path`` is not one file, the file does not exist, is a
             folder or cannot be read as a light-curve FITS file, a column is
             missing, the mission is missing or not Kepler, K2 or TESS, or no
             point is usable.
         """
         resolve_bitmask(quality_bitmask, None)  # a bad name fails before the file is read
-        path = Path(path)
+        if not isinstance(flux_column, str):
+            raise ValueError(f"flux_column must be a column name such as 'PDCSAP_FLUX', got {flux_column!r}")
+        path = _one_file(path)
         if not path.exists():
             raise ValueError(f"light-curve file not found: {path}")
         if path.is_dir():
@@ -800,6 +803,17 @@ class LightCurve:
 
 
 _ZERO_LABEL = {v[0]: v[1] for v in TIME_ZERO.values()}
+
+
+def _one_file(path) -> Path:
+    """``path`` as a Path; a ValueError for a list of files or anything not path-like."""
+    if isinstance(path, (list, tuple)):
+        raise ValueError(f"path must be one file, got a {type(path).__name__} of {len(path)}: read each and join them "
+                         "with LightCurve.concatenate")
+    try:
+        return Path(path)
+    except TypeError:
+        raise ValueError(f"path must be a file name or path-like, got {type(path).__name__}") from None
 
 
 def _pairs(intervals) -> list:

@@ -561,6 +561,12 @@ def test_concatenate_select_windows_name_bad_inputs():
     with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
         lc.windows((0.0, 0.005))
     assert len(lc.windows([(0.0, 0.005)])) == 4
+    with pytest.raises(ValueError, match="path must be one file, got a list of 2: read each and join them"):
+        jp.LightCurve.from_fits(["a.fits", "b.fits"])
+    with pytest.raises(ValueError, match="path must be one file, got a list of 2"):
+        jp.LightCurve.from_csv(["a.csv", "b.csv"])
+    with pytest.raises(ValueError, match="flux_column must be a column name such as 'PDCSAP_FLUX', got None"):
+        jp.LightCurve.from_fits("a.fits", flux_column=None)
     with pytest.raises(ValueError, match=r"in_transit must hold one bool per point, shape \(10,\), got shape \(5,\)"):
         lc.normalized([(0.0, 0.02)], np.zeros(5, bool))
     with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
