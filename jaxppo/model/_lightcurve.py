@@ -169,6 +169,9 @@ class LightCurve:
         s = (f"{len(self)} of {tot['points']} points kept from {src}; dropped: {tot['flagged']} flagged "
              f"(quality bitmask {', '.join(masks)}), {tot['non_finite']} non-finite or with error <= 0, "
              f"{tot['duplicated']} repeated time stamps")
+        selected_out = tot["points"] - tot["flagged"] - tot["non_finite"] - tot["duplicated"] - len(self)
+        if selected_out > 0:  # select / windows after loading (each part counts its whole file)
+            s += f"; {selected_out} more left out by a selection"
         if tot["flags_kept"]:
             s += f"; {tot['flags_kept']} points with flags outside the bitmask kept"
         div = r.get("divided_by")

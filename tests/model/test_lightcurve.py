@@ -621,3 +621,15 @@ def test_fits_time_zero_comes_from_the_header(tmp_path):
     lc = jp.LightCurve.from_fits(tmp_path / "t.fits", mission="kepler")
     assert lc.time_zero == 2457000.0
     np.testing.assert_allclose(lc.to_time_zero("bkjd").time, lc.time + 2167.0, rtol=0, atol=1e-9)
+
+
+def test_report_line_counts_points_left_out_by_a_selection(tmp_path):
+    """A window selected from a file said "4 of 50 points kept ...; dropped:
+    2 flagged, 1 non-finite ..., 1 repeated" (46 points unaccounted for):
+    the points a selection left out are counted too."""
+    _lc_fits(tmp_path / "t.fits", mission="tess")
+    lc = jp.LightCurve.from_fits(tmp_path / "t.fits")
+    assert "more left out" not in lc.report_line()
+    part = lc.select(np.arange(len(lc)) < 10)
+    line = part.report_line()
+    assert line.startswith("10 of 50 points kept") and f"; {len(lc) - 10} more left out by a selection" in line
