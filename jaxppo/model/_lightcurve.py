@@ -11,7 +11,8 @@ import numpy as np
 from ._exposure import supersampled_times
 from ._units import from_quantity
 from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, lightkurve_columns, lightkurve_exposure,
-                       plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days, TIME_ZERO)
+                       lightkurve_mixed_missions, plain_values, read_csv_columns, read_fits_columns, resolve_bitmask,
+                       to_days, TIME_ZERO)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
 from ._readers import QUALITY_BITMASKS as QUALITY_BITMASKS
 from ._readers import QUALITY_FLAGS as QUALITY_FLAGS
@@ -374,11 +375,11 @@ class LightCurve:
             raise ValueError(f"lc must be a lightkurve LightCurve (with time, flux, meta), got {type(lc).__name__}")
         f, e, q, mission, meta = lightkurve_columns(lc, flux_column)
         if exposure is None:
-            exposure, mixed = lightkurve_exposure(lc, meta)
-            if mixed:
-                import warnings
+            exposure = lightkurve_exposure(lc, meta)
+        if mixed := lightkurve_mixed_missions(lc, meta):
+            import warnings
 
-                warnings.warn(f"from_lightkurve: {mixed}", UserWarning, stacklevel=2)
+            warnings.warn(f"from_lightkurve: {mixed}", UserWarning, stacklevel=2)
         label = meta.get("LABEL") or meta.get("OBJECT") or meta.get("TARGETID") or ""
         extra = {"lightkurve_quality_bitmask": meta["QUALITY_BITMASK"]} if "QUALITY_BITMASK" in meta else {}
         extra = {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in extra.items()}

@@ -14,7 +14,8 @@ import numpy as np
 
 __all__ = ["COLUMN_ROLES", "QUALITY_FLAGS", "QUALITY_BITMASKS", "TIME_ZERO", "quality_bitmask", "resolve_bitmask",
            "mission_name", "plain_values", "to_days", "is_lightkurve", "flux_values", "diff_sigma",
-           "kepler_exposure", "read_csv_columns", "read_fits_columns", "lightkurve_columns", "lightkurve_exposure"]
+           "kepler_exposure", "read_csv_columns", "read_fits_columns", "lightkurve_columns", "lightkurve_exposure",
+           "lightkurve_mixed_missions"]
 
 # Column roles and the names looked up when the user does not name them.
 COLUMN_ROLES = {
@@ -465,16 +466,13 @@ def lightkurve_columns(lc, flux_column: str):
     return f, e, q, mission, meta
 
 
-def lightkurve_exposure(lc, meta: dict):
-    """(exposure [d] or None, a warning or None) of a lightkurve ``LightCurve``.
+def lightkurve_exposure(lc, meta: dict) -> float | None:
+    """The exposure [d] (or None) of a lightkurve ``LightCurve``.
 
     A binned light curve (``lc.bin(...)``: a ``time_bin_size`` column) keeps
     its unbinned file's TIMEDEL in ``meta``; its points average the flux over
     their bins, so the exposure is the bin size (one size, else a
-    ValueError). Otherwise TIMEDEL (``kepler_exposure``). The warning: the
-    time's format (bkjd: Kepler, btjd: TESS) and ``meta``'s mission disagree,
-    as in a light curve stitched from both missions, whose ``meta`` (TIMEDEL,
-    mission) is one part's."""
+    ValueError). Otherwise TIMEDEL (``kepler_exposure``)."""
     import astropy.units as u
 
     names = {str(c).lower(): c for c in getattr(lc, "colnames", [])}
@@ -486,10 +484,15 @@ def lightkurve_exposure(lc, meta: dict):
             rng = f"{size.min():g} to {size.max():g} d" if size.size else "none finite"
             raise ValueError(f"the light curve's bins have different sizes (time_bin_size {rng}): one exposure "
                              "averages every point's model; give exposure= [d]")
-        exposure = float(size[0])
-    else:
-        exposure = kepler_exposure(meta)
-    warn = None
+        return float(size[0])
+    return kepler_exposure(meta)
+
+
+def lightkurve_mixed_missions(lc, meta: dict) -> str | None:
+    """A warning where a lightkurve ``LightCurve``'s time format (bkjd:
+    Kepler, btjd: TESS) and ``meta``'s mission disagree, as in a light curve
+    stitched from both missions, whose ``meta`` (TIMEDEL, mission) is one
+    part's; else None."""
     fmt = getattr(getattr(lc, "time", None), "format", None)
     fmt_mission = {"bkjd": "kepler", "btjd": "tess"}.get(fmt)
     try:
@@ -497,7 +500,7 @@ def lightkurve_exposure(lc, meta: dict):
     except ValueError:
         mission = None
     if fmt_mission and mission and fmt_mission != mission:
-        warn = (f"the light curve's time is in {fmt.upper()} ({fmt_mission}) but its meta names {mission}: one "
-                f"stitched from Kepler and TESS light curves? Its exposure ({exposure} d) and quality bits are one "
-                "part's for every point; read each mission's light curve on its own (docs/api.md, LightCurve)")
-    return exposure, warn
+        return (f"the light curve's time is in {fmt.upper()} ({fmt_mission}) but its meta names {mission}: one "
+                "stitched from Kepler and TESS light curves? Its exposure (TIMEDEL) and quality bits are one part's "
+                "for every point; read each mission's light curve on its own (docs/api.md, LightCurve)")
+    return None

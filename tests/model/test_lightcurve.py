@@ -597,6 +597,8 @@ def test_from_lightkurve_binned_and_stitched_exposure(tmp_path):
     assert jp.LightCurve.from_lightkurve(binned, exposure=0.02).exposure == 0.02  # given: taken as is
     with pytest.warns(UserWarning, match=r"time is in BKJD \(kepler\) but its meta names tess: one stitched"):
         jp.LightCurve.from_lightkurve(stitched)
+    with pytest.warns(UserWarning, match="one stitched"):  # a given exposure: the quality bits are still one part's
+        jp.LightCurve.from_lightkurve(stitched, exposure=2.0 / 1440)
 
 
 def test_from_arrays_refuses_columns_of_other_shapes():
