@@ -25,6 +25,7 @@ from ._ecc import ECC_PARAMS, e_omega, ecc_cap, pair_from_theta, pair_of, perias
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
 
+
 def _check_span(system: System, t_model) -> None:
     """Refuse data outside an N-body System's given ``span`` by more than
     ``dt``: the traced model is NaN there (and a fit failed with "chi^2 at

@@ -434,8 +434,8 @@ class LightCurve:
         ------
         ValueError
             When ``path`` is not one file, the file does not exist, is a
-            folder or cannot be read (no header row, a cell that is not a number), ``columns`` names an
-            unknown role or column, a needed column is missing, the bitmask
+            folder or cannot be read (no header row, a cell that is not a
+            number), ``columns`` names an unknown role or column, a needed column is missing, the bitmask
             or mission is unknown, or no point is usable.
         """
         path = _one_file(path)
