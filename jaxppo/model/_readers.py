@@ -339,6 +339,7 @@ def read_csv_columns(path: Path, columns: dict):
         return None
 
     idx = {r: col(r, r in ("time", "flux")) for r in COLUMN_ROLES}
+    _warn_foreign_errors(path, header, idx, columns)
     if idx["flux_err"] is None:
         used = {i for i in idx.values() if i is not None}
         if like := [h for i, h in enumerate(header) if i not in used and any(k in h for k in ("err", "sigma", "uncert"))]:
@@ -363,6 +364,23 @@ def read_csv_columns(path: Path, columns: dict):
     q = None if idx["quality"] is None else read("quality")
     seg = None if idx["quarter"] is None else read("quarter")
     return t, f, e, q, seg, header[idx["flux"]]
+
+
+def _warn_foreign_errors(path: Path, header: list, idx: dict, columns: dict) -> None:
+    """Warn where the error column found under the usual names belongs to
+    another flux column of the file (time, flux, pdcsap_flux,
+    pdcsap_flux_err: a relative flux beside raw errors in e-/s, or the
+    reverse, and chi^2 off by the ratio of their scales)."""
+    if "flux_err" in columns or idx["flux_err"] is None:
+        return
+    err, flux = header[idx["flux_err"]], header[idx["flux"]]
+    owner = next((err[:-len(x)] for x in ("_err", "_error") if err.endswith(x)), None)
+    if owner and owner != flux and owner in header:
+        import warnings
+
+        warnings.warn(f"{path}: the errors are read from column {err!r}, which belongs to column {owner!r}, not to "
+                      f"the flux column {flux!r}: set columns.flux_err (or columns.flux = {owner!r}) if that is not "
+                      "meant", UserWarning, stacklevel=3)
 
 
 def _astropy_csv(path: Path, text: str):

@@ -635,3 +635,21 @@ def test_report_line_counts_points_left_out_by_a_selection(tmp_path):
     part = lc.select(np.arange(len(lc)) < 10)
     line = part.report_line()
     assert line.startswith("10 of 50 points kept") and f"; {len(lc) - 10} more left out by a selection" in line
+
+
+def test_csv_errors_of_another_flux_column_warn(tmp_path):
+    """A CSV with a relative flux, the raw PDCSAP flux and only its error
+    column (time, flux, pdcsap_flux, pdcsap_flux_err) gave the relative flux
+    errors in e-/s (chi^2 ~ 1e-10) without a word."""
+    import warnings
+
+    t = np.linspace(0.0, 1.0, 20)
+    raw = 1e5 * (1 + 1e-3 * np.sin(9 * t))
+    _write(tmp_path / "a.csv", "time,flux,pdcsap_flux,pdcsap_flux_err", (t, raw / 1e5, raw, np.full(20, 30.0)))
+    with pytest.warns(UserWarning, match="column 'pdcsap_flux_err', which belongs to column 'pdcsap_flux', not to "
+                                         "the flux column 'flux'"):
+        jp.LightCurve.from_csv(tmp_path / "a.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lc = jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"flux": "pdcsap_flux"})  # its own errors: quiet
+        np.testing.assert_allclose(lc.flux_err, 30.0 / np.median(raw))
