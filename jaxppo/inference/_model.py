@@ -25,6 +25,21 @@ from ._ecc import ECC_PARAMS, e_omega, ecc_cap, pair_from_theta, pair_of, perias
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
 
+
+def _check_span(system: System, t_model) -> None:
+    """Refuse data outside an N-body System's given ``span`` by more than
+    ``dt``: the traced model is NaN there (and a fit failed with "chi^2 at
+    the start is nan ... flux_err ... overflow", which does not name it)."""
+    if system.orbits != "nbody" or system.span is None:
+        return
+    lo, hi = float(np.min(t_model)), float(np.max(t_model))
+    dt = float(system.dt)
+    if lo < system.span[0] - dt or hi > system.span[1] + dt:
+        raise ValueError(f"span = ({system.span[0]:g}, {system.span[1]:g}) [d] of the N-body System does not cover "
+                         f"the data (model times {lo:.3f}-{hi:.3f} d; more than dt = {dt:.3g} d outside the span the "
+                         "positions are NaN): widen span, or leave it None (fits and samplers then take the data's)")
+
+
 # moon elements whose coordinate is the logarithm (the others: identity)
 _MOON_LOG = ("period", "a", "radius", "mass_ratio")
 
@@ -110,6 +125,7 @@ class Model(eqx.Module):
         self.free, self.slots = tuple(names), tuple(slots)
         self.jitter0 = jitter_start(lc.flux_err)
         t_model, self.nsub = lc.supersampled_times()
+        _check_span(system, t_model)
         self.t_model = jnp.asarray(t_model)
         # Frames where two disks are on the star and within UNION_MARGIN
         # [R*] of touching at the starting parameters run the exact union

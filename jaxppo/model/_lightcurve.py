@@ -10,8 +10,9 @@ import numpy as np
 
 from ._exposure import supersampled_times
 from ._units import from_quantity
-from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, kepler_exposure, lightkurve_columns,
-                       plain_values, read_csv_columns, read_fits_columns, resolve_bitmask, to_days, TIME_ZERO)
+from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, lightkurve_columns, lightkurve_exposure,
+                       lightkurve_mixed_missions, plain_values, read_csv_columns, read_fits_columns, resolve_bitmask,
+                       to_days, TIME_ZERO)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
 from ._readers import QUALITY_BITMASKS as QUALITY_BITMASKS
 from ._readers import QUALITY_FLAGS as QUALITY_FLAGS
@@ -101,7 +102,9 @@ class LightCurve:
     def __post_init__(self):
         if is_lightkurve(self.time):
             raise ValueError("a lightkurve LightCurve goes through LightCurve.from_lightkurve(lc)")
-        t, note = to_days(self.time, self.time_zero)
+        t, note, zero = to_days(self.time, self.time_zero)
+        if self.time_zero is None and zero is not None:
+            object.__setattr__(self, "time_zero", zero)  # an astropy Time's BKJD / BTJD
         f, e, _ = flux_values(self.flux, self.flux_err, False)
         if t.ndim != 1 or f.shape != t.shape or e.shape != t.shape:
             raise ValueError(f"time, flux and flux_err must be 1D of equal length, got {t.shape}, {f.shape}, {e.shape}")
@@ -167,6 +170,9 @@ class LightCurve:
         s = (f"{len(self)} of {tot['points']} points kept from {src}; dropped: {tot['flagged']} flagged "
              f"(quality bitmask {', '.join(masks)}), {tot['non_finite']} non-finite or with error <= 0, "
              f"{tot['duplicated']} repeated time stamps")
+        selected_out = tot["points"] - tot["flagged"] - tot["non_finite"] - tot["duplicated"] - len(self)
+        if selected_out > 0:  # select / windows after loading (each part counts its whole file)
+            s += f"; {selected_out} more left out by a selection"
         if tot["flags_kept"]:
             s += f"; {tot['flags_kept']} points with flags outside the bitmask kept"
         div = r.get("divided_by")
@@ -181,7 +187,7 @@ class LightCurve:
     # ---- loading ----------------------------------------------------------------
     @classmethod
     def _from_columns(cls, t, f, e, q, exposure, source, normalize=True, segment=None, bitmask=(-1, "any flag"),
-                      time_note=None, extra=None) -> "LightCurve":
+                      time_note=None, extra=None, time_zero=None) -> "LightCurve":
         """Drop flagged (``q & bitmask != 0``; a missing flag counts as
         flagged), non-finite and repeated-time points (the first of each
         repeated stamp is kept), counting each in ``report``; divide each
@@ -189,6 +195,11 @@ class LightCurve:
         median flux when ``normalize``; ``e=None`` (no errors in the file):
         estimate one error per segment from the point-to-point scatter."""
         t, f = np.asarray(t, float), np.asarray(f, float)
+        shapes = {k: np.shape(v) for k, v in (("time", t), ("flux", f), ("flux_err", e), ("quality", q),
+                                              ("segment", segment)) if v is not None}
+        if t.ndim != 1 or any(v != t.shape for v in shapes.values()):
+            raise ValueError(f"{source}: {', '.join(shapes)} must be 1D of equal length (one value per point), got "
+                             + ", ".join(f"{k} {v}" for k, v in shapes.items()))
         has_err = e is not None
         e = np.asarray(e, float) if has_err else np.ones_like(f)
         mask_int, mask_name = bitmask
@@ -243,7 +254,7 @@ class LightCurve:
             report["flux_err"] = ("estimated: no error column; 1.4826 MAD of successive differences / sqrt(2), "
                                   "per segment")
             report["flux_err_estimate"] = estimated["0"] if segment is None else estimated
-        return cls(t, flux, err, exposure=exposure, report=report, errors_estimated=not has_err)
+        return cls(t, flux, err, exposure=exposure, report=report, errors_estimated=not has_err, time_zero=time_zero)
 
     @classmethod
     def from_arrays(cls, time, flux, flux_err=None, quality=None, *, exposure: float | None = None,
@@ -294,18 +305,19 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When no point is usable, the median flux is 0 or not finite, the
+            When time, flux, flux_err and quality are not 1D of equal length,
+            no point is usable, the median flux is 0 or not finite, the
             errors cannot be estimated, the bitmask or mission is unknown,
             or the time has no known zero point.
         """
-        t, note = to_days(time, time_zero)
+        t, note, zero = to_days(time, time_zero)
         f, e, normalize = flux_values(flux, flux_err, normalize)
         q = None if quality is None else plain_values(quality, "quality")[0]
         if normalize is None:
             finite = f[np.isfinite(f)]
             normalize = bool(finite.size > 0 and np.median(finite) > 10)
         return cls._from_columns(t, f, e, q, exposure, source, normalize, None,
-                                 resolve_bitmask(quality_bitmask, mission), note)
+                                 resolve_bitmask(quality_bitmask, mission), note, time_zero=zero)
 
     @classmethod
     def from_lightkurve(cls, lc, flux_column: str = "flux", quality_bitmask="default", exposure: float | None = None,
@@ -332,7 +344,9 @@ class LightCurve:
         quality_bitmask : str or int, optional
             "none", "default" (default), "hard", "hardest" or an integer.
         exposure : float or None, optional
-            Integration time [d]; default TIMEDEL from ``lc.meta``.
+            Integration time [d]; default: the bin size of a binned light
+            curve (its ``time_bin_size``; ``lc.meta`` keeps the unbinned
+            TIMEDEL), else TIMEDEL from ``lc.meta``.
         normalize : bool or None, optional
             Divide by the median flux; default (None): for fluxes with a
             physical unit or a median > 10.
@@ -347,24 +361,36 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When ``lc`` lacks time, flux or meta, or no point is usable.
+            When ``lc`` lacks time, flux or meta, its bins differ in size
+            and ``exposure`` is not given, or no point is usable.
+
+        Warns
+        -----
+        UserWarning
+            When the time's format (bkjd, btjd) names another mission than
+            ``lc.meta`` (a light curve stitched from Kepler and TESS data:
+            its TIMEDEL and quality bits are one part's).
         """
         if not (hasattr(lc, "time") and hasattr(lc, "flux") and hasattr(lc, "meta")):
             raise ValueError(f"lc must be a lightkurve LightCurve (with time, flux, meta), got {type(lc).__name__}")
         f, e, q, mission, meta = lightkurve_columns(lc, flux_column)
         if exposure is None:
-            exposure = kepler_exposure(meta)
+            exposure = lightkurve_exposure(lc, meta)
+        if mixed := lightkurve_mixed_missions(lc, meta):
+            import warnings
+
+            warnings.warn(f"from_lightkurve: {mixed}", UserWarning, stacklevel=2)
         label = meta.get("LABEL") or meta.get("OBJECT") or meta.get("TARGETID") or ""
         extra = {"lightkurve_quality_bitmask": meta["QUALITY_BITMASK"]} if "QUALITY_BITMASK" in meta else {}
         extra = {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in extra.items()}
-        t, note = to_days(lc.time, time_zero)
+        t, note, zero = to_days(lc.time, time_zero)
         fv, ev, normalize = flux_values(f, e, normalize)
         if normalize is None:
             finite = fv[np.isfinite(fv)]
             normalize = bool(finite.size > 0 and np.median(finite) > 10)
         qv = None if q is None else plain_values(q, "quality")[0]
         return cls._from_columns(t, fv, ev, qv, exposure, f"lightkurve {type(lc).__name__} {label}".strip(), normalize,
-                                 None, resolve_bitmask(quality_bitmask, mission), note, extra)
+                                 None, resolve_bitmask(quality_bitmask, mission), note, extra, zero)
 
     @classmethod
     def from_csv(cls, path, exposure: float | None = None, normalize: bool | None = None,
@@ -407,12 +433,12 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the file does not exist, is a folder or cannot be read (no
-            header row, a cell that is not a number), ``columns`` names an
-            unknown role or column, a needed column is missing, the bitmask
+            When ``path`` is not one file, the file does not exist, is a
+            folder or cannot be read (no header row, a cell that is not a
+            number), ``columns`` names an unknown role or column, a needed column is missing, the bitmask
             or mission is unknown, or no point is usable.
         """
-        path = Path(path)
+        path = _one_file(path)
         if not path.exists():
             raise ValueError(f"light-curve file not found: {path}")
         if path.is_dir():
@@ -436,7 +462,9 @@ class LightCurve:
         ----------
         parts : iterable of LightCurve
             The light curves; their exposures must agree unless ``exposure``
-            is given.
+            is given, and their times must count from one zero point (a
+            TESS light curve joins Kepler data after
+            ``to_time_zero("bkjd")``).
         exposure : float or None, optional
             Integration time of the joined light curve [d]; a part that
             has another one gets a UserWarning (its points would be
@@ -446,17 +474,51 @@ class LightCurve:
         -------
         LightCurve
             All points, sorted by time; ``report["sources"]`` holds the
-            parts' reports.
+            parts' reports; ``time_zero`` is the parts' common zero point
+            (None where a part's is unknown).
+
+        Warns
+        -----
+        UserWarning
+            When a part of unknown zero point (a CSV file's) joins parts of
+            a known one (a TESS file's BTJD): nothing tells whether its times
+            are on the same scale.
 
         Raises
         ------
         ValueError
-            When ``parts`` is empty, the exposures differ and ``exposure`` is
-            not given, or two parts share a time stamp.
+            When ``parts`` is one light curve, empty or holds anything but
+            jaxppo LightCurves, two parts' known zero points differ
+            (BTJD beside BKJD: ``time_zero``, or a Kepler or TESS file's),
+            the exposures differ and ``exposure`` is not given, or two parts
+            share a time stamp.
         """
+        if isinstance(parts, LightCurve) or is_lightkurve(parts):
+            raise ValueError("concatenate takes a list of light curves, got one light curve")
         parts = list(parts)
         if not parts:
             raise ValueError("concatenate needs at least one light curve")
+        for k, p in enumerate(parts):
+            if not isinstance(p, LightCurve):
+                hint = " (LightCurve.from_lightkurve(lc) first)" if is_lightkurve(p) else ""
+                raise ValueError(f"concatenate: part {k} must be a jaxppo LightCurve, got {type(p).__name__}{hint}")
+        zeros = [_known_zero(p) for p in parts]
+        known = sorted({z for z in zeros if z is not None})
+        if len(known) > 1:
+            # BTJD points beside BKJD ones sit 2167 d (6 years) off: every transit in the wrong place, no error
+            names = ", ".join(f"{z:.1f}" + (f" ({_ZERO_LABEL[z]})" if z in _ZERO_LABEL else "") for z in known)
+            raise ValueError(f"the light curves count time from different zero points, BJD_TDB - {names} [JD]: move "
+                             "them onto one first, e.g. tess.to_time_zero('bkjd') beside Kepler data")
+        time_zero = known[0] if known and None not in zeros else None
+        if known and None in zeros:
+            import warnings
+
+            label = f"{known[0]:.1f}" + (f" ({_ZERO_LABEL[known[0]]})" if known[0] in _ZERO_LABEL else "")
+            unknown = [k for k, z in enumerate(zeros) if z is None]
+            warnings.warn(f"concatenate: part(s) {unknown} have no known time zero point (e.g. read from CSV) beside "
+                          f"parts in BJD_TDB - {label}: they are joined as they are, so their times must be on that "
+                          "scale too (Kepler BKJD and TESS BTJD are 2167 d apart); declare it, e.g. "
+                          "part.to_time_zero('bkjd', current='bkjd'), to silence this", UserWarning, stacklevel=2)
         exps = {p.exposure for p in parts}
         if exposure is None:
             if len(exps) > 1:
@@ -477,8 +539,11 @@ class LightCurve:
         if np.unique(t).size != t.size:
             raise ValueError(f"the files share {t.size - np.unique(t).size} time stamps (the same data twice?)")
         report = {"sources": [p.report for p in parts], "kept": int(t.size)}
+        if time_zero is not None:
+            label = f" ({_ZERO_LABEL[time_zero]})" if time_zero in _ZERO_LABEL else ""
+            report["time"] = f"BJD_TDB - {time_zero:.1f} [d]{label}"
         return cls(t, np.concatenate([p.flux for p in parts]), np.concatenate([p.flux_err for p in parts]),
-                   exposure, report, errors_estimated=any(p.errors_estimated for p in parts))
+                   exposure, report, errors_estimated=any(p.errors_estimated for p in parts), time_zero=time_zero)
 
     @classmethod
     def from_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default",
@@ -517,20 +582,23 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the bitmask name is unknown, the file does not exist, is a
+            When the bitmask name is unknown, ``flux_column`` is not a
+            string, ``path`` is not one file, the file does not exist, is a
             folder or cannot be read as a light-curve FITS file, a column is
             missing, the mission is missing or not Kepler, K2 or TESS, or no
             point is usable.
         """
         resolve_bitmask(quality_bitmask, None)  # a bad name fails before the file is read
-        path = Path(path)
+        if not isinstance(flux_column, str):
+            raise ValueError(f"flux_column must be a column name such as 'PDCSAP_FLUX', got {flux_column!r}")
+        path = _one_file(path)
         if not path.exists():
             raise ValueError(f"light-curve file not found: {path}")
         if path.is_dir():
             raise ValueError(f"light-curve path is a folder, not a file: {path}")
-        t, f, e, q, exposure, mission, note = read_fits_columns(path, flux_column, mission)
+        t, f, e, q, exposure, mission, note, zero = read_fits_columns(path, flux_column, mission)
         return cls._from_columns(t, f, e, q, exposure, path, True, None, resolve_bitmask(quality_bitmask, mission),
-                                 note, {"mission": mission})
+                                 note, {"mission": mission}, zero)
 
     @classmethod
     def from_kepler_fits(cls, path, flux_column: str = "PDCSAP_FLUX", quality_bitmask="default") -> "LightCurve":
@@ -631,9 +699,11 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When the mask keeps no point.
+            When the mask is not one bool per point or keeps no point.
         """
         mask = np.asarray(mask, bool)
+        if mask.shape != self.time.shape:
+            raise ValueError(f"mask must hold one bool per point, shape {self.time.shape}, got shape {mask.shape}")
         if not mask.any():
             raise ValueError("the selection keeps no points")
         return LightCurve(self.time[mask], self.flux[mask], self.flux_err[mask], self.exposure, dict(self.report),
@@ -655,10 +725,11 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When no point lies in any window.
+            When an interval is not a (start, end) pair or no point lies in
+            any window.
         """
         keep = np.zeros(self.time.size, bool)
-        for a, b in intervals:
+        for a, b in _pairs(intervals):
             keep |= (self.time >= a) & (self.time <= b)
         return self.select(keep)
 
@@ -684,11 +755,16 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When a window has fewer than 4 out-of-transit points.
+            When an interval is not a (start, end) pair, ``in_transit`` is
+            not one bool per point, or a window has fewer than 4
+            out-of-transit points.
         """
         in_transit = np.asarray(in_transit, bool)
+        if in_transit.shape != self.time.shape:
+            raise ValueError(f"in_transit must hold one bool per point, shape {self.time.shape}, got shape "
+                             f"{in_transit.shape}")
         flux, err = self.flux.copy(), self.flux_err.copy()
-        for a, b in intervals:
+        for a, b in _pairs(intervals):
             win = (self.time >= a) & (self.time <= b)
             out = win & ~in_transit
             if out.sum() < 4:
@@ -728,6 +804,40 @@ class LightCurve:
             When ``n`` is not a positive integer.
         """
         return supersampled_times(self.time, self.exposure, n)
+
+
+_ZERO_LABEL = {v[0]: v[1] for v in TIME_ZERO.values()}
+
+
+def _one_file(path) -> Path:
+    """``path`` as a Path; a ValueError for a list of files or anything not path-like."""
+    if isinstance(path, (list, tuple)):
+        raise ValueError(f"path must be one file, got a {type(path).__name__} of {len(path)}: read each and join them "
+                         "with LightCurve.concatenate")
+    try:
+        return Path(path)
+    except TypeError:
+        raise ValueError(f"path must be a file name or path-like, got {type(path).__name__}") from None
+
+
+def _pairs(intervals) -> list:
+    """The (start, end) windows [d] of ``intervals``; a ValueError for anything else (a bare pair)."""
+    out = []
+    for window in intervals:
+        if np.shape(window) != (2,):
+            raise ValueError(f"intervals must be (start, end) pairs [d], e.g. [(3856.5, 3857.5)], got {window!r} "
+                             "among them")
+        out.append((float(window[0]), float(window[1])))
+    return out
+
+
+def _known_zero(lc: LightCurve) -> float | None:
+    """The zero point [JD] of a light curve's times: its ``time_zero``, else
+    its mission's (a Kepler or TESS file), else None (unknown)."""
+    if lc.time_zero is not None:
+        return float(lc.time_zero)
+    mission = lc.report.get("mission")
+    return TIME_ZERO[mission][0] if mission in TIME_ZERO else None
 
 
 def _zero_point(value, name: str) -> float:

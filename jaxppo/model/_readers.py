@@ -14,7 +14,8 @@ import numpy as np
 
 __all__ = ["COLUMN_ROLES", "QUALITY_FLAGS", "QUALITY_BITMASKS", "TIME_ZERO", "quality_bitmask", "resolve_bitmask",
            "mission_name", "plain_values", "to_days", "is_lightkurve", "flux_values", "diff_sigma",
-           "kepler_exposure", "read_csv_columns", "read_fits_columns", "lightkurve_columns"]
+           "kepler_exposure", "read_csv_columns", "read_fits_columns", "lightkurve_columns", "lightkurve_exposure",
+           "lightkurve_mixed_missions"]
 
 # Column roles and the names looked up when the user does not name them.
 COLUMN_ROLES = {
@@ -144,8 +145,9 @@ def plain_values(x, what: str, unit=None):
     return (v, xunit) if unit is None else v
 
 
-def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
-    """Times [d] and a statement of their zero point.
+def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None, float | None]:
+    """Times [d], a statement of their zero point, and the zero point [JD]
+    (None where the times are plain numbers of unknown zero).
 
     An astropy ``Time`` becomes BJD_TDB - ``time_zero`` [d], computed from the
     two-double (jd1, jd2) representation so that no precision is lost. Its
@@ -156,7 +158,7 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
     a barycentric correction is not applied (give barycentric times). A time
     Quantity is converted to days; plain numbers are taken as days."""
     if _isplain_values(t):
-        return np.asarray(t, float), None
+        return np.asarray(t, float), None, None
     from astropy.time import Time
     import astropy.units as u
 
@@ -175,12 +177,12 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None]:
         tdb = t.tdb
         days = (np.asarray(tdb.jd1, float) - zero) + np.asarray(tdb.jd2, float)
         note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if label else "") + f", from astropy Time ({fmt}, {t.scale})"
-        return np.atleast_1d(days), note
+        return np.atleast_1d(days), note, zero
     if type(t).__name__ == "TimeDelta" or any(c.__name__ == "TimeDelta" for c in type(t).__mro__):
-        return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None
+        return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None, None
     if isinstance(t, u.Quantity) or (hasattr(t, "unmasked") and isinstance(getattr(t, "unmasked"), u.Quantity)):
-        return plain_values(t, "time", u.day), None
-    return plain_values(t, "time", None)[0], None
+        return plain_values(t, "time", u.day), None, None
+    return plain_values(t, "time", None)[0], None, None
 
 
 def _isplain_values(x) -> bool:
@@ -337,6 +339,7 @@ def read_csv_columns(path: Path, columns: dict):
         return None
 
     idx = {r: col(r, r in ("time", "flux")) for r in COLUMN_ROLES}
+    _warn_foreign_errors(path, header, idx, columns)
     if idx["flux_err"] is None:
         used = {i for i in idx.values() if i is not None}
         if like := [h for i, h in enumerate(header) if i not in used and any(k in h for k in ("err", "sigma", "uncert"))]:
@@ -363,6 +366,23 @@ def read_csv_columns(path: Path, columns: dict):
     return t, f, e, q, seg, header[idx["flux"]]
 
 
+def _warn_foreign_errors(path: Path, header: list, idx: dict, columns: dict) -> None:
+    """Warn where the error column found under the usual names belongs to
+    another flux column of the file (time, flux, pdcsap_flux,
+    pdcsap_flux_err: a relative flux beside raw errors in e-/s, or the
+    reverse, and chi^2 off by the ratio of their scales)."""
+    if "flux_err" in columns or idx["flux_err"] is None:
+        return
+    err, flux = header[idx["flux_err"]], header[idx["flux"]]
+    owner = next((err[:-len(x)] for x in ("_err", "_error") if err.endswith(x)), None)
+    if owner and owner != flux and owner in header:
+        import warnings
+
+        warnings.warn(f"{path}: the errors are read from column {err!r}, which belongs to column {owner!r}, not to "
+                      f"the flux column {flux!r}: set columns.flux_err (or columns.flux = {owner!r}) if that is not "
+                      "meant", UserWarning, stacklevel=3)
+
+
 def _astropy_csv(path: Path, text: str):
     """(the header's names, {name: column}) by astropy's CSV reader ('#'
     comment lines; empty cells masked, read as NaN by the caller so that
@@ -383,7 +403,7 @@ def _astropy_csv(path: Path, text: str):
 def read_fits_columns(path: Path, flux_column: str, mission: str | None):
     """The columns of a Kepler, K2 or TESS SPOC light-curve FITS file:
     (time [d], flux, flux_err, quality, exposure [d], mission, a statement
-    of the time system). The mission comes from the primary header
+    of the time system, its zero point [JD]). The mission comes from the primary header
     (TELESCOP, else MISSION) unless given; it picks the quality column and
     the time zero (``TIME_ZERO``, or BJDREFI + BJDREFF from the header)."""
     from astropy.io import fits
@@ -434,7 +454,7 @@ def read_fits_columns(path: Path, flux_column: str, mission: str | None):
         zero = zero_default
     note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if abs(zero - zero_default) < 1e-9 else "")
     return (col("TIME"), col(flux_column.upper()), col(flux_column.upper() + "_ERR"), col(qcol),
-            kepler_exposure(hdr), mission, note)
+            kepler_exposure(hdr), mission, note, zero)
 
 
 def lightkurve_columns(lc, flux_column: str):
@@ -462,3 +482,43 @@ def lightkurve_columns(lc, flux_column: str):
     except ValueError:
         mission = None
     return f, e, q, mission, meta
+
+
+def lightkurve_exposure(lc, meta: dict) -> float | None:
+    """The exposure [d] (or None) of a lightkurve ``LightCurve``.
+
+    A binned light curve (``lc.bin(...)``: a ``time_bin_size`` column) keeps
+    its unbinned file's TIMEDEL in ``meta``; its points average the flux over
+    their bins, so the exposure is the bin size (one size, else a
+    ValueError). Otherwise TIMEDEL (``kepler_exposure``)."""
+    import astropy.units as u
+
+    names = {str(c).lower(): c for c in getattr(lc, "colnames", [])}
+    if "time_bin_size" in names:
+        size = lc[names["time_bin_size"]]
+        size = size.to_value(u.day) if hasattr(size, "to_value") else np.asarray(size, float)
+        size = np.asarray(size, float)[np.isfinite(np.asarray(size, float))]
+        if size.size == 0 or np.ptp(size) > 1e-6 * np.max(size):
+            rng = f"{size.min():g} to {size.max():g} d" if size.size else "none finite"
+            raise ValueError(f"the light curve's bins have different sizes (time_bin_size {rng}): one exposure "
+                             "averages every point's model; give exposure= [d]")
+        return float(size[0])
+    return kepler_exposure(meta)
+
+
+def lightkurve_mixed_missions(lc, meta: dict) -> str | None:
+    """A warning where a lightkurve ``LightCurve``'s time format (bkjd:
+    Kepler, btjd: TESS) and ``meta``'s mission disagree, as in a light curve
+    stitched from both missions, whose ``meta`` (TIMEDEL, mission) is one
+    part's; else None."""
+    fmt = getattr(getattr(lc, "time", None), "format", None)
+    fmt_mission = {"bkjd": "kepler", "btjd": "tess"}.get(fmt)
+    try:
+        mission = mission_name(meta.get("MISSION") or meta.get("TELESCOP"))
+    except ValueError:
+        mission = None
+    if fmt_mission and mission and fmt_mission != mission:
+        return (f"the light curve's time is in {fmt.upper()} ({fmt_mission}) but its meta names {mission}: one "
+                "stitched from Kepler and TESS light curves? Its exposure (TIMEDEL) and quality bits are one part's "
+                "for every point; read each mission's light curve on its own (docs/api.md, LightCurve)")
+    return None

@@ -316,6 +316,7 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
         except ValueError as e:
             raise _err(source, f"[data] {e}") from e
         parts.append(lc)
+    _warn_exposure_override(parts, exposure, source)
     try:
         lc = parts[0] if len(parts) == 1 else LightCurve.concatenate(parts, exposure)
         if exposure is not None and lc.exposure != exposure:
@@ -327,6 +328,22 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
     if not instantaneous:
         _warn_instantaneous(lc, source)
     return lc
+
+
+def _warn_exposure_override(parts, exposure, source: str) -> None:
+    """Warn where ``[data] exposure`` replaces one FITS file's own (TIMEDEL):
+    a list of files warns in ``LightCurve.concatenate``, one file did not, and
+    a 29.4-min Kepler cadence given a TESS config's 2 minutes was modelled
+    at 2 minutes without a word."""
+    if exposure is None or len(parts) != 1 or parts[0].exposure is None:
+        return
+    own = parts[0].exposure
+    if abs(own - exposure) > 1e-3 * exposure:
+        import warnings
+
+        warnings.warn(f"{source}: [data] exposure = {exposure:g} d replaces the file's own exposure (TIMEDEL) "
+                      f"{own:g} d ({own * 1440:.3g} min): every point's model is averaged over {exposure * 1440:.3g} "
+                      "min; leave exposure out to use the file's", UserWarning, stacklevel=3)
 
 
 LONG_CADENCE = 5.0 / 1440.0

@@ -190,3 +190,23 @@ def test_fit_recovers_the_mass_of_a_non_transiting_perturber():
     truth = np.array([101.0, 10.0, 3e-4])
     assert np.all(np.abs(np.asarray(fit.values) - truth) < 2.0 * np.asarray(fit.errors)), (fit.values, fit.errors)
     assert abs(float(fit.values[2]) - 3e-4) < 0.1 * 3e-4
+
+
+@pytest.mark.skipif(importlib.util.find_spec("jnkepler") is None, reason="N-body orbits need jnkepler")
+def test_fit_refuses_data_outside_the_nbody_span():
+    """An N-body System whose span (e.g. the Kepler years) misses the data
+    (TESS, a decade later) had a NaN model, and the fit failed with "chi^2
+    at the start is nan (flux_err ... overflow float64 ...)"; now a
+    ValueError names span and the data's times. Within dt of it: accepted."""
+    b = jp.Planet(period=10.0, t0=2.0, a=None, inc=89.5, radius=0.05, mass=3e-5, name="b")
+    c = jp.Planet(period=20.3, t0=7.0, a=None, inc=89.7, radius=0.06, mass=4e-5, name="c")
+    system = jp.System(jp.Star.quadratic(0.4, 0.25), [b, c], orbits="nbody", epoch=0.0, star_mass=0.9,
+                       star_radius=0.85, span=(0.0, 50.0))
+    t = np.linspace(301.8, 302.2, 40)
+    lc = jp.LightCurve(t, np.ones_like(t), np.full(t.size, 1e-4))
+    with pytest.raises(ValueError, match=r"span = \(0, 50\) \[d\] of the N-body System does not cover the data "
+                                         r"\(model times 301.800-302.200 d"):
+        jp.fit(system, lc, free=("b.t0",))
+    near = jp.LightCurve(np.linspace(50.0, 50.2, 40), np.ones_like(t), np.full(t.size, 1e-4))
+    assert float(system.dt) > 0.2  # 50.0-50.2: within dt of the span, accepted
+    Model(system, near, ("b.t0",))

@@ -512,3 +512,144 @@ def test_concatenating_instruments_of_different_exposures():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the same length to rounding: no warning
         jp.LightCurve.concatenate([kep], exposure=0.0204 * (1 + 1e-6))
+
+
+def test_concatenate_refuses_mixed_time_zero_points():
+    """A BTJD light curve joined to a BKJD one was taken as is: its points sat
+    2167 d off, every transit in the wrong place, without a word. The zero
+    points (time_zero, a Kepler / TESS file's, an astropy Time's) are now
+    compared, kept through concatenate, and known for lightkurve-style
+    Time inputs (to_time_zero needed current= for a BTJD Time)."""
+    import lightkurve  # noqa: F401  (registers astropy's "btjd" Time format)
+    from astropy.time import Time
+
+    tt = 1689.0 + np.arange(40) * 0.0014
+    tess = jp.LightCurve(tt, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014, report={"mission": "tess"})
+    bk = tess.to_time_zero("bkjd")
+    later = jp.LightCurve(tt + 30.0, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014,
+                          time_zero=2454833.0)
+    with pytest.raises(ValueError, match=r"different zero points, BJD_TDB - 2454833.0 \(BKJD\), 2457000.0 \(BTJD\)"):
+        jp.LightCurve.concatenate([tess, later])
+    both = jp.LightCurve.concatenate([bk, later])
+    assert both.time_zero == 2454833.0 and "(BKJD)" in both.report["time"]
+    np.testing.assert_allclose(both.to_time_zero("btjd").time[-tt.size:], tt, rtol=0, atol=1e-9)
+    unknown = jp.LightCurve(tt + 60.0, np.ones(tt.size), np.full(tt.size, 1e-3), exposure=0.0014)
+    with pytest.warns(UserWarning, match=r"part\(s\) \[1\] have no known time zero point .* BJD_TDB - 2454833.0 \(BKJD\)"):
+        assert jp.LightCurve.concatenate([bk, unknown]).time_zero is None  # one part's zero is not known
+    declared = unknown.to_time_zero("bkjd", current="bkjd")
+    assert np.array_equal(declared.time, unknown.time)
+    assert jp.LightCurve.concatenate([bk, declared]).time_zero == 2454833.0
+    # an astropy Time in BTJD carries its zero point
+    t = jp.LightCurve.from_arrays(Time(tt, format="btjd", scale="tdb"), np.ones(tt.size), np.full(tt.size, 1e-3))
+    assert t.time_zero == 2457000.0
+    np.testing.assert_allclose(t.to_time_zero("bkjd").time, tt + 2167.0, rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="different zero points"):
+        jp.LightCurve.concatenate([t, later])
+
+
+def test_concatenate_select_windows_name_bad_inputs():
+    """Bad inputs gave AttributeError, TypeError or numpy's IndexError; now a
+    ValueError that names the argument."""
+    t = np.arange(10) * 0.0014
+    lc = jp.LightCurve(t, np.ones(10), np.full(10, 1e-3))
+    with pytest.raises(ValueError, match="concatenate: part 1 must be a jaxppo LightCurve, got NoneType"):
+        jp.LightCurve.concatenate([lc, None])
+    with pytest.raises(ValueError, match="a list of light curves, got one light curve"):
+        jp.LightCurve.concatenate(lc)
+    with pytest.raises(ValueError, match=r"mask must hold one bool per point, shape \(10,\), got shape \(5,\)"):
+        lc.select(np.ones(5, bool))
+    with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
+        lc.windows((0.0, 0.005))
+    assert len(lc.windows([(0.0, 0.005)])) == 4
+    with pytest.raises(ValueError, match="path must be one file, got a list of 2: read each and join them"):
+        jp.LightCurve.from_fits(["a.fits", "b.fits"])
+    with pytest.raises(ValueError, match="path must be one file, got a list of 2"):
+        jp.LightCurve.from_csv(["a.csv", "b.csv"])
+    with pytest.raises(ValueError, match="flux_column must be a column name such as 'PDCSAP_FLUX', got None"):
+        jp.LightCurve.from_fits("a.fits", flux_column=None)
+    with pytest.raises(ValueError, match=r"in_transit must hold one bool per point, shape \(10,\), got shape \(5,\)"):
+        lc.normalized([(0.0, 0.02)], np.zeros(5, bool))
+    with pytest.raises(ValueError, match=r"intervals must be \(start, end\) pairs"):
+        lc.normalized((0.0, 0.02), np.zeros(10, bool))
+
+
+def test_from_lightkurve_binned_and_stitched_exposure(tmp_path):
+    """A lightkurve light curve binned to 29.4 min (TESS 2-min data binned to
+    Kepler's cadence, to join them) keeps the 2-min TIMEDEL in its meta, and
+    from_lightkurve modelled every 29.4-min bin over 2 minutes without a word:
+    the exposure is now the bin size. A Kepler + TESS stitch carries one
+    part's meta (TIMEDEL, mission) for all points: a warning says so."""
+    import lightkurve as lk
+    from pathlib import Path
+
+    fits_path = Path(jp.__file__).parent / "data" / "kepler51" / "tess2019198215352-s0014-0000000027846348-0150-s_lc.fits"
+    _lc_fits(tmp_path / "k.fits", n=200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tess = lk.read(str(fits_path))[:3000]
+        kep = lk.read(str(tmp_path / "k.fits"))
+        binned = tess.bin(time_bin_size=0.0204335982)
+        stitched = lk.LightCurveCollection([kep, tess]).stitch()
+    assert binned.meta["TIMEDEL"] == pytest.approx(2.0 / 1440)
+    got = jp.LightCurve.from_lightkurve(binned)
+    assert got.exposure == pytest.approx(0.0204335982, rel=1e-9)
+    assert jp.LightCurve.from_lightkurve(tess).exposure == pytest.approx(2.0 / 1440)  # unbinned: TIMEDEL
+    assert jp.LightCurve.from_lightkurve(binned, exposure=0.02).exposure == 0.02  # given: taken as is
+    with pytest.warns(UserWarning, match=r"time is in BKJD \(kepler\) but its meta names tess: one stitched"):
+        jp.LightCurve.from_lightkurve(stitched)
+    with pytest.warns(UserWarning, match="one stitched"):  # a given exposure: the quality bits are still one part's
+        jp.LightCurve.from_lightkurve(stitched, exposure=2.0 / 1440)
+
+
+def test_from_arrays_refuses_columns_of_other_shapes():
+    """A scalar error, a 2D time or a quality column of another length gave
+    numpy's IndexError or broadcast errors; now a ValueError with the shapes."""
+    t = np.linspace(0.0, 1.0, 10)
+    with pytest.raises(ValueError, match=r"arrays: time, flux, flux_err must be 1D of equal length .* flux_err \(\)"):
+        jp.LightCurve.from_arrays(t, np.ones(10), 1e-3)
+    with pytest.raises(ValueError, match=r"quality must be 1D of equal length .* quality \(3,\)"):
+        jp.LightCurve.from_arrays(t, np.ones(10), np.full(10, 1e-3), quality=np.zeros(3))
+    with pytest.raises(ValueError, match=r"time \(1, 10\)"):
+        jp.LightCurve.from_arrays(t[None], np.ones((1, 10)), np.full((1, 10), 1e-3))
+    assert len(jp.LightCurve.from_arrays(t, 1 + 1e-3 * np.sin(7 * t))) == 10  # no flux_err: estimated
+
+
+def test_fits_time_zero_comes_from_the_header(tmp_path):
+    """A TESS file read with mission='kepler' (its quality bits taken as
+    Kepler's) was shifted by to_time_zero with Kepler's zero point: BTJD
+    taken for BKJD, 0 d instead of +2167 d, without a word. The zero point is
+    the file's BJDREFI + BJDREFF."""
+    _lc_fits(tmp_path / "t.fits", mission="tess")
+    lc = jp.LightCurve.from_fits(tmp_path / "t.fits", mission="kepler")
+    assert lc.time_zero == 2457000.0
+    np.testing.assert_allclose(lc.to_time_zero("bkjd").time, lc.time + 2167.0, rtol=0, atol=1e-9)
+
+
+def test_report_line_counts_points_left_out_by_a_selection(tmp_path):
+    """A window selected from a file said "4 of 50 points kept ...; dropped:
+    2 flagged, 1 non-finite ..., 1 repeated" (46 points unaccounted for):
+    the points a selection left out are counted too."""
+    _lc_fits(tmp_path / "t.fits", mission="tess")
+    lc = jp.LightCurve.from_fits(tmp_path / "t.fits")
+    assert "more left out" not in lc.report_line()
+    part = lc.select(np.arange(len(lc)) < 10)
+    line = part.report_line()
+    assert line.startswith("10 of 50 points kept") and f"; {len(lc) - 10} more left out by a selection" in line
+
+
+def test_csv_errors_of_another_flux_column_warn(tmp_path):
+    """A CSV with a relative flux, the raw PDCSAP flux and only its error
+    column (time, flux, pdcsap_flux, pdcsap_flux_err) gave the relative flux
+    errors in e-/s (chi^2 ~ 1e-10) without a word."""
+    import warnings
+
+    t = np.linspace(0.0, 1.0, 20)
+    raw = 1e5 * (1 + 1e-3 * np.sin(9 * t))
+    _write(tmp_path / "a.csv", "time,flux,pdcsap_flux,pdcsap_flux_err", (t, raw / 1e5, raw, np.full(20, 30.0)))
+    with pytest.warns(UserWarning, match="column 'pdcsap_flux_err', which belongs to column 'pdcsap_flux', not to "
+                                         "the flux column 'flux'"):
+        jp.LightCurve.from_csv(tmp_path / "a.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lc = jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"flux": "pdcsap_flux"})  # its own errors: quiet
+        np.testing.assert_allclose(lc.flux_err, 30.0 / np.median(raw))

@@ -547,3 +547,34 @@ def test_error_columns_under_other_names_and_repeated_header(tmp_path):
     _csv(tmp_path / "d.csv", "time,flux,Flux", [t, np.ones_like(t), np.ones_like(t)])
     with pytest.raises(ValueError, match=r"header names column\(s\) \['flux'\] more than once"):
         load_config(_cfg(tmp_path, 'path = "d.csv"'))
+
+
+def _kepler_fits(path, t):
+    """A minimal Kepler long-cadence light-curve FITS file (TIMEDEL 29.4 min)."""
+    from astropy.io import fits
+
+    cols = [fits.Column(name=n, format="D", array=a) for n, a in
+            (("TIME", t), ("PDCSAP_FLUX", np.full(t.size, 1e5)), ("PDCSAP_FLUX_ERR", np.full(t.size, 10.0)))]
+    hdu = fits.BinTableHDU.from_columns(cols + [fits.Column(name="SAP_QUALITY", format="J", array=np.zeros(t.size))],
+                                        name="LIGHTCURVE")
+    hdu.header["TIMEDEL"], hdu.header["BJDREFI"], hdu.header["BJDREFF"] = 0.02043359821692, 2454833, 0.0
+    prim = fits.PrimaryHDU()
+    prim.header["TELESCOP"] = "Kepler"
+    fits.HDUList([prim, hdu]).writeto(path)
+
+
+def test_data_exposure_replacing_a_fits_files_own_warns(tmp_path):
+    """[data] exposure = 2 min (a TESS config's) on one Kepler long-cadence
+    FITS file replaced its 29.4-min TIMEDEL without a word (a list of files
+    warned); the same length to rounding, or none given, stays quiet."""
+    import warnings
+
+    _kepler_fits(tmp_path / "k.fits", 160.0 + np.arange(100) * 0.0204336)
+    with pytest.warns(UserWarning, match=r"\[data\] exposure = 0.00138889 d replaces the file's own exposure "
+                                         r"\(TIMEDEL\) 0.0204336 d \(29.4 min\)"):
+        cfg = load_config(_cfg(tmp_path, 'path = "k.fits"\nexposure = 0.00138889'))
+    assert cfg.lightcurve.exposure == 0.00138889
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_config(_cfg(tmp_path, 'path = "k.fits"')).lightcurve.exposure == 0.02043359821692
+        load_config(_cfg(tmp_path, 'path = "k.fits"\nexposure = 0.0204336'))
