@@ -408,7 +408,8 @@ def marginal_scan(system, lightcurve=None, *, draws: int = 64, out=None, free=No
         the system's a/R* imply, 10 % wide.
     chunk : int, optional
         Draws per batched computation and per progress flush (memory grows
-        with chunk x alphas x cases x frames / 8 bytes; default 16).
+        by about 21 bytes per chunk x alphas x cases x frames element,
+        docs/scale.md; default 16).
     fixed : ScanResult or None, optional
         The fixed-parameter scan of the same config, if already computed
         (else it is computed, without figures).
