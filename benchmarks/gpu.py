@@ -191,7 +191,7 @@ def joint(args) -> dict:
     skipped by --quick (its mode search has no size option)."""
     if args.quick:
         reason = ("skipped by --quick: joint.py's mode search (55-70 starts per case) has no option to shrink it; "
-                  "with --particles 16 --seeds 0 it took 719 s on a 2-core CPU")
+                  "its full run took 207-321 s end to end on a 2-core CPU (docs/marginal.md)")
         print(f"joint: {reason}", flush=True)
         return dict(skipped=reason)
     return script_part("joint.py", ["injected"], lambda x: "joint_scan end to end" in x or x.startswith("  "), args)
