@@ -12,7 +12,7 @@ from ._exposure import supersampled_times
 from ._units import from_quantity
 from ._readers import (COLUMN_ROLES, diff_sigma, flux_values, is_lightkurve, lightkurve_columns, lightkurve_exposure,
                        lightkurve_mixed_missions, plain_values, read_csv_columns, read_fits_columns, resolve_bitmask,
-                       to_days, TIME_ZERO)
+                       to_days, TIME_ZERO, zero_text)
 # importable from here as before the readers moved (jaxppo.obliquity, the CLI)
 from ._readers import QUALITY_BITMASKS as QUALITY_BITMASKS
 from ._readers import QUALITY_FLAGS as QUALITY_FLAGS
@@ -506,14 +506,14 @@ class LightCurve:
         known = sorted({z for z in zeros if z is not None})
         if len(known) > 1:
             # BTJD points beside BKJD ones sit 2167 d (6 years) off: every transit in the wrong place, no error
-            names = ", ".join(f"{z:.1f}" + (f" ({_ZERO_LABEL[z]})" if z in _ZERO_LABEL else "") for z in known)
+            names = ", ".join(_zero_name(z) for z in known)
             raise ValueError(f"the light curves count time from different zero points, BJD_TDB - {names} [JD]: move "
                              "them onto one first, e.g. tess.to_time_zero('bkjd') beside Kepler data")
         time_zero = known[0] if known and None not in zeros else None
         if known and None in zeros:
             import warnings
 
-            label = f"{known[0]:.1f}" + (f" ({_ZERO_LABEL[known[0]]})" if known[0] in _ZERO_LABEL else "")
+            label = _zero_name(known[0])
             unknown = [k for k, z in enumerate(zeros) if z is None]
             warnings.warn(f"concatenate: part(s) {unknown} have no known time zero point (e.g. read from CSV) beside "
                           f"parts in BJD_TDB - {label}: they are joined as they are, so their times must be on that "
@@ -540,8 +540,7 @@ class LightCurve:
             raise ValueError(f"the files share {t.size - np.unique(t).size} time stamps (the same data twice?)")
         report = {"sources": [p.report for p in parts], "kept": int(t.size)}
         if time_zero is not None:
-            label = f" ({_ZERO_LABEL[time_zero]})" if time_zero in _ZERO_LABEL else ""
-            report["time"] = f"BJD_TDB - {time_zero:.1f} [d]{label}"
+            report["time"] = zero_text(time_zero)
         return cls(t, np.concatenate([p.flux for p in parts]), np.concatenate([p.flux_err for p in parts]),
                    exposure, report, errors_estimated=any(p.errors_estimated for p in parts), time_zero=time_zero)
 
@@ -677,9 +676,7 @@ class LightCurve:
         if now is None:
             raise ValueError("the light curve's time zero point is unknown (not read from a Kepler or TESS file); "
                              "give current= ('bkjd', 'btjd' or a JD)")
-        label = {v[0]: v[1] for v in TIME_ZERO.values()}.get(new)
-        report = dict(self.report, time=f"BJD_TDB - {new:.1f} [d]" + (f" ({label})" if label else "")
-                      + f", shifted by {now - new:+.1f} d")
+        report = dict(self.report, time=zero_text(new) + f", shifted by {now - new:+.1f} d")
         return dataclasses.replace(self, time=self.time + (now - new), report=report, time_zero=new)
 
     # ---- selections -------------------------------------------------------------
@@ -806,7 +803,11 @@ class LightCurve:
         return supersampled_times(self.time, self.exposure, n)
 
 
-_ZERO_LABEL = {v[0]: v[1] for v in TIME_ZERO.values()}
+def _zero_name(zero: float) -> str:
+    """A zero point [JD] for a message: "2457000.0 (BTJD)", the mission's
+    name where it is one of theirs."""
+    name = dict(TIME_ZERO.values()).get(zero)
+    return f"{zero:.1f}" + (f" ({name})" if name else "")
 
 
 def _one_file(path) -> Path:

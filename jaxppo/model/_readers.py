@@ -15,7 +15,7 @@ import numpy as np
 __all__ = ["COLUMN_ROLES", "QUALITY_FLAGS", "QUALITY_BITMASKS", "TIME_ZERO", "quality_bitmask", "resolve_bitmask",
            "mission_name", "plain_values", "to_days", "is_lightkurve", "flux_values", "diff_sigma",
            "kepler_exposure", "read_csv_columns", "read_fits_columns", "lightkurve_columns", "lightkurve_exposure",
-           "lightkurve_mixed_missions"]
+           "lightkurve_mixed_missions", "zero_text"]
 
 # Column roles and the names looked up when the user does not name them.
 COLUMN_ROLES = {
@@ -75,6 +75,14 @@ QUALITY_BITMASKS = {
 }
 # The time systems of the missions' files: TIME = BJD_TDB - zero [d].
 TIME_ZERO = {"kepler": (2454833.0, "BKJD"), "tess": (2457000.0, "BTJD")}
+_ZERO_NAMES = {zero: name for zero, name in TIME_ZERO.values()}
+
+
+def zero_text(zero: float) -> str:
+    """"BJD_TDB - <zero> [d]", with the name of a mission's zero point
+    (BKJD, BTJD) where ``zero`` [JD] is one."""
+    name = _ZERO_NAMES.get(zero)
+    return f"BJD_TDB - {zero:.1f} [d]" + (f" ({name})" if name else "")
 
 
 def mission_name(name) -> str | None:
@@ -170,13 +178,12 @@ def to_days(t, time_zero=None) -> tuple[np.ndarray, str | None, float | None]:
                 raise ValueError(
                     f"time is an astropy Time in format {fmt!r}: set time_zero [JD] (e.g. 2454833.0 for BKJD, "
                     "2457000.0 for BTJD), the zero point of the planets' t0")
-            zero, label = zeros[fmt]
+            zero = zeros[fmt][0]
         else:
             zero = float(time_zero)
-            label = {v[0]: v[1] for v in TIME_ZERO.values()}.get(zero)
         tdb = t.tdb
         days = (np.asarray(tdb.jd1, float) - zero) + np.asarray(tdb.jd2, float)
-        note = f"BJD_TDB - {zero:.1f} [d]" + (f" ({label})" if label else "") + f", from astropy Time ({fmt}, {t.scale})"
+        note = zero_text(zero) + f", from astropy Time ({fmt}, {t.scale})"
         return np.atleast_1d(days), note, zero
     if type(t).__name__ == "TimeDelta" or any(c.__name__ == "TimeDelta" for c in type(t).__mro__):
         return np.atleast_1d(np.asarray(t.to_value(u.day), float)), None, None
