@@ -1,7 +1,7 @@
 """Time and peak memory of the obliquity grid as each axis grows, and the
 largest grid that fits in a memory budget; sharding over forced CPU devices.
 
-    python benchmarks/scale.py axes [--budget-gb 24]      # docs/scale.png + the table of docs/scale.md
+    python benchmarks/scale.py axes [--budget-gb 24] [--out POINTS.json] [--figure PNG]  # docs/scale.png + the table of docs/scale.md
     python benchmarks/scale.py devices [--frames 200000]  # 1, 2, 4 forced host devices
 
 axes: the Kepler-20 b + c grid (jp.sweep over [case, alpha, time], the
@@ -115,7 +115,7 @@ AXES = {
 }
 
 
-def axes(budget_gb: float, out_json: Path) -> None:
+def axes(budget_gb: float, out_json: Path, figure: Path) -> None:
     import numpy as np
 
     done = json.loads(out_json.read_text()) if out_json.exists() else []  # resume
@@ -172,8 +172,8 @@ def axes(budget_gb: float, out_json: Path) -> None:
         a.grid(alpha=0.3, which="both")
     fig.suptitle("Kepler-20 b + c obliquity grid: each axis grown from 2 cases x 90 alphas x 2926 times (draws: 45 alphas)")
     fig.tight_layout()
-    fig.savefig(ROOT / "docs" / "scale.png", dpi=110)
-    print(f"wrote docs/scale.png and {out_json} (the table above goes into docs/scale.md)")
+    fig.savefig(figure, dpi=110)
+    print(f"wrote {figure} and {out_json} (the table above goes into docs/scale.md)")
 
 
 def devices(frames: int) -> None:
@@ -190,9 +190,10 @@ def main() -> None:
     ap.add_argument("what", choices=["axes", "devices"])
     ap.add_argument("--budget-gb", type=float, default=24.0)
     ap.add_argument("--frames", type=int, default=200_000)
-    ap.add_argument("--out", type=Path, default=Path("scale_points.json"))
+    ap.add_argument("--out", type=Path, default=Path("scale_points.json"), help="the measured points (JSON; resumed from)")
+    ap.add_argument("--figure", type=Path, default=ROOT / "docs" / "scale.png", help="the chart (default: docs/scale.png)")
     args = ap.parse_args()
-    axes(args.budget_gb, args.out) if args.what == "axes" else devices(args.frames)
+    axes(args.budget_gb, args.out, args.figure) if args.what == "axes" else devices(args.frames)
 
 
 if __name__ == "__main__":

@@ -45,8 +45,9 @@ def pytest_configure(config):
 def pytest_collection_modifyitems(config, items):
     """Mark each test under tests/inference ``inference``: .ci/run runs
     those at XLA's optimisation level 0 except the ones marked
-    ``runs_programs``, which it runs with the workflows at the default
-    level (``-m "not inference or runs_programs"``)."""
+    ``runs_programs`` or ``default_codegen``, which it runs with the
+    workflows at XLA's defaults (``-m "not inference or runs_programs or
+    default_codegen"``)."""
     for item in items:
         if Path(str(item.fspath)).resolve().parent.name == "inference":
             item.add_marker("inference")
