@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-__all__ = ["ECC_PARAMS", "ECC_START", "off_circular", "ecc_cap", "pair_from_theta", "theta_from_pair", "e_omega", "pair_of", "periastron_ok"]
+__all__ = ["ECC_PARAMS", "ECC_START", "off_circular", "ecc_cap", "pair_from_theta", "theta_from_pair", "e_omega", "pair_of", "periastron_ok", "conjunction_factor"]
 
 ECC_PARAMS = ("secosw", "sesinw")
 """The eccentricity pair of each planet a fit or a sampler may free."""
@@ -112,3 +112,15 @@ def pair_of(e, omega):
 def periastron_ok(planet):
     """Whether a (1 - e) > 1 + radius: the orbit clears the star."""
     return planet.a * (1.0 - planet.e) > 1.0 + planet.radius
+
+
+def conjunction_factor(e, omega):
+    """(1 - e^2) / (1 + e sin omega): the star-planet distance at
+    conjunction in units of a, so that the impact parameter is
+    b = a cos i times it (1 for a circular orbit, exactly). The fit and
+    sampling coordinate of a free inclination is this b / (1 + p): with
+    a cos i / (1 + p) instead, an eccentric planet that transits with
+    a cos i > 1 + p lay outside the coordinate's range (a fit started at
+    it was silently moved, and ``sample`` refused it as not transiting)."""
+    return (1.0 - e**2) / (1.0 + e * jnp.sin(jnp.deg2rad(omega)))
+

@@ -357,10 +357,13 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
     ok = not problems
     message = ("converged: " + verdict["summary"]) if ok else "failed: " + "; ".join(problems)
     cov, derived, values = _physical_covariance(model, theta, verdict["cov_theta"])
-    errors = np.sqrt(np.clip(np.diag(cov), 0, None))
+    errors = _standard_errors(cov)
     if ok and not np.all(np.isfinite(errors)):
         ok = False
-        message = "failed: covariance not finite"
+        bad = [nm for nm, e in zip(model.free, errors) if not np.isfinite(e)]
+        message = (f"failed: the covariance gives no error for {bad} (a variance that is negative or not finite: "
+                   "the curvature at the solution is not that of a minimum in every direction; jaxppo.sample gives "
+                   "the errors)")
     _warn_if_degenerate(model.free, verdict)
     chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
     say("done")
@@ -512,6 +515,15 @@ def _fold_inc(model: Model, theta, cov_theta):
     return jnp.asarray(theta) * jnp.asarray(flip), cov_theta
 
 
+def _standard_errors(cov) -> np.ndarray:
+    """1-sigma errors, the square roots of the covariance's diagonal; NaN
+    where a variance is negative (an indefinite curvature, seen in float32
+    fits of a nearly circular orbit with the eccentricity free: once
+    clipped to 0, printed as +- 0, perfect knowledge) or not finite."""
+    var = np.diag(np.asarray(cov, float))
+    return np.where(var >= 0.0, np.sqrt(np.abs(var)), np.nan)
+
+
 def _physical_covariance(model: Model, theta, cov_theta):
     """(covariance of the free parameters in physical units, derived: name
     -> (value, 1-sigma error), the free parameters' values) from the
@@ -520,8 +532,8 @@ def _physical_covariance(model: Model, theta, cov_theta):
     k = len(model.free)
     jac, q = (np.asarray(v) for v in model.physical_jacobian(jnp.asarray(theta)))
     cov = np.full((q.size, q.size), np.nan) if cov_theta is None else jac @ cov_theta @ jac.T
-    derived = {nm: (float(q[k + i]), float(np.sqrt(max(cov[k + i, k + i], 0.0))) if cov_theta is not None else np.nan)
-               for i, nm in enumerate(model.derived_names())}
+    errors = _standard_errors(cov)
+    derived = {nm: (float(q[k + i]), float(errors[k + i])) for i, nm in enumerate(model.derived_names())}
     return cov[:k, :k], derived, q[:k]
 
 
@@ -537,8 +549,11 @@ def _warn_if_degenerate(free, verdict) -> None:
     # that axis is off by more than a factor 2 (a milder mismatch is common:
     # chi^2(t0) of 1-min data has kinks where samples cross contact points)
     if dchi2 is not None and not np.all((dchi2 > 0.25) & (dchi2 < 4.0)):
-        worst = dchi2[np.argmax(np.abs(np.log(np.where(dchi2 > 0, dchi2, 1e-300))))]
-        why.append(f"chi^2 rises by {worst:.3g} instead of 1 at 1 sigma along a principal axis of the covariance")
+        if not np.all(np.isfinite(dchi2)):
+            why.append("chi^2 at 1 sigma along a principal axis of the covariance is not finite")
+        else:
+            worst = dchi2[np.argmax(np.abs(np.log(np.where(dchi2 > 0, dchi2, 1e-300))))]
+            why.append(f"chi^2 rises by {worst:.3g} instead of 1 at 1 sigma along a principal axis of the covariance")
     if why:
         warnings.warn(
             f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned ("

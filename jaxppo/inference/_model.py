@@ -21,7 +21,7 @@ from ..model._overlap import on_star, pairs_in_contact
 from ..model._planet import Planet
 from ..model._programs import stored
 from ..model._system import System
-from ._ecc import ECC_PARAMS, e_omega, ecc_cap, pair_from_theta, pair_of, periastron_ok, theta_from_pair
+from ._ecc import ECC_PARAMS, conjunction_factor, e_omega, ecc_cap, pair_from_theta, pair_of, periastron_ok, theta_from_pair
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
 
@@ -237,8 +237,8 @@ class Model(eqx.Module):
             elif par in ECC_PARAMS:
                 x = theta_from_pair(*pair_of(pl.e, pl.omega), ecc_cap(self.system, owner))
                 out.append(x[ECC_PARAMS.index(par)])
-            else:  # inc -> b = (1 + p) tanh(theta)
-                b = pl.a * jnp.cos(jnp.deg2rad(pl.inc))
+            else:  # inc -> b = (1 + p) tanh(theta), b the impact parameter
+                b = pl.a * jnp.cos(jnp.deg2rad(pl.inc)) * conjunction_factor(pl.e, pl.omega)
                 out.append(jnp.arctanh(jnp.clip(b / (1.0 + pl.radius), -0.999999, 0.999999)))
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
@@ -285,7 +285,9 @@ class Model(eqx.Module):
                 pl = ref.planets[owner]
                 a = named.get((owner, "a"), pl.a)
                 p = named.get((owner, "radius"), pl.radius)
-                out.append(jnp.arctanh(a * jnp.cos(jnp.deg2rad(v)) / (1.0 + p)))
+                e, w = (e_omega(named[(owner, "secosw")], named[(owner, "sesinw")]) if (owner, "secosw") in named
+                        else (pl.e, pl.omega))
+                out.append(jnp.arctanh(a * jnp.cos(jnp.deg2rad(v)) * conjunction_factor(e, w) / (1.0 + p)))
         return jnp.stack(out)
 
     def physical(self, theta) -> jnp.ndarray:
@@ -502,10 +504,11 @@ def system_at(theta, base: System, slots, eccentric=None) -> System:
         for pl in planets:
             inner = inner + pl["mass"]
             pl["a"] = semi_major_axis(pl["period"], options["star_mass"] + inner, options["star_radius"])
-    for owner, v in b_theta.items():
+    for owner, v in b_theta.items():  # the impact parameter b -> inc at this e, omega
         pl = planets[owner]
         b = (1.0 + pl["radius"]) * jnp.tanh(v)
-        pl["inc"] = jnp.rad2deg(jnp.arccos(b / pl["a"]))
+        f = conjunction_factor(pl["e"], pl["omega"]) if "e" in pl else 1.0
+        pl["inc"] = jnp.rad2deg(jnp.arccos(b / (pl["a"] * f)))
     if nbody:
         for pl in planets:
             pl["a"] = None

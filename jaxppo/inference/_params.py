@@ -2,7 +2,9 @@
 "star.u1", ...) and the coordinates theta that ``._model.Model`` maps
 them to, which keep the physics valid: a = 1 + exp(.), p = exp(.),
 P = exp(.), and the impact parameter b = (1 + p) tanh(.) (so |b| < 1 + p and
-the planet always transits), with i = arccos(b / a).
+the planet always transits), with i = arccos(b / (a f)), f = (1 - e^2) /
+(1 + e sin omega) at the point's e and omega (``._ecc.conjunction_factor``;
+1 for a circular orbit).
 
 A planet with ``transit_times`` also has its listed mid-times as
 parameters: ``"b.tc[12]"`` (epoch 12; coordinate: the time itself [d]) and

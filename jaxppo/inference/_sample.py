@@ -69,7 +69,11 @@ class SampleResult:
     best : System
         The lowest-deviance draw as a System (as the paper reports).
     intervals : dict
-        Name -> (median, lower, upper) of the central 68.3 %.
+        Name -> (median, lower, upper) of the central 68.3 %. An angle
+        ("<p>.omega" [deg]) is summarised on the circle: its draws taken
+        on the branch around their circular mean, the median in
+        (-180, 180], the bounds beside it (they may pass +-180, e.g.
+        (179.5, 178.4, 180.6)); its diagnostics too.
     diagnostics : dict
         Name -> {"r_hat", "ess_bulk", "ess_tail", "n_eff"}: rank-normalised
         split R-hat and effective sample sizes (Vehtari et al. 2021;
@@ -655,8 +659,10 @@ def _result(model: Model, system: System, coords: Coordinates, mcmc, u, loglike_
     chains = {n: phys[:, i].reshape(num_chains, num_samples) for i, n in enumerate(all_names)}
     best_i = int(np.argmax(loglike))
     best = model.result_system(model.theta_from(jnp.asarray(q[best_i])))
-    intervals = {n: tuple(float(x) for x in np.percentile(s, [50.0, 15.85, 84.15])) for n, s in samples.items()}
-    diagnostics = {n: rank_diagnostics(chains[n]) for n in all_names}
+    on_circle = {n: _unwrapped(samples[n]) for n in all_names if n.endswith(".omega")}
+    intervals = {n: _central_interval(samples[n], on_circle.get(n)) for n in all_names}
+    diagnostics = {n: rank_diagnostics(chains[n] if n not in on_circle else on_circle[n].reshape(chains[n].shape))
+                   for n in all_names}
 
     def pointwise(vals):
         """[draw, k] physical free parameters -> [draw, time] log-likelihood."""
@@ -669,6 +675,27 @@ def _result(model: Model, system: System, coords: Coordinates, mcmc, u, loglike_
                         stats=_sample_stats(mcmc, num_chains, num_samples), time=np.asarray(model.lc.time),
                         flux=np.asarray(model.lc.flux), flux_err=np.asarray(model.lc.flux_err), pointwise=pointwise,
                         names=tuple(model.free))
+
+
+def _unwrapped(deg) -> np.ndarray:
+    """Draws of an angle [deg] on the branch centred on their circular mean
+    (each within 180 deg of it): a posterior of omega around +-180 deg is
+    one interval there, not the whole circle."""
+    deg = np.asarray(deg, float)
+    rad = np.deg2rad(deg)
+    centre = np.rad2deg(np.arctan2(np.mean(np.sin(rad)), np.mean(np.cos(rad))))
+    return centre + np.mod(deg - centre + 180.0, 360.0) - 180.0
+
+
+def _central_interval(draws, unwrapped=None) -> tuple:
+    """(median, lower, upper) of the central 68.3 % of ``draws``; an angle's
+    from its ``unwrapped`` draws, the median then brought into (-180, 180]
+    deg and the bounds moved with it (they may pass +-180)."""
+    if unwrapped is None:
+        return tuple(float(x) for x in np.percentile(draws, [50.0, 15.85, 84.15]))
+    med, lo, hi = np.percentile(unwrapped, [50.0, 15.85, 84.15])
+    shift = (180.0 - np.mod(180.0 - med, 360.0)) - med  # a multiple of 360
+    return float(med + shift), float(lo + shift), float(hi + shift)
 
 
 def _sample_stats(mcmc, num_chains: int, num_samples: int) -> dict:

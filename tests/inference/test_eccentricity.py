@@ -119,3 +119,59 @@ def test_fit_recovers_e_and_omega_of_a_batman_transit():
     (e_fit, e_err), (w_fit, w_err) = res.derived["b.e"], res.derived["b.omega"]
     assert abs(e_fit - e) < 4 * e_err and abs(w_fit - w) < 4 * w_err, res.table()
     assert "b.secosw" in res.table() and "b.omega" in res.table()
+
+
+def test_omega_near_180_deg_is_one_interval_there():
+    """A posterior of omega = 180 +- 0.6 deg was summarised from linear
+    percentiles of draws on both sides of the wrap: median -177, 68 %
+    interval [-179.7, 179.6], the whole circle, with no problem reported."""
+    import numpyro.distributions as dist
+
+    s = jp.System(jp.Star.quadratic(0.4, 0.26),
+                  [jp.Planet(period=5.0, t0=0.0, a=15.0, inc=88.5, radius=0.1, e=0.3, omega=180.0, name="b")])
+    t = np.linspace(1.0, 1.5, 60)  # out of transit: the priors alone
+    lc = jp.LightCurve(t, np.ones(t.size), np.full(t.size, 1e-4))
+    sqrt_e = float(np.sqrt(0.3))
+    r = jp.sample(s, lc, free=("b.secosw", "b.sesinw"), num_warmup=150, num_samples=300, num_chains=2,
+                  progress_bar=False, optimise=False,
+                  priors={"b.secosw": dist.Normal(-sqrt_e, 0.01), "b.sesinw": dist.Normal(0.0, 0.01)})
+    w = np.asarray(r.samples["b.omega"])
+    assert np.mean(w > 0) > 0.2 and np.mean(w < 0) > 0.2  # the draws straddle +-180
+    assert np.all((w > -180.0) & (w <= 180.0))  # draws keep their range
+    med, lo, hi = r.intervals["b.omega"]
+    assert 178.0 < abs(med) <= 180.0 and lo < med < hi and hi - lo < 3.0, (med, lo, hi)
+    # the width of the sin omega prior: sigma_omega = 0.01 / sqrt(e) rad
+    assert abs(0.5 * (hi - lo) - np.rad2deg(0.01 / sqrt_e)) < 0.3, (med, lo, hi)
+    assert r.diagnostics["b.omega"]["r_hat"] < 1.05
+
+
+def test_an_eccentric_transit_with_a_cos_i_above_1_plus_p_is_in_range():
+    """The coordinate of a free inclination is the impact parameter
+    b = a cos i (1 - e^2) / (1 + e sin omega) over 1 + p. It was
+    a cos i / (1 + p): a planet with e = 0.2, omega = 90 deg and b = 0.9
+    (a cos i = 1.2 > 1 + p) transits, yet a fit started at it was silently
+    moved to a cos i = 1.1 (and then failed), and ``sample`` refused it as
+    "does not transit at the start (impact parameter 1.2)"."""
+    from jaxppo.inference._coords import start_q
+
+    e, omega, b = 0.2, 90.0, 0.9
+    acosi = b * (1.0 + e) / (1.0 - e**2)
+    truth = _system(e=e, omega=omega, inc=float(np.rad2deg(np.arccos(acosi / 15.0))))
+    assert abs(float(truth.planets[0].impact) - b) < 1e-12
+    t = np.linspace(-0.12, 0.12, 300)
+    flux = np.asarray(truth.flux(t))
+    assert 1.0 - flux.min() > 0.005  # it transits
+    lc = jp.LightCurve(t, flux, np.full(t.size, 5e-5))
+    for free in (("b.t0", "b.inc"), ("b.t0", "b.inc") + PAIR):
+        model = Model(truth, lc, free)
+        back = model.to_system(model.to_theta(truth)).planets[0]
+        assert abs(float(back.inc) - float(truth.planets[0].inc)) < 1e-9, (free, float(back.inc))
+        k = free.index("b.inc")
+        assert abs(start_q(model, truth)[k] - b / 1.1) < 1e-12
+        # theta_from (degrees, with a reference) is the same coordinate
+        values = np.asarray(model.physical(model.to_theta(truth)))
+        np.testing.assert_allclose(np.asarray(model.theta_from(values, model.to_theta(truth))),
+                                   np.asarray(model.to_theta(truth)), rtol=0, atol=1e-9)
+    res = jp.fit(truth, lc, free=("b.t0", "b.inc"))
+    assert res.success, res.message
+    assert abs(res.values[1] - float(truth.planets[0].inc)) < 1e-6, res.values

@@ -332,6 +332,31 @@ def test_degenerate_covariance_warns_and_points_to_sample(q_fit):
     assert q_fit[2].success and q_fit[2].condition < 100 and q_fit[2].caught == []
 
 
+def test_a_negative_variance_is_no_error_and_no_success(monkeypatch):
+    """An indefinite covariance (a float32 fit of a nearly circular N-body
+    orbit with secosw, sesinw free gave variances -4.6e-3, -8.7e6, -756)
+    printed every error as +- 0.00e+00 with success True: clipped to 0, a
+    negative variance read as perfect knowledge. Now NaN, and the fit
+    says it failed, naming the parameters."""
+    import jaxppo.inference._fit as fit_module
+
+    real = fit_module._physical_covariance
+
+    def indefinite(model, theta, cov_theta):
+        cov, derived, values = real(model, theta, cov_theta)
+        cov = cov.copy()
+        cov[1, 1] = -abs(cov[1, 1])
+        return cov, derived, values
+
+    truth, lc = _one_planet()
+    monkeypatch.setattr(fit_module, "_physical_covariance", indefinite)
+    res = jp.fit(truth, lc, free=("b.t0", "b.radius"))
+    assert np.isfinite(res.errors[0]) and res.errors[0] > 0
+    assert np.isnan(res.errors[1]), res.errors
+    assert not res.success and "b.radius" in res.message and "negative" in res.message, res.message
+    assert "nan" in res.table().lower()
+
+
 def test_fit_result_save_load_round_trip(q_fit, tmp_path):
     import json
 
