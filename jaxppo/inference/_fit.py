@@ -541,6 +541,8 @@ def _warn_if_degenerate(free, verdict) -> None:
     """The UserWarning of ``fit`` when the linearised covariance is
     ill-conditioned or chi^2 at its 1 sigma is far from chi^2_min + 1."""
     condition, dchi2 = verdict["condition"], verdict["dchi2_1sigma"]
+    # float64: in a float32 run the floor 1e-300 below was 0 (log: divide by zero)
+    dchi2 = None if dchi2 is None else np.asarray(dchi2, float)
     why = []
     if condition > CONDITION_WARN:
         why.append(f"condition number {condition:.3g} of the scaled Fisher matrix, most degenerate combination "

@@ -357,6 +357,21 @@ def test_a_negative_variance_is_no_error_and_no_success(monkeypatch):
     assert "nan" in res.table().lower()
 
 
+def test_covariance_warning_names_a_flat_or_non_finite_axis():
+    """The warning read "chi^2 rises by nan" for a non-finite axis, and a
+    float32 run's zero rise raised numpy's divide-by-zero RuntimeWarning
+    (its 1e-300 floor was 0 in float32)."""
+    from jaxppo.inference._fit import _warn_if_degenerate
+
+    for dchi2, text in ((np.array([0.0, 1.0], np.float32), "rises by 0 instead"),
+                        (np.array([np.nan, 1.0]), "is not finite")):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _warn_if_degenerate(("b.t0", "b.radius"), {"condition": 1.0, "dchi2_1sigma": dchi2, "weakest": ""})
+        assert [type(w.message) for w in caught] == [UserWarning], [str(w.message) for w in caught]
+        assert text in str(caught[0].message) and "nan" not in str(caught[0].message)
+
+
 def test_fit_result_save_load_round_trip(q_fit, tmp_path):
     import json
 
