@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model._system import System
-from ._ecc import ECC_PARAMS, conjunction_factor, ecc_cap
+from ._ecc import ECC_PARAMS, ecc_cap
 from ._params import inc_sign_matters, is_moon, is_tc, planet_value, star_value
 
 __all__ = ["Coordinates", "default_priors", "start_q", "a_from_density", "density_from_a", "check_density",
@@ -242,7 +242,7 @@ def start_q(model, system: System, what: str = "sample") -> np.ndarray:
             q.append(float(star_value(system, par)))
         elif par == "inc":
             pl = system.planets[owner]
-            b = float(pl.a * np.cos(np.deg2rad(pl.inc)) * conjunction_factor(pl.e, pl.omega))
+            b = float(pl.impact)
             if not abs(b) < 1.0 + float(pl.radius) or not float(pl.a) > 1.0 + float(pl.radius):
                 raise ValueError(f"{what}: planet {pl.name or owner} does not transit at the start (impact parameter "
                                  f"{b:.3g}, a {float(pl.a):.3g} R*, radius {float(pl.radius):.3g} R*)")

@@ -116,8 +116,9 @@ def periastron_ok(planet):
 
 def conjunction_factor(e, omega):
     """(1 - e^2) / (1 + e sin omega): the star-planet distance at
-    conjunction in units of a, so that the impact parameter is
-    b = a cos i times it (1 for a circular orbit, exactly). The fit and
+    conjunction in units of a, so that the impact parameter
+    (``Planet.impact``) is b = a cos i times it (1 for a circular orbit,
+    exactly); the inverse maps of ``._model`` take it from here. The fit and
     sampling coordinate of a free inclination is this b / (1 + p): with
     a cos i / (1 + p) instead, an eccentric planet that transits with
     a cos i > 1 + p lay outside the coordinate's range (a fit started at

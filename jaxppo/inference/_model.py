@@ -238,7 +238,7 @@ class Model(eqx.Module):
                 x = theta_from_pair(*pair_of(pl.e, pl.omega), ecc_cap(self.system, owner))
                 out.append(x[ECC_PARAMS.index(par)])
             else:  # inc -> b = (1 + p) tanh(theta), b the impact parameter
-                b = pl.a * jnp.cos(jnp.deg2rad(pl.inc)) * conjunction_factor(pl.e, pl.omega)
+                b = pl.impact
                 out.append(jnp.arctanh(jnp.clip(b / (1.0 + pl.radius), -0.999999, 0.999999)))
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
