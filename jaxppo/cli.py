@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -10,6 +11,8 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
+from jaxppo.obliquity._config_files import out_file, out_folder
 
 _SYNTHETIC = Path(__file__).resolve().parent / "data" / "kepler20_synthetic.toml"
 _FIVE_PLANETS = Path(__file__).resolve().parent / "data" / "kepler20_five_planets.toml"
@@ -47,28 +50,16 @@ def _seed(text: str) -> int:
     return v
 
 
-def _out_folder(path, option="--out") -> Path:
-    """An output folder that may be created (its parents too), or a clear
-    error when a file stands in the way."""
-    out = Path(path)
-    for p in (out, *out.parents):
-        if p.exists():
-            if not p.is_dir():
-                raise ValueError(f"{option} {out}: {p} is a file, not a folder")
-            break
-    return out
+def _on_writer(what: str, fn):
+    """``fn()`` in process 0 alone, its value there (None in the others),
+    an error there raised in every process (several JAX processes:
+    ``jaxppo.model._processes.on_writer``); with one process, ``fn()``.
+    Every file a command writes, and every check of a path it writes,
+    goes through here: the other processes may run where that folder
+    does not exist (another host)."""
+    from jaxppo.model._processes import on_writer
 
-
-def _out_file(path, option="--out") -> Path:
-    """An output file whose folder exists."""
-    out = Path(path)
-    if out.is_dir():
-        raise ValueError(f"{option} {out} is a folder; give a file name")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"{option} {out}: {parent} is a file, not a folder" if parent.exists() else
-                         f"{option} {out}: the folder {parent} does not exist")
-    return out
+    return on_writer(what, fn)
 
 
 def _not_an_input(targets, config, option="--out") -> None:
@@ -99,8 +90,8 @@ def cmd_demo(args) -> int:
     _enable_x64()
     from jaxppo.obliquity._demo import double_transit_demo
 
-    out = _out_folder(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = Path(args.out)
+    _on_writer(f"creating {out}", lambda: out_folder(args.out).mkdir(parents=True, exist_ok=True))
     summary = double_transit_demo(out)
     print(f"wrote {out}/kepler20_double_transits.png, .csv and summary.json ({summary['points']} model points, "
           f"{summary['seconds']:.2f} s)")
@@ -117,9 +108,7 @@ def cmd_scan(args) -> int:
 
     if args.alpha is not None:
         alpha_grid(args.alpha, "--alpha")  # named after the option, before any loading
-    out = _out_folder(args.out)
-    import contextlib
-
+    out = _on_writer(f"checking --out {args.out}", lambda: out_folder(args.out)) or Path(args.out)
     import jax
 
     from jaxppo.obliquity._worker import Drawer
@@ -171,10 +160,14 @@ def cmd_init(args) -> int:
     """Write a commented config template (every key, units, defaults)."""
     from jaxppo.obliquity._template import config_template
 
-    path = _out_file(args.path, "PATH")
-    if path.exists() and not args.force:
-        raise ValueError(f"{path} exists; choose another PATH or add --force to overwrite it")
-    path.write_text(config_template())
+    def write():
+        path = out_file(args.path, "PATH")
+        if path.exists() and not args.force:
+            raise ValueError(f"{path} exists; choose another PATH or add --force to overwrite it")
+        path.write_text(config_template())
+
+    _on_writer(f"writing {args.path}", write)
+    path = Path(args.path)
     print(f"wrote {path}; run it with: jaxppo scan {path} --out scan_out")
     return 0
 
@@ -184,13 +177,12 @@ def cmd_plot(args) -> int:
     config saved beside it (DIR/config.json, data paths resolved against the
     config's absolute folder): works from any working directory."""
     _enable_x64()
-    from jaxppo.obliquity._config import finished_scan_config
-    from jaxppo.obliquity._figures import read_scan_csv, scan_figures
+    from jaxppo.obliquity._figures import finished_scan, scan_figures
     from jaxppo.obliquity._windows import scan_windows
 
     out = Path(args.dir)
-    cfg, summary = finished_scan_config(out)
-    files = scan_figures(out, summary, read_scan_csv(out / "scan.csv"), cfg.system, scan_windows(cfg), cfg.cases)
+    cfg, summary, table = finished_scan(out)
+    files = scan_figures(out, summary, table, cfg.system, scan_windows(cfg), cfg.cases)
     print("wrote " + ", ".join(files))
     return 0
 
@@ -200,14 +192,14 @@ def cmd_simulate(args) -> int:
     _enable_x64()
     import jaxppo as jp
 
-    out = _out_file(args.out)
+    out = _on_writer(f"checking --out {args.out}", lambda: out_file(args.out)) or Path(args.out)
     if not args.noise > 0:
         raise ValueError(f"--noise must be > 0 (relative flux per point), got {args.noise:g}")
     if not args.radius_scale > 0:
         raise ValueError(f"--radius-scale must be > 0, got {args.radius_scale:g}")
     lc = jp.simulate_kepler20(seed=args.seed, noise=args.noise, alpha=args.alpha, case=args.case,
                               radius_scale=args.radius_scale)
-    lc.to_csv(out)
+    _on_writer(f"writing {out}", lambda: lc.to_csv(out))
     tilt = "untilted (no --alpha)" if args.alpha is None else f"alpha {args.alpha}, case {args.case}"
     print(f"wrote {out}: {len(lc)} points, noise {args.noise}, {tilt}, radius x{args.radius_scale}")
     if args.alpha is not None:
@@ -263,7 +255,7 @@ def cmd_fit(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _not_an_input([_out_file(args.out)], args.config)
+        _on_writer(f"checking --out {args.out}", lambda: _not_an_input([out_file(args.out)], args.config))
     _free_names(args)  # a repeated name fails before the config loads
     cfg, lc = _fit_inputs(args)
     free = _free_names(args, cfg)
@@ -276,7 +268,7 @@ def cmd_fit(args) -> int:
     print(res.table())
     print(f"{len(lc)} points, {time.perf_counter() - t0:.1f} s")
     if args.out:
-        res.save(args.out)
+        _on_writer(f"writing {args.out}", lambda: res.save(args.out))
         print(f"wrote {args.out} (jaxppo.FitResult.load reads it)")
     return 0 if res.success else 1
 
@@ -287,13 +279,14 @@ def cmd_sample(args) -> int:
     import jaxppo as jp
 
     if args.out:
-        _not_an_input([_out_file(args.out)], args.config)
+        _on_writer(f"checking --out {args.out}", lambda: _not_an_input([out_file(args.out)], args.config))
     if args.netcdf:
         try:
             import arviz  # noqa: F401
         except ImportError:
             raise ValueError("--netcdf needs arviz: pip install 'jaxppo[arviz]'") from None
-        _not_an_input([_out_file(args.netcdf, "--netcdf")], args.config, "--netcdf")
+        _on_writer(f"checking --netcdf {args.netcdf}",
+                   lambda: _not_an_input([out_file(args.netcdf, "--netcdf")], args.config, "--netcdf"))
     for name in ("warmup", "samples", "chains"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
@@ -314,10 +307,10 @@ def cmd_sample(args) -> int:
     for line in res.problems():
         print(f"warning: {line}")
     if args.out:
-        res.save(args.out)
+        _on_writer(f"writing {args.out}", lambda: res.save(args.out))
         print(f"wrote {args.out} (jaxppo.SampleResult.load reads it)")
     if args.netcdf:
-        res.to_netcdf(args.netcdf)
+        _on_writer(f"writing {args.netcdf}", lambda: res.to_netcdf(args.netcdf))
         print(f"wrote {args.netcdf} (arviz.from_netcdf reads it)")
     return 0
 
@@ -352,7 +345,8 @@ def cmd_activity(args) -> int:
             spot_chunk = int(spot_chunk)
         except ValueError:
             raise ValueError(f"--spot-chunk must be a chunk index or 'all', got {args.spot_chunk!r}") from None
-    rep = activity.activity_report(t, f, out=_out_folder(args.out), system=system, quarters=q,
+    out = _on_writer(f"checking --out {args.out}", lambda: out_folder(args.out)) or Path(args.out)
+    rep = activity.activity_report(t, f, out=out, system=system, quarters=q,
                                    period_min=args.period_min, period_max=args.period_max, bootstrap=args.bootstrap,
                                    spot_chunk=spot_chunk, n_spots=args.spots,
                                    mask_transits=not args.no_transit_mask)
@@ -381,10 +375,11 @@ def cmd_ttv(args) -> int:
     from jaxppo.inference._times_report import read_references, summary_lines, write_times_products
     from jaxppo.obliquity._config import load_config
 
-    out = _out_folder(args.out)
     cfg = load_config(args.config)
     products = ["transit_times.ecsv", "ttv_summary.json"] + [f"oc_{pl.name}.png" for pl in cfg.system.planets]
-    _not_an_input([out / n for n in products], args.config, f"--out {out}: ttv would write")
+    out = Path(args.out)
+    _on_writer(f"checking --out {out}", lambda: _not_an_input([out_folder(args.out) / n for n in products], args.config,
+                                                              f"--out {out}: ttv would write"))
     kw = {k: v for k, v in cfg.ttv.items() if k != "reference"}
     if args.planets:
         kw["planets"] = args.planets
@@ -395,10 +390,11 @@ def cmd_ttv(args) -> int:
         table = jp.measure_transit_times(cfg.system, cfg.lightcurve, progress=not args.quiet, **kw)
     for w in caught:
         print(f"jaxppo ttv: warning: {w.message}", file=sys.stderr)
-    summary = write_times_products(table, out, reference)
-    print("\n".join(summary_lines(summary, len(table), time.perf_counter() - t0)))
-    print(f"wrote {out}/transit_times.ecsv, ttv_summary.json, " + ", ".join(summary["figures"]))
-    return 0 if summary["fit"]["success"] else 1
+    summary = _on_writer(f"writing the transit times into {out}", lambda: write_times_products(table, out, reference))
+    if summary is not None:  # process 0 (of several JAX processes) reports
+        print("\n".join(summary_lines(summary, len(table), time.perf_counter() - t0)))
+        print(f"wrote {out}/transit_times.ecsv, ttv_summary.json, " + ", ".join(summary["figures"]))
+    return 0 if table.meta["success"] else 1
 
 
 def _draws(text: str) -> int:
@@ -605,9 +601,14 @@ def main(argv=None) -> int:
     try:
         from jaxppo.model._processes import is_writer, start_from_environment
 
-        # several JAX processes (JAXPPO_DISTRIBUTED, docs/scale.md; the scan only): one report, from process 0
-        if start_from_environment(name, args.command == "scan") and not is_writer():
-            sys.stdout = open(os.devnull, "w")
+        # several JAX processes (JAXPPO_DISTRIBUTED, docs/scale.md): every
+        # process computes, process 0 alone writes the files and reports; the
+        # others print only an error of their own (below, once the run ended)
+        if start_from_environment() and not is_writer():
+            if hasattr(args, "quiet"):
+                args.quiet = True
+            with open(os.devnull, "w") as null, contextlib.redirect_stdout(null), contextlib.redirect_stderr(null):
+                return args.func(args)
         return args.func(args)
     except ValueError as err:
         print(f"{name}: error: {_one_line(err)}", file=sys.stderr)

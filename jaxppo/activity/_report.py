@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model._processes import on_writer
 from ..model._strict_json import strict_jsonable
 from ._map import brightness_map, plot_brightness_map, plot_periodogram, plot_spot_fit
 from ._spots import KEPLER20_SPOT_CONTRAST, fit_spots
@@ -95,17 +96,13 @@ def _spot_report(prep, bmap, spot_chunk, n_spots, spot_contrast):
 
 
 def _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper) -> None:
-    """activity.json and the figures in ``out`` (created); the figures' names
-    go into ``report["figures"]``."""
+    """activity.json and the figures ``report["figures"]`` in ``out`` (created)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig_p = plot_periodogram(prep, rot, var, out / "activity_periodogram.png",
-                             PAPER_ROTATION_PERIOD if compare_paper else None)
-    fig_m = plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
-    report["figures"] = [Path(fig_p).name, Path(fig_m).name]
+    plot_periodogram(prep, rot, var, out / "activity_periodogram.png", PAPER_ROTATION_PERIOD if compare_paper else None)
+    plot_brightness_map(bmap, out / "activity_map.png", spots=spots)
     if spot_fit is not None:
-        fig_s = plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
-        report["figures"].append(Path(fig_s).name)
+        plot_spot_fit(prep.time[chunk_sel], prep.flux[chunk_sel], spot_fit, out / "activity_spots.png")
     with open(out / "activity.json", "w") as fh:
         json.dump(report, fh, indent=2, allow_nan=False)
 
@@ -228,6 +225,8 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
     if spot_chunk is not None:
         spots, spot_fit, chunk_sel, report["spots"] = _spot_report(prep, bmap, spot_chunk, n_spots, spot_contrast)
     report = strict_jsonable(report)
-    if out is not None:
-        _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper)
+    if out is not None:  # process 0 (of several JAX processes) writes
+        report["figures"] = ["activity_periodogram.png", "activity_map.png"] + ["activity_spots.png"] * (spot_fit is not None)
+        on_writer(f"writing the activity report into {out}",
+                  lambda: _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper))
     return report

@@ -118,10 +118,9 @@ def barrier(name: str) -> None:
         multihost_utils.sync_global_devices(name)
 
 
-def start_from_environment(what: str = "this run", allowed: bool = True) -> bool:
+def start_from_environment() -> bool:
     """Join several JAX processes as the environment says, before any JAX
-    computation; True when it did (``what`` names the run in errors; where
-    not ``allowed``, a set JAXPPO_DISTRIBUTED is refused). JAXPPO_DISTRIBUTED=auto:
+    computation; True when it did. JAXPPO_DISTRIBUTED=auto:
     ``jax.distributed.initialize()`` finds the processes itself (SLURM,
     Open MPI); JAXPPO_DISTRIBUTED=N: process JAXPPO_PROCESS_ID of N meets
     the others at JAX_COORDINATOR_ADDRESS (host:port of process 0); unset
@@ -131,8 +130,6 @@ def start_from_environment(what: str = "this run", allowed: bool = True) -> bool
     how = os.environ.get("JAXPPO_DISTRIBUTED", "").strip()
     if not how:
         return False
-    if not allowed:
-        raise ValueError(f"JAXPPO_DISTRIBUTED={how!r}: {what} runs in one process only; unset JAXPPO_DISTRIBUTED")
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     if how == "auto":
         jax.distributed.initialize()

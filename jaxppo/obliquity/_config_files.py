@@ -13,7 +13,8 @@ import numpy as np
 from ..model._phoenix import data_path, phoenix_star
 from ..model._star import Star
 
-__all__ = ["default_config_path", "config_inputs", "refuse_overwriting_inputs", "star_file_digest", "star_from_table", "star_table"]
+__all__ = ["default_config_path", "config_inputs", "refuse_overwriting_inputs", "star_file_digest", "star_from_table", "star_table",
+           "out_folder", "out_file"]
 
 
 def default_config_path() -> Path:
@@ -131,3 +132,27 @@ def star_file_digest(section, star) -> dict:
 
     leaves = [np.asarray(v) for v in jax.tree_util.tree_leaves(eqx.filter(star, eqx.is_array))]
     return {"star_profile": hashlib.sha256(b"".join(v.tobytes() for v in leaves)).hexdigest()}
+
+
+def out_folder(path, option="--out") -> Path:
+    """An output folder that may be created (its parents too), or a clear
+    error when a file stands in the way."""
+    out = Path(path)
+    for p in (out, *out.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise ValueError(f"{option} {out}: {p} is a file, not a folder")
+            break
+    return out
+
+
+def out_file(path, option="--out") -> Path:
+    """An output file whose folder exists."""
+    out = Path(path)
+    if out.is_dir():
+        raise ValueError(f"{option} {out} is a folder; give a file name")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"{option} {out}: {parent} is a file, not a folder" if parent.exists() else
+                         f"{option} {out}: the folder {parent} does not exist")
+    return out

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model._kepler20 import kepler20_system, paper_multi_transits
+from ..model._processes import on_writer
 from ..model._transits import alpha_limits
 from ._config import load_config
 from ._windows import scan_windows
@@ -49,7 +50,7 @@ def double_transit_demo(out) -> dict:
     limits, ``points``, ``seconds``), which it returns. A summary.json in
     ``out`` that the demo did not write (a scan's, or the user's) is a
     ValueError: the demo never replaces it."""
-    _refuse_foreign_summary(Path(out))
+    on_writer(f"checking {out}", lambda: _refuse_foreign_summary(Path(out)))  # process 0 (of several) writes
     import matplotlib
 
     matplotlib.use("Agg")
@@ -76,15 +77,22 @@ def double_transit_demo(out) -> dict:
     axes[1, 0].set_ylabel("flux - 1 [ppm]")
     axes[0, 0].legend(title="alpha [deg]", fontsize=6)
     fig.tight_layout()
-    fig.savefig(out / "kepler20_double_transits.png", dpi=110)
     elapsed = time.perf_counter() - t0
-    with open(out / "kepler20_double_transits.csv", "w") as fh:
-        fh.write("case,event,alpha,time,flux\n")
-        for r in rows:
-            fh.write(f"{r[0]},{r[1]},{r[2]:.1f},{r[3]:.6f},{r[4]:.12f}\n")
     summary = {"events": [dict(e.as_dict(), number=n) for e, n in zip(events, number)],
                "event_numbers": "as in jaxppo scan of the bundled real data (summary.json multi_transits)",
                "alphas": alphas.tolist(), "seconds": elapsed,
                "alpha_limits": list(alpha_limits(system)), "points": len(rows)}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+
+    def write():
+        fig.savefig(out / "kepler20_double_transits.png", dpi=110)
+        with open(out / "kepler20_double_transits.csv", "w") as fh:
+            fh.write("case,event,alpha,time,flux\n")
+            for r in rows:
+                fh.write(f"{r[0]},{r[1]},{r[2]:.1f},{r[3]:.6f},{r[4]:.12f}\n")
+        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+
+    try:  # every process computes the curves (their frames span all processes' devices); process 0 writes
+        on_writer(f"writing the demo into {out}", write)
+    finally:
+        plt.close(fig)
     return summary
