@@ -382,8 +382,9 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     if not result.success:
         warnings.warn(f"measure_transit_times: the fit did not converge ({result.message}); the times are where "
                       "it stopped and their errors may be wrong", UserWarning, stacklevel=2)
-    table = _result_table(Model(result.system, lc, tuple(names) + free, alpha, case, active_margin=1.0), result,
-                          plan, lc)
+    final = Model(result.system, lc, tuple(names) + free, alpha, case, active_margin=1.0)
+    table = _result_table(final, result, plan, lc)
+    _warn_undetected(plan, _detection(final, result, plan, lc))
     _warn_misfits(table)
     _warn_understated_errors(result, lc)
     return (table, result) if return_fit else table
@@ -437,9 +438,62 @@ def _plan(system: System, lc, chosen, min_points: int, search):
         for n, _ in found[i]:
             tc = start.planets[i].mid_time(n)
             plan.append({"name": f"{label}.tc[{n}]", "planet": label, "epoch": n, "contacts": (t1, t4),
-                         "search": width,
+                         "search": width, "period": period,
                          "window": (time >= tc + t1 - pad - width) & (time <= tc + t4 + pad + width)})
     return start, plan
+
+
+#: The least Delta chi^2 (3 sigma) by which a transit's points must prefer
+#: the transit at its measured time to no transit, and the least squared
+#: signal-to-noise ratio its dip may have in them, for its time to count as
+#: measured (``_detection``).
+DETECTION_CHI2 = 9.0
+
+
+def _detection(model: Model, result: FitResult, plan, lc) -> tuple[np.ndarray, np.ndarray]:
+    """Per transit, on its points (first to last contact about the measured
+    time, padded by the exposure), with the transit moved off them (its time
+    shifted by its duration and two exposures): (chi^2 without the transit
+    minus chi^2 at the fit, the squared signal-to-noise ratio of the dip,
+    sum of (model - model without it)^2 / variance). NaN where the shifted
+    time would pass the neighbours' (a duration over a fifth of the period).
+    A transit in the data gives about the squared S/N (+- 2 S/N); a time
+    fitted to noise about minus it; the S/N says what the data can show."""
+    time = np.asarray(lc.time, float)
+    pad = float(lc.exposure or 0.0)
+    theta = model.theta_from(jnp.asarray(result.values), model.to_theta(model.system))
+    delta, snr2 = np.full(len(plan), np.nan), np.full(len(plan), np.nan)
+    rows, thetas, points = [], [], []
+    for i, p in enumerate(plan):
+        t1, t4 = p["contacts"]
+        shift = 1.01 * (t4 - t1) + 2.0 * pad
+        if 2.0 * (t4 - t1 + 2.0 * pad) + shift >= p["period"]:
+            continue
+        tc = float(result.values[result.names.index(p["name"])])
+        rows.append(i)
+        thetas.append(theta.at[model.free.index(p["name"])].add(shift))
+        points.append((time >= tc + t1 - pad) & (time <= tc + t4 + pad))
+    if rows:
+        r = np.asarray(model.residuals_batch(jnp.stack([theta] + thetas)))[:, :model.y.size]
+        for j, (i, w) in enumerate(zip(rows, points)):
+            delta[i] = float(np.sum(r[j + 1, w] ** 2) - np.sum(r[0, w] ** 2))
+            snr2[i] = float(np.sum((r[j + 1, w] - r[0, w]) ** 2))
+    return delta, snr2
+
+
+def _warn_undetected(plan, detection) -> None:
+    """Warn about transits whose dip the data cannot show (squared S/N
+    below ``DETECTION_CHI2``) or whose points do not prefer the transit at
+    its measured time to no transit by ``DETECTION_CHI2`` (``_detection``):
+    their times and errors are fitted to noise."""
+    bad = [(p["planet"], p["epoch"], d, s) for p, d, s in zip(plan, *detection)
+           if np.isfinite(d) and min(d, s) < DETECTION_CHI2]
+    if bad:
+        which = ", ".join(f"{p} epoch {e} (Delta chi^2 {d:.1f}, S/N {np.sqrt(s):.1f})" for p, e, d, s in bad)
+        warnings.warn(f"measure_transit_times: {which}: the data do not show the transit (its points prefer it to "
+                      f"no transit by less than Delta chi^2 = {DETECTION_CHI2:g}, or its dip has S/N below 3 in "
+                      "them), so its time and tc_err are fitted to noise; check the ephemeris and the time system "
+                      "(BKJD for Kepler, BTJD for TESS: LightCurve.to_time_zero)", UserWarning, stacklevel=3)
 
 
 def _warn_misfits(table) -> None:

@@ -16,7 +16,7 @@ from ._times import TIMES_COLUMNS, linear_ephemeris
 if TYPE_CHECKING:  # astropy is imported where a table is read
     from astropy.table import Table
 
-__all__ = ["read_times", "read_references", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
+__all__ = ["read_times", "days_column", "epoch_column", "read_references", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
 
 MINUTES = 1440.0
 
@@ -41,9 +41,9 @@ def read_times(path) -> "Table":
                          f"{missing} (has {table.colnames})")
     out = Table()
     out["planet"] = [str(v) for v in table["planet"]]
-    out["epoch"] = np.asarray(table["epoch"], int)
-    out["tc"] = np.asarray(table["tc"], float)
-    out["tc_err"] = np.asarray(table["tc_err"], float)
+    out["epoch"] = epoch_column(table, "epoch", path)
+    out["tc"] = days_column(table, "tc", path)
+    out["tc_err"] = days_column(table, "tc_err", path)
     # a reference is compared epoch by epoch: each time finite, each error
     # finite and > 0 (one NaN made a planet's whole comparison NaN), one row
     # per (planet, epoch)
@@ -60,6 +60,33 @@ def read_times(path) -> "Table":
                              f"{seen[key] + 1} and {i + 1})")
         seen[key] = i
     return out
+
+
+def days_column(table, name: str, path) -> np.ndarray:
+    """Column ``name`` of a times table in days: a column with a time unit
+    (an ECSV file's, e.g. errors in minutes) is converted, one without a
+    unit taken as days, one with another unit refused naming the file."""
+    column = table[name]
+    if getattr(column, "unit", None) is None:
+        return np.asarray(column, float)
+    import astropy.units as u
+
+    try:
+        return np.asarray(column.quantity.to_value(u.d), float)
+    except u.UnitConversionError:
+        raise ValueError(f"transit-times file {str(path)!r}: column {name} is in {column.unit}, not a unit of time "
+                         "(days, or minutes etc.: converted)") from None
+
+
+def epoch_column(table, name: str, path) -> np.ndarray:
+    """Column ``name`` of a times table as integer epochs; a value that is
+    not a whole number (it was truncated) is refused naming the file."""
+    values = np.asarray(table[name], float)
+    bad = ~np.isfinite(values) | (values != np.round(values))
+    if bad.any():
+        raise ValueError(f"transit-times file {str(path)!r}: column {name} must hold whole epoch numbers, got "
+                         f"{float(values[bad][0])!r} ({int(bad.sum())} such rows)")
+    return values.astype(int)
 
 
 def read_references(paths) -> dict:

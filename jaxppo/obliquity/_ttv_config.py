@@ -49,8 +49,10 @@ def transit_times_from(p: dict, base) -> dict:
         if "epoch" not in cols or "tc" not in cols:
             raise ValueError(f"transit_times file {str(path)!r} needs columns epoch and tc (and optionally "
                              f"tc_err), got {table.colnames}")
-        return {"transit_times": np.asarray(table[cols["tc"]], float),
-                "transit_epochs": np.asarray(table[cols["epoch"]]).tolist()}
+        from ..inference._times_report import days_column, epoch_column
+
+        return {"transit_times": days_column(table, cols["tc"], path),
+                "transit_epochs": epoch_column(table, cols["epoch"], path).tolist()}
     if not (isinstance(tt, list) and tt and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in tt)):
         raise ValueError(f"transit_times must be a non-empty list of mid-times [d] or a file path, got {tt!r}")
     ep = p.get("transit_epochs")

@@ -265,6 +265,65 @@ def test_understated_errors_are_named():
         jp.measure_transit_times(system, small, free=("lc.jitter",))
 
 
+def test_a_transit_the_data_do_not_show_is_named():
+    """The REAL TESS light curve of Kepler-51 left in BTJD (the file's scale)
+    with the Kepler config's BKJD ephemerides: b is predicted at "1694.39",
+    where no transit of b is, and its time came out 1694.284 +- 0.021 d
+    (chi^2 per point 0.94) without a word. A deep transit predicted on flat
+    data came out as a time too. Now a UserWarning names each transit whose
+    points prefer it to no transit by less than Delta chi^2 = 9, or whose dip
+    has S/N below 3 in them; measured transits (simulated, and d's real TESS
+    transit on the BKJD scale) stay silent."""
+    import warnings
+    from pathlib import Path
+
+    folder = Path(jp.__file__).parent / "data" / "kepler51"
+    cfg = jp.load_config(folder / "kepler51_llc.toml")
+    tess = jp.LightCurve.from_fits(folder / "tess2019198215352-s0014-0000000027846348-0150-s_lc.fits")
+    with pytest.warns(UserWarning, match=r"b epoch 34 \(Delta chi\^2 .*\): the data do not show the transit"):
+        jp.measure_transit_times(cfg.system, tess)
+    b = jp.Planet(period=10.0, t0=100.0, a=20.0, inc=89.5, radius=0.08, name="b")
+    system = jp.System(jp.Star.quadratic(0.4, 0.25), [b])
+    t = np.concatenate([np.arange(100.0 + n * 10.0 - 0.3, 100.0 + n * 10.0 + 0.3, 2 / 1440) for n in range(3)])
+    lc = jp.simulate(system, t, noise=8e-4, seed=5)
+    flat = jp.LightCurve(t, 1.0 + (lc.flux - np.asarray(system.flux(t))), lc.flux_err)
+    with pytest.warns(UserWarning, match=r"b epoch 0 .*b epoch 1 .*b epoch 2 .*the data do not show the transit"):
+        jp.measure_transit_times(system, flat)
+    bk = tess.to_time_zero("bkjd")
+    d = cfg.system.planets[2]
+    near = bk.select(np.abs(bk.time - float(d.t0) - 28 * float(d.period)) < 1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.measure_transit_times(system, lc)
+        jp.measure_transit_times(cfg.system, near, planets=["d"], search=0.15, grid=61)
+
+
+def test_reference_times_in_minutes_are_converted(tmp_path):
+    """A reference ECSV with tc_err declared in minutes (as TTV catalogues
+    give errors) was read as days: z = 3.5 came out as 0.0035, "100 %
+    within 1 sigma". Now units are converted; other units and fractional
+    epochs are refused naming the file."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    from jaxppo.inference._times_report import compare_times, read_times
+
+    measured = Table({"planet": ["b"] * 3, "epoch": [0, 1, 2], "tc": [10.0, 20.0, 30.0], "tc_err": [0.001] * 3})
+    ref = Table({"planet": ["b"] * 3, "epoch": [0, 1, 2], "tc": [10.005, 19.995, 30.005] * u.d,
+                 "tc_err": [1.44] * 3 * u.min})
+    ref.write(tmp_path / "ref.ecsv", format="ascii.ecsv")
+    read = read_times(tmp_path / "ref.ecsv")
+    np.testing.assert_allclose(read["tc_err"], 0.001, rtol=1e-12)
+    assert compare_times(measured, read)["b"]["median_abs_z"] == pytest.approx(0.005 / (2 ** 0.5 * 0.001), rel=1e-6)
+    ref["tc_err"] = [1.0] * 3 * u.m
+    ref.write(tmp_path / "bad.ecsv", format="ascii.ecsv", overwrite=True)
+    with pytest.raises(ValueError, match=r"bad.ecsv.*column tc_err is in m, not a unit of time"):
+        read_times(tmp_path / "bad.ecsv")
+    (tmp_path / "frac.csv").write_text("planet,epoch,tc,tc_err\nb,0.5,10.0,0.001\n")
+    with pytest.raises(ValueError, match=r"frac.csv.*column epoch must hold whole epoch numbers, got 0.5"):
+        read_times(tmp_path / "frac.csv")
+
+
 def test_chi2_column_is_that_of_the_measured_times():
     """Transits far from their start: the per-transit chi^2 is computed at
     the measured times (it used the start's frames: 1962 for 125 points)."""

@@ -157,6 +157,25 @@ def test_system_nbody_bad_inputs():
     assert float(inside[0]) < 0.999
 
 
+def test_an_epoch_on_another_time_scale_than_t0_warns():
+    """Kepler-51 with its epoch typed in BJD (2455155) beside t0 in BKJD:
+    the elements were integrated over 6,700 years and the transit times came
+    out 6 to 43 days off, without a word (the bundled N-body config's
+    planets). Now the System warns, naming the planets and how many orbits
+    separate t0 from the epoch; epoch 155 (BKJD) and a t0 82 orbits from it
+    (a TESS-era transit) stay silent."""
+    pl = _kepler51_system().planets
+    star = jp.Star.uniform()
+    ok = dict(orbits="nbody", star_mass=1.0, star_radius=0.881)
+    with pytest.warns(UserWarning, match=r"N-body planets b \(t0 = 159\.11 d, 5\.4\de\+04 orbits\), c .*, d .*one time "
+                                         r"scale \(BJD = BKJD \+ 2454833"):
+        jp.System(star, pl, epoch=2455155.0, **ok)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.System(star, pl, epoch=155.0, **ok)
+        jp.System(star, [pl[0].replace(t0=float(K51_TIC[0]) + 82 * float(K51_PERIOD[0]))], epoch=155.0, **ok)
+
+
 def test_derived_orbits_get_the_checks_of_a_keplerian_planet():
     """An N-body planet's a comes from Kepler's third law, after Planet's
     checks ran on a = None: a periastron inside the star (P = 1 d, e = 0.9:

@@ -45,6 +45,27 @@ def test_inline_and_file_transit_times(tmp_path):
     assert "transit_times" not in load_config(_write(tmp_path, "")).raw["planet"][0]
 
 
+def test_file_transit_times_respect_units_and_whole_epochs(tmp_path):
+    """An ECSV file states its units: a tc column in hours was read as days
+    (refused as 3179 d off its ephemeris) and an epoch 1.6 was truncated to
+    1 without a word; now the unit is converted, a unit of something else
+    and a fractional epoch are refused naming the file."""
+    import astropy.units as u
+    from astropy.table import Table
+
+    t0, period = 134.501962, 3.69611590
+    times = np.array([t0 + 1 * period + 0.002, t0 + 40 * period - 0.001])
+    Table({"epoch": [1, 40], "tc": times * 24.0 * u.h}).write(tmp_path / "h.ecsv", format="ascii.ecsv")
+    hb = load_config(_write(tmp_path, 'transit_times = "h.ecsv"')).system.planets[0]
+    np.testing.assert_allclose(np.asarray(hb.transit_times), times, rtol=0, atol=1e-9)
+    Table({"epoch": [1, 40], "tc": times * u.m}).write(tmp_path / "m.ecsv", format="ascii.ecsv")
+    with pytest.raises(ValueError, match=r"m.ecsv.*column tc is in m, not a unit of time"):
+        load_config(_write(tmp_path, 'transit_times = "m.ecsv"'))
+    (tmp_path / "f.csv").write_text(f"epoch,tc\n1.6,{float(times[0])!r}\n40,{float(times[1])!r}\n")
+    with pytest.raises(ValueError, match=r"f.csv.*column epoch must hold whole epoch numbers, got 1.6"):
+        load_config(_write(tmp_path, 'transit_times = "f.csv"'))
+
+
 @pytest.mark.parametrize("extra, match", [
     ("transit_epochs = [1]", "transit_epochs needs transit_times"),
     ('transit_times = "nope.csv"', "transit_times file .*nope.csv' not found"),
