@@ -334,3 +334,42 @@ def test_ppo_or_spot_on_a_spotted_star_compares_the_right_models():
     for key in ("chi2_no_ppo", "chi2_ppo"):
         a, s = got[0]["windows"][0][key], got[1]["windows"][0][key]
         assert abs(a - s) < 1e-3 * a, (key, a, s)
+
+
+def _triple_with_untilted_overlap():
+    """b (tilted) with c and d, untilted, whose disks overlap each other in
+    the window (at t ~ -0.032 d): at every tilt, and at none of b's PPOs."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(period=3.7, t0=0.032, a=10.6, inc=87.7, radius=0.018, name="b")
+    c = jp.Planet(period=10.85, t0=0.0, a=22.76, inc=89.97, radius=0.029, name="c")
+    d = jp.Planet(period=25.0, t0=0.01, a=40.0, inc=89.98, radius=0.025, name="d")
+    return jp.System(star, [b, c, d])
+
+
+def test_ppo_or_spot_counts_two_untilted_planets_overlap_once():
+    """The no-PPO model is the scan's ground level: two untilted planets
+    that overlap each other (c and d here, in every tilt) are counted once.
+    It was the sum of each disk's own dip (sweep's no_overlap), which counts
+    their overlap twice (a 7e-4 dip that is not in the data): on data with
+    no PPO of b at all, a noise dip came out as a PPO by Delta chi^2 = -819
+    (Delta BIC -813), where the scan says -0.61. Truth: at a tilt where b
+    touches no disk the PPO model is the no-PPO model, Delta chi^2 = 0."""
+    from types import SimpleNamespace
+
+    from jaxppo.model._overlap import ppo_table
+
+    system = _triple_with_untilted_overlap()
+    t = np.arange(-0.2, 0.2, 1 / 1440)
+    x, y, r = (np.asarray(v) for v in system.positions(t))
+    assert np.sum(np.hypot(x[:, 1] - x[:, 2], y[:, 1] - y[:, 2]) < r[:, 1] + r[:, 2]) > 10  # c and d overlap
+    quiet = 200.0  # b's disk meets no other at this tilt (checked below)
+    assert not ppo_table(system, [t], [quiet], "same").any()
+    y = np.asarray(system.flux(t, quiet, "same", method="exact"))
+    y = y + 1e-4 * np.random.default_rng(2).standard_normal(t.size)
+    w = SimpleNamespace(number=1, time=t, flux=y, flux_err=np.full(t.size, 1e-4), exposure=None,
+                        event=SimpleNamespace(mid=0.0))
+    dip = {"kind": "dip", "case": "same", "alpha": quiet, "delta_chi2": -0.5, "transits": [1]}
+    got = jp.activity.ppo_or_spot(SimpleNamespace(windows=[w], summary={"table5": [dip]}), system)["dips"][0]
+    assert abs(got["delta_chi2"]["ppo"]) < 1e-6, got["delta_chi2"]
+    assert got["windows"][0]["chi2_no_ppo"] < 1.3 * t.size  # noise only: chi^2 ~ N
+    assert got["preferred"] == "no PPO"
