@@ -5,7 +5,7 @@ For each dip of the scan (a Table 5 feature with Delta chi^2 < 0) the same
 detrended window data (the scan's ``ScanWindow``: its points, errors and
 exposure) are fitted by two alternatives to the no-PPO model (each planet's
 own transit, two untilted planets' overlap counted once: the scan's ground
-level, ``quiet_model``):
+level, ``no_ppo_model``):
 
 * **PPO**: the system at the dip's alpha and case (one extra parameter,
   alpha; its chi^2 is the scan's, recomputed here on the window).
@@ -65,21 +65,13 @@ def bump_model(t, amplitude, centre, width, xp=jnp):
 def _window_models(system, window, alpha, case):
     """Supersampled times and the no-PPO and PPO models (exposure-averaged)
     on one scan window. The no-PPO model is the scan's ground level
-    (``quiet_model``: the tilted planet touches no disk, two untilted
+    (``no_ppo_model``: the tilted planet touches no disk, two untilted
     planets that overlap each other are counted once, as at every tilt)."""
-    from ..model._overlap import pairs_in_contact, quiet_model
+    from ..model._overlap import no_ppo_model
     from ..model._sweep import sweep
 
     tm, nsub = supersampled_times(window.time, window.exposure)
-    null = np.array(sweep(system, tm, np.zeros(1), cases=(case,), no_overlap=True)[0, 0])
-    # each disk's own dip, but two untilted planets overlap each other at every tilt
-    x, y, r = system.positions(tm, 0.0, case, xp=np)
-    r = np.array(r)
-    r[..., system.tilted] = 0.0
-    both = pairs_in_contact(x, y, r)
-    if both.any():
-        null[both] = quiet_model(system, tm[both], case)
-    null = exposure_mean(null, nsub)
+    null = exposure_mean(no_ppo_model(system, tm, case), nsub)
     ppo = exposure_mean(sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0], nsub)
     return tm, nsub, np.asarray(null), np.asarray(ppo)
 

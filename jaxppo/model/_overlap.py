@@ -16,7 +16,7 @@ import numpy as np
 from ._cases import case_signs
 from ._system import System, require_keplerian
 
-__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "contact_frames", "ppo_table", "may_touch",
+__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "no_ppo_model", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]
 
 
@@ -97,6 +97,24 @@ def quiet_model(system: System, t, case) -> np.ndarray:
 
     star = flux(np.zeros_like(r_untilted)) if kw or not system.star.symmetric else 1.0
     return flux(r_untilted) + flux(r_tilted) - star
+
+
+def no_ppo_model(system: System, t, case) -> np.ndarray:
+    """The no-PPO light curve [time] at times ``t`` [d] in ``case``: each
+    disk's own dip (``sweep``'s ``no_overlap``) and, in the frames where two
+    untilted planets overlap each other (at every tilt), ``quiet_model``,
+    which counts that overlap once: the scan's ground level."""
+    from ._sweep import sweep
+
+    t = np.asarray(t, float)
+    out = np.array(sweep(system, t, np.zeros(1), cases=(case,), no_overlap=True)[0, 0])
+    x, y, r = system.positions(t, 0.0, case, xp=np)
+    r = np.array(r)
+    r[..., system.tilted] = 0.0
+    both = pairs_in_contact(x, y, r)
+    if both.any():
+        out[both] = quiet_model(system, t[both], case)
+    return out
 
 
 def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_only: bool = False,
