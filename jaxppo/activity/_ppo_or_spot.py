@@ -14,7 +14,9 @@ level, ``no_ppo_model``):
   model of the scan. Three parameters per window, constrained to what a
   transiting planet crossing a dark spot can make: t_c inside one planet's
   transit (first to last contact; every planet of the window is tried and
-  the best kept), 0 <= A <= that planet's own transit depth (a black spot
+  the best kept) and within the contacts of the dip's PPO (the feature a
+  spot would explain instead: a bump elsewhere explains another feature,
+  which every model leaves in its residuals alike), 0 <= A <= that planet's own transit depth (a black spot
   larger than the planet hides at most all the light the planet blocks),
   and w from a quarter of the time the planet takes to move by its own
   diameter (a spot smaller than the planet: the bump lasts about that long)
@@ -178,13 +180,43 @@ def _fit_bump(tm, nsub, y, sig, base, lo, hi, a_max, w_min, w_max, starts=7):
     return {"amplitude": a, "centre": c, "width": w}, chi2, ok
 
 
+def _ppo_span(system, tm, alpha, case):
+    """(first, last) time [d] of ``tm`` at which the tilted planet overlaps
+    another disk at ``alpha`` in ``case`` (the PPO's contacts), or None."""
+    from ..model._overlap import contact_frames
+
+    hit = contact_frames(system, tm, [float(alpha)], (case,), tilted_only=True)[0, 0]
+    return (float(tm[hit].min()), float(tm[hit].max())) if hit.any() else None
+
+
+def _best_bump(system, window, dip, tm, nsub, y, sig, null):
+    """The spot model of one window: the best bump over the planets that
+    transit in it, (params, chi2, converged, planet). Its centre lies in
+    the planet's transit and in the span of the dip's PPO (the feature the
+    spot would explain instead; a bump elsewhere explains another one, which
+    every model leaves alike); the whole transit where the PPO model has no
+    contact in the window."""
+    span = _ppo_span(system, tm, dip["alpha"], dip["case"])
+    best = None
+    for name, lo, hi, depth, t_diam in _planet_transits(system, window):
+        c_lo, c_hi = (lo, hi) if span is None else (max(lo, span[0]), min(hi, span[1]))
+        if c_lo > c_hi:
+            continue
+        params, c2, ok = _fit_bump(tm, nsub, y, sig, null, c_lo, c_hi, depth, 0.25 * t_diam, 0.5 * (hi - lo))
+        if best is None or c2 < best[1]:
+            best = (params, c2, ok, name)
+    if best is None:
+        raise ValueError(f"ppo_or_spot: no planet transits during the PPO of multi-transit {window.number}")
+    return best
+
+
 def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     """Compare a PPO and a spot crossing as the cause of every negative dip of a finished scan.
 
     For each dip (a Table 5 feature with Delta chi^2 < 0) the scan's window
     data are fitted by the no-PPO model plus a Gaussian bump
     A exp(-(t - t_c)^2 / (2 w^2)) (exposure-averaged; t_c inside a planet's
-    transit, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
+    transit and the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
     to half its duration; optimistix Levenberg-Marquardt from a grid of
     starts) and compared with the PPO model at the dip's alpha by
     BIC = chi^2 + k ln N (k = 1 for the PPO, 3 per window for the spot;
@@ -264,12 +296,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             w = windows[num]
             tm, nsub, null, ppo = _window_models(system, w, d["alpha"], d["case"])
             y, sig = np.asarray(w.flux), np.asarray(w.flux_err)
-            best = None
-            for name, lo, hi, depth, t_diam in _planet_transits(system, w):
-                params, c2, ok = _fit_bump(tm, nsub, y, sig, null, lo, hi, depth, 0.25 * t_diam, 0.5 * (hi - lo))
-                if best is None or c2 < best[1]:
-                    best = (params, c2, ok, name)
-            params, c2_spot, ok, planet = best
+            params, c2_spot, ok, planet = _best_bump(system, w, d, tm, nsub, y, sig, null)
             c2_none = float(np.sum(((y - null) / sig) ** 2))
             c2_ppo = float(np.sum(((y - ppo) / sig) ** 2))
             entry["windows"].append({"number": num, "mid": float(w.event.mid), "points": int(y.size),
@@ -295,8 +322,8 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         entry["bic_spot_minus_ppo"] = entry["delta_bic"]["spot"] - entry["delta_bic"]["ppo"]
         rows.append(entry)
     summary = {
-        "method": ("no-PPO model + Gaussian bump (A, t_c, w per window; t_c inside a planet's transit, "
-                   "0 <= A <= its depth, w from 1/4 of its diameter-crossing time to half its duration), "
+        "method": ("no-PPO model + Gaussian bump (A, t_c, w per window; t_c inside a planet's transit and "
+                   "the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time to half its duration), "
                    "optimistix Levenberg-Marquardt; BIC = chi2 + k ln N with k = 1 (PPO: alpha), 3 per window (spot)"),
         "dips": rows,
     }

@@ -373,3 +373,31 @@ def test_ppo_or_spot_counts_two_untilted_planets_overlap_once():
     assert abs(got["delta_chi2"]["ppo"]) < 1e-6, got["delta_chi2"]
     assert got["windows"][0]["chi2_no_ppo"] < 1.3 * t.size  # noise only: chi^2 ~ N
     assert got["preferred"] == "no PPO"
+
+
+def test_ppo_or_spot_compares_the_spot_with_the_dips_own_feature():
+    """A real PPO (injected at alpha = 141 deg, same case) in a transit that
+    also holds a brighter, unrelated bump 1.3 h earlier (a spot crossed by
+    c at its mid-transit): the spot model used to fit that other bump (t_c
+    1017.790, Delta chi^2 -141 against the PPO's -19.9) and the verdict was
+    "spot" by Delta BIC -123, though the dip's feature is the PPO. The
+    spot's centre now lies in the span of the dip's PPO (its contacts), the
+    feature it would explain instead; the other bump is in every model's
+    residuals alike."""
+    from types import SimpleNamespace
+
+    from jaxppo.activity._ppo_or_spot import bump_model
+
+    system = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=1, noise=1e-4, alpha=141.0, case="same")
+    t = np.asarray(lc.time)
+    sel = np.abs(t - 1017.82) < 0.12
+    t = t[sel]
+    y = np.asarray(lc.flux)[sel] + np.asarray(bump_model(t, 5e-4, 1017.790, 0.002, np))
+    w = SimpleNamespace(number=4, time=t, flux=y, flux_err=np.full(t.size, 1e-4), exposure=None,
+                        event=SimpleNamespace(mid=1017.82))
+    dip = {"kind": "dip", "case": "same", "alpha": 141.0, "delta_chi2": -19.9, "transits": [4]}
+    got = jp.activity.ppo_or_spot(SimpleNamespace(windows=[w], summary={"table5": [dip]}), system)["dips"][0]
+    assert got["delta_chi2"]["ppo"] < -15
+    assert 1017.841 < got["windows"][0]["bump"]["centre"] < 1017.845  # the PPO's contacts: 1017.8418-1017.8439
+    assert got["preferred"] == "PPO", got["delta_bic"]
