@@ -64,6 +64,16 @@ def bump_model(t, amplitude, centre, width, xp=jnp):
     return amplitude * xp.exp(-0.5 * ((xp.asarray(t) - centre) / width) ** 2)
 
 
+def _kass_raftery(delta_bic: float) -> str:
+    """Kass & Raftery (1995) category of a BIC difference (~ 2 ln K) in
+    favour of the preferred model: < 2 "not worth more than a bare
+    mention", 2-6 "positive", 6-10 "strong", >= 10 "very strong"."""
+    for limit, words in ((2.0, "not worth more than a bare mention"), (6.0, "positive"), (10.0, "strong")):
+        if delta_bic < limit:
+            return words
+    return "very strong"
+
+
 def _window_models(system, window, alpha, case):
     """Supersampled times and the no-PPO and PPO models (exposure-averaged)
     on one scan window. The no-PPO model is the scan's ground level
@@ -248,8 +258,11 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         [relative flux, d, d] and the crossing planet), and the totals
         ``delta_chi2`` and ``delta_bic`` of both models against no-PPO,
         ``n_points``, ``k`` and ``preferred`` ("no PPO", "PPO" or "spot":
-        the least BIC of the three); and ``figure`` (the PNG's absolute path,
-        if drawn).
+        the least BIC of the three), ``bic_margin`` (the runner-up's BIC
+        less the preferred one's, ~ 2 ln K) and ``evidence`` (its Kass &
+        Raftery 1995 category: below 2 the preference is
+        "not worth more than a bare mention"); and ``figure`` (the PNG's
+        absolute path, if drawn).
 
     Raises
     ------
@@ -319,6 +332,9 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         # extra model explains better than its parameters cost is noise
         bic = {"no PPO": 0.0, "PPO": entry["delta_bic"]["ppo"], "spot": entry["delta_bic"]["spot"]}
         entry["preferred"] = min(bic, key=bic.get)
+        # how far ahead: Delta BIC to the runner-up, ~ 2 ln K (Kass & Raftery 1995)
+        entry["bic_margin"] = sorted(bic.values())[1] - bic[entry["preferred"]]
+        entry["evidence"] = _kass_raftery(entry["bic_margin"])
         entry["bic_spot_minus_ppo"] = entry["delta_bic"]["spot"] - entry["delta_bic"]["ppo"]
         rows.append(entry)
     summary = {

@@ -401,3 +401,36 @@ def test_ppo_or_spot_compares_the_spot_with_the_dips_own_feature():
     assert got["delta_chi2"]["ppo"] < -15
     assert 1017.841 < got["windows"][0]["bump"]["centre"] < 1017.845  # the PPO's contacts: 1017.8418-1017.8439
     assert got["preferred"] == "PPO", got["delta_bic"]
+
+
+def test_ppo_or_spot_rates_its_preference():
+    """The verdict named a preferred model however small its lead: a true
+    PPO at 2e-4 noise (seed 4) was "PPO" by Delta BIC 0.26 over no PPO,
+    with nothing saying that is no evidence. Now ``bic_margin`` (the
+    runner-up's BIC less the preferred one's) and ``evidence``, its Kass &
+    Raftery (1995) category: here a noise-free bump (very strong) and noise
+    alone, where the PPO of a one-planet system only pays its parameter
+    (margin ln N: positive)."""
+    import math
+    from types import SimpleNamespace
+
+    from jaxppo.activity._ppo_or_spot import _kass_raftery, bump_model
+
+    assert [_kass_raftery(v) for v in (0.26, 1.99, 2.0, 5.9, 6.0, 9.9, 10.0)] == [
+        "not worth more than a bare mention", "not worth more than a bare mention", "positive", "positive",
+        "strong", "strong", "very strong"]
+    pl = jp.Planet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.08, name="b")
+    system = jp.System(jp.Star.quadratic(0.4, 0.26), [pl])
+    t = np.linspace(-0.1, 0.1, 60)
+    base = np.asarray(system.flux(t, method="exact"))
+    win = SimpleNamespace(number=1, time=t, flux=base + np.asarray(bump_model(t, 8e-4, 0.01, 0.006)),
+                          flux_err=np.full(t.size, 1e-5), exposure=None, event=SimpleNamespace(mid=0.0))
+    res = SimpleNamespace(windows=[win], summary={"table5": [{"kind": "dip", "case": "same", "alpha": 10.0,
+                                                              "delta_chi2": -1.0, "transits": [1]}]})
+    loud = jp.activity.ppo_or_spot(res, system)["dips"][0]
+    assert loud["preferred"] == "spot" and loud["evidence"] == "very strong"
+    assert loud["bic_margin"] == pytest.approx(-loud["delta_bic"]["spot"])  # the runner-up: no PPO (0)
+    win.flux = base + np.random.default_rng(3).normal(0.0, 1e-5, t.size)
+    quiet = jp.activity.ppo_or_spot(res, system)["dips"][0]
+    assert quiet["preferred"] == "no PPO" and quiet["bic_margin"] == pytest.approx(math.log(60))
+    assert quiet["evidence"] == "positive"
