@@ -290,7 +290,7 @@ def test_alpha_option_plot_anywhere_and_finished_rerun(tmp_path, monkeypatch, ca
         raise AssertionError("recomputed or redrawn")
 
     with monkeypatch.context() as m:
-        m.setattr(jaxppo.obliquity._scan, "sweep", boom)
+        m.setattr(jaxppo.obliquity._scan, "no_ppo_model", boom)
         m.setattr(jaxppo.obliquity._scan, "grid_chi2", boom)
         m.setattr(jaxppo.obliquity._figures, "scan_figures", boom)
         assert main(["scan", cfg.name, "--out", "../run", "--alpha", "0", "360", "45", "--quiet"]) == 0

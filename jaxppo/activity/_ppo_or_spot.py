@@ -4,7 +4,8 @@ Delta chi^2 dips "are more likely caused by star spots".)
 For each dip of the scan (a Table 5 feature with Delta chi^2 < 0) the same
 detrended window data (the scan's ``ScanWindow``: its points, errors and
 exposure) are fitted by two alternatives to the no-PPO model (each planet's
-own transit, the scan's null model):
+own transit, two untilted planets' overlap counted once: the scan's ground
+level, ``no_ppo_model``):
 
 * **PPO**: the system at the dip's alpha and case (one extra parameter,
   alpha; its chi^2 is the scan's, recomputed here on the window).
@@ -13,7 +14,9 @@ own transit, the scan's null model):
   model of the scan. Three parameters per window, constrained to what a
   transiting planet crossing a dark spot can make: t_c inside one planet's
   transit (first to last contact; every planet of the window is tried and
-  the best kept), 0 <= A <= that planet's own transit depth (a black spot
+  the best kept) and within the contacts of the dip's PPO (the feature a
+  spot would explain instead: a bump elsewhere explains another feature,
+  which every model leaves in its residuals alike), 0 <= A <= that planet's own transit depth (a black spot
   larger than the planet hides at most all the light the planet blocks),
   and w from a quarter of the time the planet takes to move by its own
   diameter (a spot smaller than the planet: the bump lasts about that long)
@@ -61,13 +64,26 @@ def bump_model(t, amplitude, centre, width, xp=jnp):
     return amplitude * xp.exp(-0.5 * ((xp.asarray(t) - centre) / width) ** 2)
 
 
+def _kass_raftery(delta_bic: float) -> str:
+    """Kass & Raftery (1995) category of a BIC difference (~ 2 ln K) in
+    favour of the preferred model: < 2 "not worth more than a bare
+    mention", 2-6 "positive", 6-10 "strong", >= 10 "very strong"."""
+    for limit, words in ((2.0, "not worth more than a bare mention"), (6.0, "positive"), (10.0, "strong")):
+        if delta_bic < limit:
+            return words
+    return "very strong"
+
+
 def _window_models(system, window, alpha, case):
     """Supersampled times and the no-PPO and PPO models (exposure-averaged)
-    on one scan window."""
+    on one scan window. The no-PPO model is the scan's ground level
+    (``no_ppo_model``: the tilted planet touches no disk, two untilted
+    planets that overlap each other are counted once, as at every tilt)."""
+    from ..model._overlap import no_ppo_model
     from ..model._sweep import sweep
 
     tm, nsub = supersampled_times(window.time, window.exposure)
-    null = exposure_mean(sweep(system, tm, np.zeros(1), cases=(case,), no_overlap=True)[0, 0], nsub)
+    null = exposure_mean(no_ppo_model(system, tm, case), nsub)
     ppo = exposure_mean(sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0], nsub)
     return tm, nsub, np.asarray(null), np.asarray(ppo)
 
@@ -174,13 +190,43 @@ def _fit_bump(tm, nsub, y, sig, base, lo, hi, a_max, w_min, w_max, starts=7):
     return {"amplitude": a, "centre": c, "width": w}, chi2, ok
 
 
+def _ppo_span(system, tm, alpha, case):
+    """(first, last) time [d] of ``tm`` at which the tilted planet overlaps
+    another disk at ``alpha`` in ``case`` (the PPO's contacts), or None."""
+    from ..model._overlap import contact_frames
+
+    hit = contact_frames(system, tm, [float(alpha)], (case,), tilted_only=True)[0, 0]
+    return (float(tm[hit].min()), float(tm[hit].max())) if hit.any() else None
+
+
+def _best_bump(system, window, dip, tm, nsub, y, sig, null):
+    """The spot model of one window: the best bump over the planets that
+    transit in it, (params, chi2, converged, planet). Its centre lies in
+    the planet's transit and in the span of the dip's PPO (the feature the
+    spot would explain instead; a bump elsewhere explains another one, which
+    every model leaves alike); the whole transit where the PPO model has no
+    contact in the window."""
+    span = _ppo_span(system, tm, dip["alpha"], dip["case"])
+    best = None
+    for name, lo, hi, depth, t_diam in _planet_transits(system, window):
+        c_lo, c_hi = (lo, hi) if span is None else (max(lo, span[0]), min(hi, span[1]))
+        if c_lo > c_hi:
+            continue
+        params, c2, ok = _fit_bump(tm, nsub, y, sig, null, c_lo, c_hi, depth, 0.25 * t_diam, 0.5 * (hi - lo))
+        if best is None or c2 < best[1]:
+            best = (params, c2, ok, name)
+    if best is None:
+        raise ValueError(f"ppo_or_spot: no planet transits during the PPO of multi-transit {window.number}")
+    return best
+
+
 def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     """Compare a PPO and a spot crossing as the cause of every negative dip of a finished scan.
 
     For each dip (a Table 5 feature with Delta chi^2 < 0) the scan's window
     data are fitted by the no-PPO model plus a Gaussian bump
     A exp(-(t - t_c)^2 / (2 w^2)) (exposure-averaged; t_c inside a planet's
-    transit, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
+    transit and the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
     to half its duration; optimistix Levenberg-Marquardt from a grid of
     starts) and compared with the PPO model at the dip's alpha by
     BIC = chi^2 + k ln N (k = 1 for the PPO, 3 per window for the spot;
@@ -212,8 +258,11 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         [relative flux, d, d] and the crossing planet), and the totals
         ``delta_chi2`` and ``delta_bic`` of both models against no-PPO,
         ``n_points``, ``k`` and ``preferred`` ("no PPO", "PPO" or "spot":
-        the least BIC of the three); and ``figure`` (the PNG's absolute path,
-        if drawn).
+        the least BIC of the three), ``bic_margin`` (the runner-up's BIC
+        less the preferred one's, ~ 2 ln K) and ``evidence`` (its Kass &
+        Raftery 1995 category: below 2 the preference is
+        "not worth more than a bare mention"); and ``figure`` (the PNG's
+        absolute path, if drawn).
 
     Raises
     ------
@@ -260,12 +309,7 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
             w = windows[num]
             tm, nsub, null, ppo = _window_models(system, w, d["alpha"], d["case"])
             y, sig = np.asarray(w.flux), np.asarray(w.flux_err)
-            best = None
-            for name, lo, hi, depth, t_diam in _planet_transits(system, w):
-                params, c2, ok = _fit_bump(tm, nsub, y, sig, null, lo, hi, depth, 0.25 * t_diam, 0.5 * (hi - lo))
-                if best is None or c2 < best[1]:
-                    best = (params, c2, ok, name)
-            params, c2_spot, ok, planet = best
+            params, c2_spot, ok, planet = _best_bump(system, w, d, tm, nsub, y, sig, null)
             c2_none = float(np.sum(((y - null) / sig) ** 2))
             c2_ppo = float(np.sum(((y - ppo) / sig) ** 2))
             entry["windows"].append({"number": num, "mid": float(w.event.mid), "points": int(y.size),
@@ -288,11 +332,14 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
         # extra model explains better than its parameters cost is noise
         bic = {"no PPO": 0.0, "PPO": entry["delta_bic"]["ppo"], "spot": entry["delta_bic"]["spot"]}
         entry["preferred"] = min(bic, key=bic.get)
+        # how far ahead: Delta BIC to the runner-up, ~ 2 ln K (Kass & Raftery 1995)
+        entry["bic_margin"] = sorted(bic.values())[1] - bic[entry["preferred"]]
+        entry["evidence"] = _kass_raftery(entry["bic_margin"])
         entry["bic_spot_minus_ppo"] = entry["delta_bic"]["spot"] - entry["delta_bic"]["ppo"]
         rows.append(entry)
     summary = {
-        "method": ("no-PPO model + Gaussian bump (A, t_c, w per window; t_c inside a planet's transit, "
-                   "0 <= A <= its depth, w from 1/4 of its diameter-crossing time to half its duration), "
+        "method": ("no-PPO model + Gaussian bump (A, t_c, w per window; t_c inside a planet's transit and "
+                   "the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time to half its duration), "
                    "optimistix Levenberg-Marquardt; BIC = chi2 + k ln N with k = 1 (PPO: alpha), 3 per window (spot)"),
         "dips": rows,
     }

@@ -16,7 +16,7 @@ import numpy as np
 from ._cases import case_signs
 from ._system import System, require_keplerian
 
-__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "contact_frames", "ppo_table", "may_touch",
+__all__ = ["on_star", "pairs_in_contact", "untilted_geometry", "case_xy", "quiet_model", "no_ppo_model", "contact_frames", "ppo_table", "may_touch",
            "in_transit_mask"]
 
 
@@ -78,15 +78,43 @@ def quiet_model(system: System, t, case) -> np.ndarray:
     disk, in hemisphere case ``case``: the untilted planets' union (their
     own overlaps exact) and the tilted planet's one-disk deficit; what a
     scan's quiet alpha computes, also where the grid has none (the sum of
-    one-disk terms left out overlaps of two untilted planets)."""
+    one-disk terms left out overlaps of two untilted planets). Any star: a
+    spotted one gets each frame's time, and the tilted planet's dip is
+    taken from the star's own flux F_0(t) (union + F_tilted - F_0)."""
     from ._flux import occultation_flux
 
-    x, y, r = system.positions(np.asarray(t, float), 0.0, case, xp=np)
+    t = np.asarray(t, float)
+    x, y, r = system.positions(t, 0.0, case, xp=np)
     i = system.tilted
     r_untilted = np.array(r)
     r_untilted[..., i] = 0.0
-    own = np.asarray(occultation_flux(system.star, x[..., i:i + 1], y[..., i:i + 1], r[..., i:i + 1]))
-    return np.asarray(occultation_flux(system.star, x, y, r_untilted)) - (1.0 - own)
+    r_tilted = np.zeros_like(r_untilted)
+    r_tilted[..., i] = r[..., i]
+    kw = {"times": t} if getattr(system.star, "spots", None) is not None else {}
+
+    def flux(radii):
+        return np.asarray(occultation_flux(system.star, x, y, radii, **kw))
+
+    star = flux(np.zeros_like(r_untilted)) if kw or not system.star.symmetric else 1.0
+    return flux(r_untilted) + flux(r_tilted) - star
+
+
+def no_ppo_model(system: System, t, case) -> np.ndarray:
+    """The no-PPO light curve [time] at times ``t`` [d] in ``case``: each
+    disk's own dip (``sweep``'s ``no_overlap``) and, in the frames where two
+    untilted planets overlap each other (at every tilt), ``quiet_model``,
+    which counts that overlap once: the scan's ground level."""
+    from ._sweep import sweep
+
+    t = np.asarray(t, float)
+    out = np.array(sweep(system, t, np.zeros(1), cases=(case,), no_overlap=True)[0, 0])
+    x, y, r = system.positions(t, 0.0, case, xp=np)
+    r = np.array(r)
+    r[..., system.tilted] = 0.0
+    both = pairs_in_contact(x, y, r)
+    if both.any():
+        out[both] = quiet_model(system, t[both], case)
+    return out
 
 
 def contact_frames(system: System, t, alpha, cases, margin: float = 0.0, tilted_only: bool = False,

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..model._exposure import supersampled_times
 from ..model._processes import is_writer, on_writer, read_once
+from ..model._overlap import no_ppo_model
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._stats import plot_range
@@ -102,18 +103,19 @@ def _model(system, time, alphas, case, exposure, no_overlap: bool = False) -> np
     """[alpha, time] flux, averaged over the exposure [d] when given, by the
     rule of the scan's chi^2 (``LightCurve.supersampled_times``): the
     figures show the model whose chi^2 the scan reports. ``time`` in any
-    order, with repeats."""
+    order, with repeats. ``no_overlap``: the no-PPO model (``no_ppo_model``,
+    one row)."""
     # the model at the distinct times (sorted), then back in the order given; the times may be a fine grid for a
     # smooth curve, closer than the exposure (a LightCurve of data refuses that)
     distinct, back = np.unique(np.asarray(time, float), return_inverse=True)
     alphas = np.atleast_1d(np.asarray(alphas, float))
     tm, n = supersampled_times(distinct, exposure or None)
-    f = sweep(system, tm, alphas, cases=(case,), no_overlap=no_overlap)[0]
+    f = no_ppo_model(system, tm, case)[None] if no_overlap else sweep(system, tm, alphas, cases=(case,))[0]
     return f.reshape(alphas.size, distinct.size, n).mean(-1)[:, back.ravel()]
 
 
 def _null_models(system, times, case, exposures) -> list:
-    """The no-PPO model (alpha = 0, disks never overlapping) at each array
+    """The no-PPO model (``no_ppo_model``: no PPO of the tilted planet) at each array
     of ``times``, with its exposure of ``exposures``: one sweep per distinct
     exposure (one call of ``_model`` per array cost 30 ms each)."""
     out = [None] * len(times)

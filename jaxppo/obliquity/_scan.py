@@ -42,8 +42,8 @@ from ._summary import DeprecatedSummaryAccess
 from ._tables import table5_rows, write_table5
 from ._windows import ScanWindow, windows_and_events, windows_data
 from ..model._lightcurve import LightCurve
+from ..model._overlap import no_ppo_model
 from ..model._processes import is_writer, on_writer, process_info, read_once, share
-from ..model._sweep import sweep
 
 __all__ = ["scan", "run_scan", "ScanResult", "draw_figures", "start_figures", "scan_products", "with_summary",
            "write_summary", "figures_current", "PROGRESS"]
@@ -549,10 +549,10 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
     rows, table rows, summary per case)."""
     sysm = cfg.system
     tm, nsub = data.supersampled_times()
-    null = sweep(sysm, tm, np.zeros(1), cases=(cfg.cases[0],), no_overlap=True)[0, 0].reshape(-1, nsub).mean(-1)
-    chi2_null = float(np.sum(((data.flux - null) / data.flux_err) ** 2))
     rows, summary_cases, table, best = [], {}, [], np.inf
-    for case in cfg.cases:
+    for case in cfg.cases:  # untilted planets that overlap each other may do so in one case only
+        null = no_ppo_model(sysm, tm, case).reshape(-1, nsub).mean(-1)
+        chi2_null = float(np.sum(((data.flux - null) / data.flux_err) ** 2))
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
         best = min(best, float(np.min(chi2)))
         summ, dchi2, post = analyse_case(sysm, windows, data, cfg.alpha, chi2, case, step)

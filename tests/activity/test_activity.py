@@ -334,3 +334,103 @@ def test_ppo_or_spot_on_a_spotted_star_compares_the_right_models():
     for key in ("chi2_no_ppo", "chi2_ppo"):
         a, s = got[0]["windows"][0][key], got[1]["windows"][0][key]
         assert abs(a - s) < 1e-3 * a, (key, a, s)
+
+
+def _triple_with_untilted_overlap():
+    """b (tilted) with c and d, untilted, whose disks overlap each other in
+    the window (at t ~ -0.032 d): at every tilt, and at none of b's PPOs."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(period=3.7, t0=0.032, a=10.6, inc=87.7, radius=0.018, name="b")
+    c = jp.Planet(period=10.85, t0=0.0, a=22.76, inc=89.97, radius=0.029, name="c")
+    d = jp.Planet(period=25.0, t0=0.01, a=40.0, inc=89.98, radius=0.025, name="d")
+    return jp.System(star, [b, c, d])
+
+
+def test_ppo_or_spot_counts_two_untilted_planets_overlap_once():
+    """The no-PPO model is the scan's ground level: two untilted planets
+    that overlap each other (c and d here, in every tilt) are counted once.
+    It was the sum of each disk's own dip (sweep's no_overlap), which counts
+    their overlap twice (a 7e-4 dip that is not in the data): on data with
+    no PPO of b at all, a noise dip came out as a PPO by Delta chi^2 = -819
+    (Delta BIC -813), where the scan says -0.61. Truth: at a tilt where b
+    touches no disk the PPO model is the no-PPO model, Delta chi^2 = 0."""
+    from types import SimpleNamespace
+
+    from jaxppo.model._overlap import ppo_table
+
+    system = _triple_with_untilted_overlap()
+    t = np.arange(-0.2, 0.2, 1 / 1440)
+    x, y, r = (np.asarray(v) for v in system.positions(t))
+    assert np.sum(np.hypot(x[:, 1] - x[:, 2], y[:, 1] - y[:, 2]) < r[:, 1] + r[:, 2]) > 10  # c and d overlap
+    quiet = 200.0  # b's disk meets no other at this tilt (checked below)
+    assert not ppo_table(system, [t], [quiet], "same").any()
+    y = np.asarray(system.flux(t, quiet, "same", method="exact"))
+    y = y + 1e-4 * np.random.default_rng(2).standard_normal(t.size)
+    w = SimpleNamespace(number=1, time=t, flux=y, flux_err=np.full(t.size, 1e-4), exposure=None,
+                        event=SimpleNamespace(mid=0.0))
+    dip = {"kind": "dip", "case": "same", "alpha": quiet, "delta_chi2": -0.5, "transits": [1]}
+    got = jp.activity.ppo_or_spot(SimpleNamespace(windows=[w], summary={"table5": [dip]}), system)["dips"][0]
+    assert abs(got["delta_chi2"]["ppo"]) < 1e-6, got["delta_chi2"]
+    assert got["windows"][0]["chi2_no_ppo"] < 1.3 * t.size  # noise only: chi^2 ~ N
+    assert got["preferred"] == "no PPO"
+
+
+def test_ppo_or_spot_compares_the_spot_with_the_dips_own_feature():
+    """A real PPO (injected at alpha = 141 deg, same case) in a transit that
+    also holds a brighter, unrelated bump 1.3 h earlier (a spot crossed by
+    c at its mid-transit): the spot model used to fit that other bump (t_c
+    1017.790, Delta chi^2 -141 against the PPO's -19.9) and the verdict was
+    "spot" by Delta BIC -123, though the dip's feature is the PPO. The
+    spot's centre now lies in the span of the dip's PPO (its contacts), the
+    feature it would explain instead; the other bump is in every model's
+    residuals alike."""
+    from types import SimpleNamespace
+
+    from jaxppo.activity._ppo_or_spot import bump_model
+
+    system = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=1, noise=1e-4, alpha=141.0, case="same")
+    t = np.asarray(lc.time)
+    sel = np.abs(t - 1017.82) < 0.12
+    t = t[sel]
+    y = np.asarray(lc.flux)[sel] + np.asarray(bump_model(t, 5e-4, 1017.790, 0.002, np))
+    w = SimpleNamespace(number=4, time=t, flux=y, flux_err=np.full(t.size, 1e-4), exposure=None,
+                        event=SimpleNamespace(mid=1017.82))
+    dip = {"kind": "dip", "case": "same", "alpha": 141.0, "delta_chi2": -19.9, "transits": [4]}
+    got = jp.activity.ppo_or_spot(SimpleNamespace(windows=[w], summary={"table5": [dip]}), system)["dips"][0]
+    assert got["delta_chi2"]["ppo"] < -15
+    assert 1017.841 < got["windows"][0]["bump"]["centre"] < 1017.845  # the PPO's contacts: 1017.8418-1017.8439
+    assert got["preferred"] == "PPO", got["delta_bic"]
+
+
+def test_ppo_or_spot_rates_its_preference():
+    """The verdict named a preferred model however small its lead: a true
+    PPO at 2e-4 noise (seed 4) was "PPO" by Delta BIC 0.26 over no PPO,
+    with nothing saying that is no evidence. Now ``bic_margin`` (the
+    runner-up's BIC less the preferred one's) and ``evidence``, its Kass &
+    Raftery (1995) category: here a noise-free bump (very strong) and noise
+    alone, where the PPO of a one-planet system only pays its parameter
+    (margin ln N: positive)."""
+    import math
+    from types import SimpleNamespace
+
+    from jaxppo.activity._ppo_or_spot import _kass_raftery, bump_model
+
+    assert [_kass_raftery(v) for v in (0.26, 1.99, 2.0, 5.9, 6.0, 9.9, 10.0)] == [
+        "not worth more than a bare mention", "not worth more than a bare mention", "positive", "positive",
+        "strong", "strong", "very strong"]
+    pl = jp.Planet(period=3.0, t0=0.0, a=8.0, inc=89.0, radius=0.08, name="b")
+    system = jp.System(jp.Star.quadratic(0.4, 0.26), [pl])
+    t = np.linspace(-0.1, 0.1, 60)
+    base = np.asarray(system.flux(t, method="exact"))
+    win = SimpleNamespace(number=1, time=t, flux=base + np.asarray(bump_model(t, 8e-4, 0.01, 0.006)),
+                          flux_err=np.full(t.size, 1e-5), exposure=None, event=SimpleNamespace(mid=0.0))
+    res = SimpleNamespace(windows=[win], summary={"table5": [{"kind": "dip", "case": "same", "alpha": 10.0,
+                                                              "delta_chi2": -1.0, "transits": [1]}]})
+    loud = jp.activity.ppo_or_spot(res, system)["dips"][0]
+    assert loud["preferred"] == "spot" and loud["evidence"] == "very strong"
+    assert loud["bic_margin"] == pytest.approx(-loud["delta_bic"]["spot"])  # the runner-up: no PPO (0)
+    win.flux = base + np.random.default_rng(3).normal(0.0, 1e-5, t.size)
+    quiet = jp.activity.ppo_or_spot(res, system)["dips"][0]
+    assert quiet["preferred"] == "no PPO" and quiet["bic_margin"] == pytest.approx(math.log(60))
+    assert quiet["evidence"] == "positive"

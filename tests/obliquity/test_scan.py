@@ -1002,3 +1002,23 @@ def test_grid_check_does_not_withhold_a_near_even_split_for_its_side_of_50_perce
         if ok:
             assert c["jeffreys_on_grid"] == c["jeffreys_at_half_step"] == "barely worth mentioning"
             assert c["largest_shift"] < 0.005
+
+
+def test_chi2_null_model_counts_two_untilted_planets_overlap_once():
+    """summary cases[case]["chi2_null_model"] (the no-PPO model's chi^2) for
+    a triple whose untilted planets c and d overlap each other in the
+    window: it summed each disk's own dip, counting their overlap twice
+    (1266.05 on data simulated without any PPO of b, whose chi^2 is 447.69
+    for 438 points). Data without a PPO of b: the no-PPO model is the truth
+    and its chi^2 is the scan's ground level."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    b = jp.Planet(period=3.7, t0=0.032, a=10.6, inc=87.7, radius=0.018, name="b")
+    c = jp.Planet(period=10.85, t0=0.0, a=22.76, inc=89.97, radius=0.029, name="c")
+    d = jp.Planet(period=25.0, t0=0.01, a=40.0, inc=89.98, radius=0.025, name="d")
+    system = jp.System(star, [b, c, d])
+    t = np.arange(-0.2, 0.2, 1 / 1440)
+    lc = jp.simulate(system, t, noise=1e-4, seed=2)
+    res = jp.scan(system, lc, alpha=np.arange(0.0, 360.0, 2.0), detrend="none")
+    for case, v in res.summary["cases"].items():
+        assert v["chi2_null_model"] == pytest.approx(v["chi2_0"], rel=1e-9), case
+        assert v["chi2_null_model"] < 1.3 * res.summary["points"]
