@@ -177,7 +177,8 @@ def cmd_plot(args) -> int:
     config saved beside it (DIR/config.json, data paths resolved against the
     config's absolute folder): works from any working directory."""
     _enable_x64()
-    from jaxppo.obliquity._figures import finished_scan, scan_figures
+    from jaxppo.obliquity._config_files import finished_scan
+    from jaxppo.obliquity._figures import scan_figures
     from jaxppo.obliquity._windows import scan_windows
 
     out = Path(args.dir)

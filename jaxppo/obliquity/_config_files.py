@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 
 from ..model._phoenix import data_path, phoenix_star
+from ..model._processes import is_writer, read_once
 from ..model._star import Star
 
 __all__ = ["default_config_path", "config_inputs", "refuse_overwriting_inputs", "star_file_digest", "star_from_table", "star_table",
-           "out_folder", "out_file"]
+           "out_folder", "out_file", "finished_scan"]
 
 
 def default_config_path() -> Path:
@@ -156,3 +157,30 @@ def out_file(path, option="--out") -> Path:
         raise ValueError(f"{option} {out}: {parent} is a file, not a folder" if parent.exists() else
                          f"{option} {out}: the folder {parent} does not exist")
     return out
+
+
+def finished_scan(out) -> tuple:
+    """(config, summary, scan table) of the finished scan in ``out``, read
+    by process 0 (of several JAX processes; the others may run where that
+    folder does not exist): they rebuild them from its files, shared."""
+    import tempfile
+
+    from ._config import finished_scan_config
+    from ._figures import read_scan_csv
+
+    out = Path(out)
+    names = ("config.json", "summary.json", "scan.csv")
+    here = []
+
+    def read():  # process 0: its errors (no scan there, a changed config) stop every process
+        here.append((*finished_scan_config(out), read_scan_csv(out / "scan.csv")))
+        return {n: (out / n).read_text() if (out / n).exists() else None for n in names}
+
+    texts = read_once(read, out)
+    if is_writer():
+        return here[0]
+    with tempfile.TemporaryDirectory(prefix="jaxppo_plot_") as tmp:
+        for n, text in texts.items():
+            if text is not None:
+                (Path(tmp) / n).write_text(text)
+        return (*finished_scan_config(tmp), read_scan_csv(Path(tmp) / "scan.csv"))

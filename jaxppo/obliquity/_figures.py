@@ -25,14 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from ..model._exposure import supersampled_times
-from ..model._processes import is_writer, on_writer, read_once
+from ..model._processes import on_writer
 from ..model._overlap import no_ppo_model
 from ..model._sweep import sweep
 from ..model._cases import case_label, case_signs
 from ._stats import plot_range
 from ._tables import peaks_and_dips
 
-__all__ = ["scan_figures", "read_scan_csv", "finished_scan", "FIGURES"]
+__all__ = ["scan_figures", "read_scan_csv", "FIGURES"]
 
 _CASE_COLORS = ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")
 
@@ -58,32 +58,6 @@ def read_scan_csv(path) -> dict:
         sel = rows["case"] == case
         out[str(case)] = {k: np.asarray(rows[k][sel], float) for k in ("alpha", "chi2", "delta_chi2", "posterior")}
     return out
-
-
-def finished_scan(out) -> tuple:
-    """(config, summary, scan table) of the finished scan in ``out``, read
-    by process 0 (of several JAX processes; the others may run where that
-    folder does not exist): they rebuild them from its files, shared."""
-    import tempfile
-
-    from ._config import finished_scan_config
-
-    out = Path(out)
-    names = ("config.json", "summary.json", "scan.csv")
-    here = []
-
-    def read():  # process 0: its errors (no scan there, a changed config) stop every process
-        here.append((*finished_scan_config(out), read_scan_csv(out / "scan.csv")))
-        return {n: (out / n).read_text() if (out / n).exists() else None for n in names}
-
-    texts = read_once(read, out)
-    if is_writer():
-        return here[0]
-    with tempfile.TemporaryDirectory(prefix="jaxppo_plot_") as tmp:
-        for n, text in texts.items():
-            if text is not None:
-                (Path(tmp) / n).write_text(text)
-        return (*finished_scan_config(tmp), read_scan_csv(Path(tmp) / "scan.csv"))
 
 
 def _key(case) -> str:
