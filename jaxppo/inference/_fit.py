@@ -22,7 +22,7 @@ from ._lm import LM_STATUS, check_settings, lm_pass, secant_update, trust_region
 from ._minimum import DECREMENT, assess, chi2_at, newton_decrement, precompile
 from ._model import Model
 from ._ecc import off_circular
-from ._params import PERTURBER_PARAMS, as_lightcurve, inc_sign_matters, planet_value, star_value
+from ._params import PERTURBER_PARAMS, checked_lightcurve, inc_sign_matters, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["fit", "FitResult", "CONDITION_WARN"]
@@ -330,7 +330,7 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
             print(f"fit: {text} ({time.perf_counter() - clock:.1f} s)", file=sys.stderr, flush=True)
 
     check_settings(max_steps, rtol, atol)
-    lightcurve = as_lightcurve(lightcurve)
+    lightcurve = checked_lightcurve(lightcurve, "jaxppo.fit")
     model = Model(system, lightcurve, free, alpha, case, union_floor=128)
     system = off_circular(system, model.slots)  # a free (secosw, sesinw) never starts at e = 0
     theta = model.to_theta(system)

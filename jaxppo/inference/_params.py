@@ -32,12 +32,12 @@ import re
 import jax.numpy as jnp
 import numpy as np
 
-from ..model._lightcurve import LightCurve, is_lightkurve
+from ..model._lightcurve import LightCurve, cadence_warning, is_lightkurve
 from ..model._system import System
 from ..model._ttv import epochs_text
 from ._ecc import ECC_PARAMS, pair_of
 
-__all__ = ["PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "PERTURBER_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
+__all__ = ["checked_lightcurve", "PLANET_PARAMS", "MOON_PARAMS", "NBODY_PARAMS", "PERTURBER_PARAMS", "inc_sign_matters", "is_moon", "moon_label", "star_value", "STAR_PARAMS", "LC_PARAMS", "BASELINE_GAP", "kipping_u", "kipping_q", "logit",
            "check_ttv_free", "expand_tc", "is_tc", "planet_value", "tc_name", "as_lightcurve", "parameter_names", "expand_free", "is_trend", "jitter_start"]
 
 PLANET_PARAMS = ("t0", "period", "a", "inc", "radius")
@@ -250,6 +250,19 @@ def as_lightcurve(lightcurve) -> LightCurve:
     raise ValueError(f"lightcurve must be a jaxppo.LightCurve or a lightkurve LightCurve, got "
                      f"{type(lightcurve).__name__} (arrays and astropy Time/Quantity columns: "
                      "jaxppo.LightCurve(time, flux, flux_err) or LightCurve.from_arrays)")
+
+
+def checked_lightcurve(lightcurve, who: str) -> LightCurve:
+    """``as_lightcurve``, with a UserWarning naming ``who`` where its points
+    are more than 5 min apart without an exposure (``cadence_warning``;
+    once per light curve)."""
+    lc = as_lightcurve(lightcurve)
+    note = cadence_warning(lc)
+    if note is not None:
+        import warnings
+
+        warnings.warn(f"{who}: {note}", UserWarning, stacklevel=3)
+    return lc
 
 
 def parameter_names(system: System) -> list[str]:

@@ -47,6 +47,7 @@ from ._model import Model
 from ._ecc import off_circular
 from ._coords import Coordinates, default_priors, start_q, window_priors
 from ._start import find_mode, laplace_factor
+from ._params import checked_lightcurve
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
 __all__ = ["sample", "SampleResult"]
@@ -482,6 +483,7 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
     for name, v in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
         if int(v) < 1:
             raise ValueError(f"{name} must be >= 1, got {v}")
+    lightcurve = checked_lightcurve(lightcurve, "jaxppo.sample")
     # A posterior spreads further than a fit moves (grazing draws keep a
     # disk near the limb for long): compute the frames within 1 R* of the
     # star at the start, so that sampling again (below) is rarely needed.

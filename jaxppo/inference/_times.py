@@ -25,7 +25,7 @@ from ..model._transits import planet_label
 from ..model._units import from_quantity
 from ._fit import FitResult, fit
 from ._model import Model
-from ._params import as_lightcurve
+from ._params import checked_lightcurve
 
 __all__ = ["measure_transit_times", "linear_ephemeris", "TIMES_COLUMNS"]
 
@@ -349,7 +349,7 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     True
     """
     require_keplerian(system, "measure_transit_times")  # an N-body system makes its own times
-    lc = as_lightcurve(lightcurve)
+    lc = checked_lightcurve(lightcurve, "measure_transit_times")
     time = np.asarray(lc.time, float)
     if time.size == 0:
         raise ValueError("lightcurve has no points")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model._lightcurve import COLUMN_ROLES, LightCurve, is_lightkurve, quality_bitmask
+from ..model._lightcurve import COLUMN_ROLES, LightCurve, cadence_warning, is_lightkurve, quality_bitmask
 from ..model._phoenix import data_path
 from ..model._star import Star
 from ..model._cases import CASES, scan_cases
@@ -323,10 +323,9 @@ def _lightcurve_from(data: dict, base: Path, source: str) -> LightCurve:
             lc = dataclasses.replace(lc, exposure=exposure)
     except ValueError as e:
         raise _err(source, f"[data] {e}") from e
-    if instantaneous and lc.exposure is not None:
-        lc = dataclasses.replace(lc, exposure=None)  # a FITS file's TIMEDEL too
-    if not instantaneous:
-        _warn_instantaneous(lc, source)
+    if instantaneous:
+        lc = dataclasses.replace(lc, exposure=None, instantaneous=True)  # a FITS file's TIMEDEL too
+    _warn_instantaneous(lc, source)
     return lc
 
 
@@ -346,25 +345,19 @@ def _warn_exposure_override(parts, exposure, source: str) -> None:
                       "min; leave exposure out to use the file's", UserWarning, stacklevel=3)
 
 
-LONG_CADENCE = 5.0 / 1440.0
-"""Median spacing [d] above which data without an exposure get a warning:
-the model of such points must be averaged over their integration."""
-
-
 def _warn_instantaneous(lc: LightCurve, source: str) -> None:
-    """UserWarning when points spaced more than ``LONG_CADENCE`` apart have no
-    exposure: an instantaneous model of 29.4-min Kepler points differs from
-    the integrated one by far more than their noise in ingress and egress."""
-    if lc.exposure is not None or lc.time.size < 2:
-        return
-    spacing = float(np.median(np.diff(np.sort(lc.time))))
-    if spacing > LONG_CADENCE:
+    """UserWarning (``cadence_warning``) when points spaced more than
+    ``LONG_CADENCE`` apart have no exposure: an instantaneous model of
+    29.4-min Kepler points differs from the integrated one by far more than
+    their noise in ingress and egress."""
+    if cadence_warning(lc) is not None:  # (recorded in lc.report: the API does not say it again)
         import warnings
 
+        spacing = float(np.median(np.diff(lc.time)))
         warnings.warn(f"{source}: [data] exposure is not set, so every point is modelled at one instant, but the "
                       f"points are {spacing * 1440:.1f} min apart (median): if each integrates over that time (Kepler "
-                      "long cadence: exposure = 0.0204, 29.4 min), set [data] exposure = its length in days", UserWarning,
-                      stacklevel=3)
+                      "long cadence: exposure = 0.0204, 29.4 min), set [data] exposure = its length in days (0 if the "
+                      "points are instants)", UserWarning, stacklevel=3)
 
 
 def load_config(path: str | Path | None = None, alpha=None) -> ScanConfig:

@@ -254,8 +254,10 @@ def windows_lightcurve(cfg: ScanConfig) -> LightCurve:
     windows of neighbouring events kept once): the data as the scan sees
     them, e.g. for fitting real data with stellar variability."""
     wins = scan_windows(cfg)
-    return windows_data(wins, cfg.lightcurve.exposure,
-                        report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}"})
+    said = {k: v for k, v in cfg.lightcurve.report.items() if k == "exposure_note"}  # warned once, at loading
+    lc = windows_data(wins, cfg.lightcurve.exposure,
+                      report={"windows": f"{len(wins)} detrended multi-transit windows of {cfg.source}", **said})
+    return dataclasses.replace(lc, instantaneous=cfg.lightcurve.instantaneous)
 
 
 def windows_data(windows, exposure, report=None) -> LightCurve:

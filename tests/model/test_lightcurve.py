@@ -232,7 +232,7 @@ def test_exposure_quantity_is_stored_in_days():
     assert type(lc.exposure) is float and abs(lc.exposure - 30 / 1440) < 1e-15
     with pytest.raises(ValueError, match="exposure must be a time, got the Quantity"):
         jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=30 * u.m)
-    with pytest.raises(ValueError, match="exposure must be > 0 days"):
+    with pytest.raises(ValueError, match="exposure must be >= 0 days"):
         jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=-1 * u.min)
     with pytest.raises(ValueError, match="exposure must be one number of days"):
         jp.LightCurve(t, np.ones(5), np.full(5, 1e-3), exposure=[1, 2] * u.min)
