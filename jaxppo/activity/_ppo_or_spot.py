@@ -7,8 +7,11 @@ exposure) are fitted by two alternatives to the no-PPO model (each planet's
 own transit, two untilted planets' overlap counted once: the scan's ground
 level, ``no_ppo_model``):
 
-* **PPO**: the system at the dip's alpha and case (one extra parameter,
-  alpha; its chi^2 is the scan's, recomputed here on the window).
+* **PPO**: the system at the best alpha near the dip's, in its case (one
+  extra parameter, alpha, fitted: the scan's grid angle refined within one
+  grid step, ``refine_alpha``; at the grid angle itself a narrow PPO can be
+  missed by its width: a PPO injected at 141 deg, seen from 138 deg, came
+  out a "spot").
 * **spot**: the no-PPO model plus a Gaussian bump in time,
   A exp(-(t - t_c)^2 / (2 w^2)), averaged over each exposure like every
   model of the scan. Three parameters per window, constrained to what a
@@ -55,7 +58,8 @@ from ..model._exposure import exposure_mean, supersampled_times
 from ..model._processes import is_writer
 from ..model._programs import stored
 
-__all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model"]
+__all__ = ["ppo_or_spot", "plot_ppo_or_spot", "bump_model", "refine_alpha", "grid_step", "REFINE_POINTS",
+           "REFINE_ROUNDS"]
 
 
 def bump_model(t, amplitude, centre, width, xp=jnp):
@@ -88,6 +92,72 @@ def _window_models(system, window, alpha, case):
     return tm, nsub, np.asarray(null), np.asarray(ppo)
 
 
+# alphas per round of the refinement, and its rounds: each narrows the interval
+# by (REFINE_POINTS - 1) / 2, so three resolve a grid step to 1e-3 of itself
+REFINE_POINTS = 21
+REFINE_ROUNDS = 3
+
+
+def grid_step(result, dip) -> float:
+    """The scan's alpha step [deg] around ``dip``: ``summary["alpha"]["step"]``
+    where the summary has it, else the nearer of the dip's widths (``lower``,
+    ``upper``: each at least one step), else 0 (nothing to refine)."""
+    summary = getattr(result, "summary", result)
+    grid = summary.get("alpha") if hasattr(summary, "get") else None
+    if isinstance(grid, dict) and grid.get("step"):
+        return float(grid["step"])
+    widths = [float(dip[k]) for k in ("lower", "upper") if dip.get(k)]
+    return min(widths) if widths else 0.0
+
+
+def refine_alpha(system, windows, alpha: float, case: str, step: float) -> float:
+    """The alpha [deg, in [0, 360)] within ``step`` of ``alpha`` at which
+    the PPO model fits ``windows`` best: the sum over the windows of
+    chi^2(PPO at alpha) - chi^2(no PPO), on ``REFINE_POINTS`` angles across
+    the interval, then again across the two grid intervals around the best,
+    ``REFINE_ROUNDS`` times. Windows in which the tilted planet touches no
+    disk at any of a round's angles add nothing (their PPO model is the
+    no-PPO model). ``alpha`` itself where ``step`` is 0 or no angle does
+    better."""
+    from ..model._overlap import contact_frames, no_ppo_model
+    from ..model._sweep import sweep
+
+    if not step > 0:
+        return float(alpha)
+    parts = []
+    for w in windows:
+        tm, nsub = supersampled_times(w.time, w.exposure)
+        null = exposure_mean(np.asarray(no_ppo_model(system, tm, case)), nsub)
+        y, sig = np.asarray(w.flux, float), np.asarray(w.flux_err, float)
+        parts.append((tm, nsub, y, sig, np.sum(((y - null) / sig) ** 2)))
+    centre, half, best = float(alpha), float(step), (0.0, float(alpha))
+    for _ in range(REFINE_ROUNDS):
+        alphas = centre + np.linspace(-half, half, REFINE_POINTS)
+        total = np.zeros(REFINE_POINTS)
+        for tm, nsub, y, sig, c2_null in parts:
+            if not contact_frames(system, tm, alphas, (case,), tilted_only=True).any():
+                continue
+            ppo = exposure_mean(np.asarray(sweep(system, tm, alphas, cases=(case,))[0]), nsub)
+            total += np.sum(((y - ppo) / sig) ** 2, axis=-1) - c2_null
+        j = int(np.argmin(total))
+        if total[j] < best[0]:
+            best = (float(total[j]), float(alphas[j]))
+        centre, half = float(alphas[j]), 2.0 * half / (REFINE_POINTS - 1)
+    return float(np.mod(best[1], 360.0))
+
+
+def _ppo_windows(system, windows, dip, alpha) -> list:
+    """The numbers of the windows the verdict compares: the dip's PPO
+    transits and those in which the tilted planet touches another disk at
+    ``alpha`` (the refined angle may reach one more)."""
+    from ..model._overlap import contact_frames
+
+    extra = [w.number for w in windows
+             if contact_frames(system, supersampled_times(w.time, w.exposure)[0], [alpha], (dip["case"],),
+                               tilted_only=True).any()]
+    return sorted(set(dip["transits"]) | set(extra))
+
+
 @stored
 def _own_depth(star, planet, t):
     """1 - the flux of ``planet`` alone in front of ``star`` at t[0] [d]
@@ -116,7 +186,7 @@ def _fine_panel(system, dip, window, params, chi2s):
     grid of 300 times over the window (exposure-averaged as the fit)."""
     fine = SimpleNamespace(time=np.linspace(window.time.min(), window.time.max(), 300), flux=np.ones(300),
                            flux_err=np.ones(300), exposure=window.exposure)
-    tf, nf, null_f, ppo_f = _window_models(system, fine, dip["alpha"], dip["case"])
+    tf, nf, null_f, ppo_f = _window_models(system, fine, dip.get("alpha_ppo", dip["alpha"]), dip["case"])
     bump_f = exposure_mean(bump_model(tf, params["amplitude"], params["centre"], params["width"], np), nf)
     return (dip, window, fine.time, null_f, ppo_f, null_f + bump_f, *chi2s)
 
@@ -206,7 +276,7 @@ def _best_bump(system, window, dip, tm, nsub, y, sig, null):
     spot would explain instead; a bump elsewhere explains another one, which
     every model leaves alike); the whole transit where the PPO model has no
     contact in the window."""
-    span = _ppo_span(system, tm, dip["alpha"], dip["case"])
+    span = _ppo_span(system, tm, dip["alpha_ppo"], dip["case"])
     best = None
     for name, lo, hi, depth, t_diam in _planet_transits(system, window):
         c_lo, c_hi = (lo, hi) if span is None else (max(lo, span[0]), min(hi, span[1]))
@@ -228,7 +298,9 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     A exp(-(t - t_c)^2 / (2 w^2)) (exposure-averaged; t_c inside a planet's
     transit and the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time
     to half its duration; optimistix Levenberg-Marquardt from a grid of
-    starts) and compared with the PPO model at the dip's alpha by
+    starts) and compared with the PPO model at its best alpha within one
+    grid step of the dip's (``refine_alpha``; the step from the summary's
+    ``alpha``, else the dip's ``lower``/``upper``) by
     BIC = chi^2 + k ln N (k = 1 for the PPO, 3 per window for the spot;
     Mueller et al. 2021, Sect. 3.3.3 and Fig. 6). The bump fits any
     brightening inside a transit, so it is a generous alternative: a PPO
@@ -253,7 +325,10 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     -------
     dict
         Strict JSON: ``method`` (one line), ``dips``: per dip the case,
-        alpha [deg], the scan's Delta chi^2, the windows (number, points,
+        alpha [deg] (the scan's grid angle), ``alpha_ppo`` [deg] (the PPO
+        model's, refined), ``grid_step`` [deg] (0: not refined), the scan's
+        Delta chi^2, the windows (the dip's PPO transits and any the PPO
+        at ``alpha_ppo`` touches; number, points,
         chi2 of the no-PPO, PPO and spot models, the bump's parameters
         [relative flux, d, d] and the crossing planet), and the totals
         ``delta_chi2`` and ``delta_bic`` of both models against no-PPO,
@@ -301,13 +376,15 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     dips = [r for r in getattr(result, "summary", result)["table5"] if r["kind"] == "dip" and r["delta_chi2"] < 0]
     rows, panels = [], []
     for d in dips:
+        step = grid_step(result, d)
+        d = {**d, "alpha_ppo": refine_alpha(system, result.windows, d["alpha"], d["case"], step)}
         entry = {"case": d["case"], "paper_case": d.get("paper_case"), "alpha": d["alpha"],
-                 "scan_delta_chi2": d["delta_chi2"], "windows": []}
+                 "alpha_ppo": d["alpha_ppo"], "grid_step": step, "scan_delta_chi2": d["delta_chi2"], "windows": []}
         chi = {"none": 0.0, "ppo": 0.0, "spot": 0.0}
         n_pts = 0
-        for num in d["transits"]:
+        for num in _ppo_windows(system, result.windows, d, d["alpha_ppo"]):
             w = windows[num]
-            tm, nsub, null, ppo = _window_models(system, w, d["alpha"], d["case"])
+            tm, nsub, null, ppo = _window_models(system, w, d["alpha_ppo"], d["case"])
             y, sig = np.asarray(w.flux), np.asarray(w.flux_err)
             params, c2_spot, ok, planet = _best_bump(system, w, d, tm, nsub, y, sig, null)
             c2_none = float(np.sum(((y - null) / sig) ** 2))
@@ -340,7 +417,8 @@ def ppo_or_spot(result, system, out=None, figure: bool = True) -> dict:
     summary = {
         "method": ("no-PPO model + Gaussian bump (A, t_c, w per window; t_c inside a planet's transit and "
                    "the PPO's contacts, 0 <= A <= its depth, w from 1/4 of its diameter-crossing time to half its duration), "
-                   "optimistix Levenberg-Marquardt; BIC = chi2 + k ln N with k = 1 (PPO: alpha), 3 per window (spot)"),
+                   "optimistix Levenberg-Marquardt; PPO at the best alpha within one grid step of the dip's; "
+                   "BIC = chi2 + k ln N with k = 1 (PPO: alpha), 3 per window (spot)"),
         "dips": rows,
     }
     if out is not None and figure and panels:
@@ -399,7 +477,7 @@ def plot_ppo_or_spot(panels, path):
         x, xf = (np.asarray(w.time) - ref) * 24.0, (tf - ref) * 24.0
         ax.errorbar(x, w.flux, w.flux_err, fmt="o", ms=3, color="0.3", lw=0.8, label="data (detrended)")
         ax.plot(xf, null, color="k", lw=1.2, label=f"no PPO ($\\chi^2$ = {c0:.2f})")
-        ax.plot(xf, ppo, color="C3", lw=1.2, label=f"PPO, $\\alpha$ = {d['alpha']:g} deg ({c1:.2f})")
+        ax.plot(xf, ppo, color="C3", lw=1.2, label=f"PPO, $\\alpha$ = {d.get('alpha_ppo', d['alpha']):.4g} deg ({c1:.2f})")
         ax.plot(xf, spot, color="C0", lw=1.2, ls="--", label=f"spot crossing ({c2:.2f})")
         ax.set_title(f"case {d['case']}, dip at $\\alpha$ = {d['alpha']:g} deg "
                      f"($\\Delta\\chi^2$ = {d['delta_chi2']:.2f}), multi-transit {w.number} at BKJD {ref:.2f}",

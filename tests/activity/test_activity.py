@@ -434,3 +434,38 @@ def test_ppo_or_spot_rates_its_preference():
     quiet = jp.activity.ppo_or_spot(res, system)["dips"][0]
     assert quiet["preferred"] == "no PPO" and quiet["bic_margin"] == pytest.approx(math.log(60))
     assert quiet["evidence"] == "positive"
+
+
+def test_ppo_or_spot_fits_the_ppo_alpha_near_the_grid_angle():
+    """The PPO model was the system at the scan's grid angle, though its
+    BIC counts alpha as a fitted parameter: a real PPO (injected at 141
+    deg) seen from 138 deg (a 3-deg grid) came out "spot" (Delta chi^2 of
+    the PPO -2.1 against the spot's -19.6), and from 144 deg (6-deg grid)
+    "PPO" by a fraction of its margin. The PPO's alpha is now fitted within
+    one grid step of the dip (``alpha_ppo``): the same verdict from every
+    grid, and the grid angle where there is no step to go by."""
+    from types import SimpleNamespace
+
+    system = jp.kepler20_system()
+    lc = jp.simulate_kepler20(seed=1, noise=1e-4, alpha=141.0, case="same")
+    t = np.asarray(lc.time)
+    sel = np.abs(t - 1017.82) < 0.12
+    w = SimpleNamespace(number=4, time=t[sel], flux=np.asarray(lc.flux)[sel], flux_err=np.full(sel.sum(), 1e-4),
+                        exposure=None, event=SimpleNamespace(mid=1017.82))
+    got = {}
+    for alpha, step in ((138.0, 3.0), (144.0, 6.0), (141.0, 1.0)):
+        dip = {"kind": "dip", "case": "same", "alpha": alpha, "delta_chi2": -5.0, "transits": [4]}
+        res = SimpleNamespace(windows=[w], summary={"table5": [dip], "alpha": {"start": 0.0, "stop": 360.0,
+                                                                                "step": step}})
+        got[step] = jp.activity.ppo_or_spot(res, system)["dips"][0]
+        assert got[step]["preferred"] == "PPO" and got[step]["evidence"] == "very strong", got[step]["delta_bic"]
+        assert abs(got[step]["alpha_ppo"] - 141.0) < 1.0 and got[step]["alpha"] == alpha
+        assert got[step]["grid_step"] == step and got[step]["delta_chi2"]["ppo"] < -15
+    assert got[3.0]["delta_chi2"]["ppo"] == pytest.approx(got[1.0]["delta_chi2"]["ppo"], abs=0.05)
+    # the step from the dip's widths where the summary has no grid; none: the grid angle
+    from jaxppo.activity._ppo_or_spot import grid_step
+
+    assert grid_step({}, {"lower": 4.0, "upper": 2.0}) == 2.0 and grid_step({}, {}) == 0.0
+    dip = {"kind": "dip", "case": "same", "alpha": 138.0, "delta_chi2": -5.0, "transits": [4]}
+    bare = jp.activity.ppo_or_spot(SimpleNamespace(windows=[w], summary={"table5": [dip]}), system)["dips"][0]
+    assert bare["alpha_ppo"] == 138.0 and bare["grid_step"] == 0.0 and bare["preferred"] == "spot"
