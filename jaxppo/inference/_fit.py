@@ -508,11 +508,12 @@ def _fold_inc(model: Model, theta, cov_theta):
     tanh theta) made >= 0: i -> 180 deg - i, the identical light curve;
     not where the sign of cos i changes it (``inc_sign_matters``: N-body
     orbits, moons)."""
-    flip = np.array([-1.0 if par == "inc" and float(theta[k]) < 0 and not inc_sign_matters(model.system, owner)
+    theta = np.asarray(theta)  # on the host: indexing a device array is a program per index
+    flip = np.array([-1.0 if par == "inc" and theta[k] < 0 and not inc_sign_matters(model.system, owner)
                      else 1.0 for k, (owner, par) in enumerate(model.slots)])
     if cov_theta is not None:
         cov_theta = cov_theta * np.outer(flip, flip)
-    return jnp.asarray(theta) * jnp.asarray(flip), cov_theta
+    return jnp.asarray(theta * flip), cov_theta
 
 
 def _standard_errors(cov) -> np.ndarray:
