@@ -325,8 +325,10 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     -----
     UserWarning
         When the joint fit does not converge (``meta["success"]`` is then
-        False), or when a transit fits far worse than the median transit (a
-        time in a wrong minimum, or a transit the model does not describe).
+        False), when a transit fits far worse than the median transit (a
+        time in a wrong minimum, or a transit the model does not describe),
+        or when a chosen planet has no transit with ``min_points`` points in
+        the data (it gets no row).
 
     Examples
     --------
@@ -424,6 +426,12 @@ def _plan(system: System, lc, chosen, min_points: int, search):
         raise ValueError(f"no transit of planet(s) {labels} has {min_points} or more points between first and last "
                          f"contact in the data (times {time.min():.3f}-{time.max():.3f} d); check t0, period and the "
                          "time system (BKJD for Kepler, BTJD for TESS)")
+    if missing := [planet_label(system, i) for i in chosen if not found[i]]:
+        # a chosen planet left out of the table without a word (a t0 on another time scale, a wrong period)
+        warnings.warn(f"measure_transit_times: planet(s) {missing} have no transit with {min_points} or more points "
+                      f"between first and last contact in the data (times {time.min():.3f}-{time.max():.3f} d), so "
+                      "no time of theirs is measured; check t0, period and the time system if they should transit "
+                      "there", UserWarning, stacklevel=3)
     start = System(system.star, planets, system.tilted)
     pad = float(lc.exposure or 0.0)
     plan = []

@@ -101,28 +101,38 @@ def compare_times(measured, reference) -> dict:
     """Per planet, the measured times against reference times of the same
     epochs: z = (tc - tc_ref) / sqrt(tc_err^2 + tc_err_ref^2); returns
     {planet: {n, median_abs_z, within_1sigma, within_2sigma, max_abs_z,
-    chi2, median_diff_min}} (the median of tc - tc_ref [min]: a shift
-    common to every epoch shows there)."""
+    chi2, median_diff_min, err_ratio}} (the median of tc - tc_ref [min]: a
+    shift common to every epoch shows there; err_ratio the median of
+    tc_err_ref / tc_err: errors in minutes in a CSV, read as days, give
+    about 1440 and every z near 0). A planet without common epochs gets
+    {n: 0, reference_planets} (the reference's planet names)."""
     out = {}
     for planet in sorted(set(measured["planet"])):
         m = measured[measured["planet"] == planet]
         r = reference[reference["planet"] == planet]
         ref = {int(e): (float(t), float(s)) for e, t, s in zip(r["epoch"], r["tc"], r["tc_err"])}
-        z, diff = [], []
+        z, diff, ratio = [], [], []
         for e, t, s in zip(m["epoch"], m["tc"], m["tc_err"]):
             if int(e) in ref:
                 tr, sr = ref[int(e)]
                 diff.append(float(t) - tr)
                 z.append(diff[-1] / np.hypot(float(s), sr))
+                ratio.append(sr / float(s))
         z = np.asarray(z)
-        if not z.size:
-            out[planet] = {"n": 0}
+        if not z.size:  # e.g. planets named 1, 2, 3 there: said, not left out
+            out[planet] = {"n": 0, "reference_planets": sorted({str(v) for v in reference["planet"]})}
             continue
         out[planet] = {"n": int(z.size), "median_abs_z": float(np.median(np.abs(z))),
                        "within_1sigma": float(np.mean(np.abs(z) < 1)), "within_2sigma": float(np.mean(np.abs(z) < 2)),
                        "max_abs_z": float(np.max(np.abs(z))), "chi2": float(np.sum(z**2)),
-                       "median_diff_min": float(np.median(diff) * MINUTES)}
+                       "median_diff_min": float(np.median(diff) * MINUTES), "err_ratio": float(np.median(ratio))}
     return out
+
+
+#: The median ratio of a reference's errors to the measured ones above which
+#: ``summary_lines`` says that the reference's errors may be minutes read
+#: as days (a CSV carries no unit): 1440 then, and every z near 0.
+ERR_RATIO_SUSPECT = 100.0
 
 
 def plot_oc(measured, planet: str, path, references=None) -> dict:
@@ -233,5 +243,13 @@ def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
                 lines.append(f"    {planet}: {c['n']} epochs, median |z| {c['median_abs_z']:.2f}, "
                              f"{100 * c['within_1sigma']:.0f} % within 1 sigma, {100 * c['within_2sigma']:.0f} % "
                              f"within 2, max |z| {c['max_abs_z']:.2f} (median difference "
-                             f"{c['median_diff_min']:+.2f} min)")
+                             f"{c['median_diff_min']:+.2f} min, error ratio reference / measured "
+                             f"{c['err_ratio']:.2g})")
+                if c["err_ratio"] > ERR_RATIO_SUSPECT:
+                    lines.append(f"      warning: the reference's errors are {c['err_ratio']:.0f} times the measured "
+                                 "ones, so every z is near 0: errors in minutes read as days? (a CSV has no units: "
+                                 "give tc_err in days, or an ECSV with its unit)")
+            else:
+                lines.append(f"    {planet}: no epoch in common, nothing compared (the reference's planets: "
+                             f"{c.get('reference_planets', [])}; epochs count from each planet's t0)")
     return lines

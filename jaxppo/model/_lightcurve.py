@@ -682,12 +682,18 @@ class LightCurve:
         Raises
         ------
         ValueError
-            When a zero point is not "bkjd", "btjd" or a finite number, or the
-            current zero point is unknown.
+            When a zero point is not "bkjd", "btjd" or a finite number, the
+            current zero point is unknown, or ``current`` contradicts the
+            light curve's known ``time_zero``.
         """
         new, now = _zero_point(time_zero, "time_zero"), None
         if current is not None:
             now = _zero_point(current, "current")
+            if self.time_zero is not None and now != float(self.time_zero):
+                # a TESS file's BTJD declared BKJD: no shift, BTJD times labelled BKJD, every transit 2167 d off
+                raise ValueError(f"current = {current!r} (BJD_TDB - {_zero_name(now)}) contradicts the light "
+                                 f"curve's own zero point, BJD_TDB - {_zero_name(float(self.time_zero))} (read from "
+                                 "its file or set by an earlier shift); leave current out")
         elif self.time_zero is not None:
             now = float(self.time_zero)
         elif self.report.get("mission") in TIME_ZERO:

@@ -693,7 +693,23 @@ def check_reliable(system, reliability) -> None:
                      + "; ".join(why) + f". The system is unstable (its planets scatter: no N-body step gives "
                      f"meaningful transit times or fluxes), or the step dt = {system.dt:.4g} d is too large for "
                      f"these planets (planet-to-star mass ratios {ratios}): a stable system's energy error "
-                     f"falls as dt^2, so try dt / 4")
+                     f"falls as dt^2, so try dt / 4" + _mass_unit_hint(system))
+
+
+#: A planet-to-star mass ratio above which an N-body error adds that masses
+#: are in M_sun (a brown dwarf's is below 0.08; jnkepler's ``pmass``, Earth
+#: masses, read as M_sun gives 3 to 5 for Kepler-51).
+MASS_RATIO_HINT = 0.1
+
+
+def _mass_unit_hint(system) -> str:
+    """A sentence for N-body errors where a planet outweighs a tenth of its
+    star: masses in Earth or Jupiter masses given as M_sun."""
+    ratios = [float(p.mass) / float(system.star_mass) for p in system.planets]
+    if max(ratios) <= MASS_RATIO_HINT:
+        return ""
+    return (f". A planet above {MASS_RATIO_HINT:g} of its star's mass: mass is in M_sun (an Earth mass is 3.0e-6 "
+            "M_sun, a Jupiter mass 9.55e-4; a Quantity, mass=3.3 * u.M_earth, is converted)")
 
 
 def _check_finite(system, t, xyz) -> None:
@@ -708,7 +724,8 @@ def _check_finite(system, t, xyz) -> None:
                        for k, p in enumerate(system.planets))
     raise ValueError(f"the N-body integration diverged (non-finite positions; planet-to-star mass ratios {ratios}): "
                      "the system is unstable, or planets this heavy need a smaller dt than "
-                     f"{system.dt:.4g} d (the map assumes planets much lighter than the star)")
+                     f"{system.dt:.4g} d (the map assumes planets much lighter than the star)"
+                     + _mass_unit_hint(system))
 
 
 def system_positions(system, t, alpha, signs, xp):

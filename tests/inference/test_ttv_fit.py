@@ -438,3 +438,54 @@ def test_long_cadence_without_an_exposure_warns_in_the_api():
     both = jp.LightCurve.concatenate([jp.LightCurve(lc.time[:100], lc.flux[:100], lc.flux_err[:100], exposure=0),
                                       jp.LightCurve(lc.time[100:], lc.flux[100:], lc.flux_err[100:], exposure=0)])
     assert both.instantaneous and both.exposure is None
+
+
+def test_a_chosen_planet_without_transits_in_the_data_is_named():
+    """A chosen planet whose transits miss the data (here between the
+    data's windows; on the real Kepler-51 windows BKJD 158-385, a planet e
+    asked for with planets=["b", "e"]) got no row and no word: the table
+    and jaxppo ttv's summary went on as if it had never been asked for.
+    Now a UserWarning names it; with every chosen planet measured it stays
+    silent."""
+    import warnings
+
+    b = jp.Planet(period=10.0, t0=100.0, a=20.0, inc=89.5, radius=0.08, name="b")
+    e = jp.Planet(period=37.0, t0=105.0, a=45.0, inc=89.8, radius=0.05, name="e")  # between b's windows
+    system = jp.System(jp.Star.quadratic(0.4, 0.25), [b, e])
+    t = np.concatenate([np.arange(100.0 + n * 10.0 - 0.3, 100.0 + n * 10.0 + 0.3, 2 / 1440) for n in range(3)])
+    lc = jp.simulate(system, t, noise=8e-4, seed=5)
+    for planets in (["b", "e"], None):
+        with pytest.warns(UserWarning, match=r"planet\(s\) \['e'\] have no transit with 3 or more points"):
+            table = jp.measure_transit_times(system, lc, planets=planets)
+        assert list(table["planet"]) == ["b", "b", "b"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.measure_transit_times(system, lc, planets=["b"])
+
+
+def test_a_reference_that_compares_nothing_or_in_minutes_is_said(tmp_path):
+    """Two slips with real Kepler-51 references (Holczer et al. 2016's
+    times against jaxppo's): the catalogue's planets 1, 2, 3 kept as its
+    names compared no epoch, and jaxppo ttv printed the reference's heading
+    with nothing under it; its errors in minutes written to a CSV (no
+    unit: read as days) gave max |z| 0.0025, "100 % within 1 sigma", for
+    d's times 2.8 min off at 1.2 min errors (|z| up to 2.3). Now a planet
+    without common epochs is said, with the reference's planet names, and
+    reference errors over 100 times the measured ones are flagged."""
+    from astropy.table import Table
+
+    from jaxppo.inference._times_report import compare_times, read_times, summary_lines
+
+    measured = Table({"planet": ["d"] * 3, "epoch": [0, 1, 2], "tc": [212.0246, 342.2070, 472.3914],
+                      "tc_err": [0.0008] * 3})
+    (tmp_path / "idx.csv").write_text("planet,epoch,tc,tc_err\n3,0,212.0265,0.0007\n3,1,342.2090,0.0007\n")
+    (tmp_path / "min.csv").write_text("planet,epoch,tc,tc_err\nd,0,212.0265,1.0\nd,1,342.2090,1.0\n")
+    (tmp_path / "ok.csv").write_text("planet,epoch,tc,tc_err\nd,0,212.0265,0.0007\nd,1,342.2090,0.0007\n")
+    summary = {"fit": {"chi2": 1.0, "n_points": 10, "reduced_chi2": 1.0}, "planets": {},
+               "reference": {f: compare_times(measured, read_times(tmp_path / f)) for f in ("idx.csv", "min.csv",
+                                                                                          "ok.csv")}}
+    assert summary["reference"]["min.csv"]["d"]["err_ratio"] == pytest.approx(1250.0)
+    text = "\n".join(summary_lines(summary, 3, 1.0))
+    assert "d: no epoch in common, nothing compared (the reference's planets: ['3']" in text
+    assert text.count("warning: the reference's errors are 1250 times the measured ones") == 1
+    assert "error ratio reference / measured 0.88)" in text  # ok.csv: no warning

@@ -653,3 +653,29 @@ def test_csv_errors_of_another_flux_column_warn(tmp_path):
         warnings.simplefilter("error")
         lc = jp.LightCurve.from_csv(tmp_path / "a.csv", columns={"flux": "pdcsap_flux"})  # its own errors: quiet
         np.testing.assert_allclose(lc.flux_err, 30.0 / np.median(raw))
+
+
+def test_a_current_zero_point_against_the_files_own_is_refused():
+    """The REAL TESS sector-14 light curve of Kepler-51 (BTJD, from its
+    header) given to_time_zero("bkjd", current="bkjd") was shifted by +0.0
+    d and labelled BKJD: its BTJD times 1683-1710 sat beside Kepler's BKJD
+    as if on one scale (d's transit 2167 d from where the label says), and
+    concatenate took the label. A current that contradicts the light
+    curve's own time_zero is now refused naming both; where the zero point
+    is unknown, current still declares it, and agreeing is fine."""
+    from pathlib import Path
+
+    import jaxppo as jp
+
+    fits = Path(jp.__file__).parent / "data" / "kepler51" / "tess2019198215352-s0014-0000000027846348-0150-s_lc.fits"
+    tess = jp.LightCurve.from_fits(fits)
+    assert tess.time_zero == 2457000.0
+    with pytest.raises(ValueError, match=r"current = 'bkjd' \(BJD_TDB - 2454833.0 \(BKJD\)\) contradicts the light "
+                                         r"curve's own zero point, BJD_TDB - 2457000.0 \(BTJD\)"):
+        tess.to_time_zero("bkjd", current="bkjd")
+    bk = tess.to_time_zero("bkjd", current="btjd")
+    assert np.array_equal(bk.time, tess.time + 2167.0)
+    with pytest.raises(ValueError, match="contradicts"):
+        bk.to_time_zero("btjd", current="btjd")  # it counts from BKJD now
+    csv = jp.LightCurve(np.array([1689.0, 1690.0]), np.ones(2), np.full(2, 1e-3))
+    assert csv.to_time_zero("bkjd", current="bkjd").time_zero == 2454833.0

@@ -413,6 +413,31 @@ def test_a_diverging_integration_is_an_error_naming_the_masses():
         system.transit_times(0.0, 200.0)
 
 
+def test_masses_in_earth_masses_given_as_m_sun_are_named():
+    """jnkepler's Kepler-51 elements (the pdict file) carry ``pmass`` in Earth masses beside ``mass``, the
+    mass ratio; pmass (3.30, 4.08, 5.32) given as mass [M_sun] made the map diverge, and the error said
+    only "unstable, or planets this heavy need a smaller dt": a user halves dt. The error now adds that
+    mass is in M_sun (with an Earth mass in M_sun); the Quantity in Earth masses gives jnkepler's times."""
+    import astropy.units as u
+
+    pmass = K51_MASS * 332946.0487  # Earth masses per M_sun: the file's pmass
+    np.testing.assert_allclose(pmass, [3.3009236, 4.0750068, 5.3214538], rtol=1e-6)
+    wrong = _kepler51_system()
+    wrong = wrong.replace(planets=[p.replace(mass=float(m)) for p, m in zip(wrong.planets, pmass)])
+    with pytest.raises(ValueError, match=r"b: 3\.3, c: 4\.08, d: 5\.32.*mass is in M_sun \(an Earth mass is 3\.0e-6"):
+        wrong.transit_times(155.0, 400.0)
+    right = _kepler51_system()
+    right = right.replace(planets=[p.replace(mass=float(m) * u.M_earth) for p, m in zip(right.planets, pmass)])
+    tc = right.transit_times(155.0, 260.0)
+    np.testing.assert_allclose(tc["tc"][:2], [159.11026746, 204.26401001], atol=2e-5)  # the pdict's tc file
+    with pytest.raises(ValueError) as caught:  # planets below 0.1 of their star (0.09, 0.05): no unit hint
+        jp.System(jp.Star.quadratic(0.4, 0.2),
+                  [jp.Planet(period=10.0, t0=0.0, a=None, inc=89.5, radius=0.1, mass=0.09, name="b"),
+                   jp.Planet(period=10.5, t0=3.0, a=None, inc=89.5, radius=0.1, mass=0.05, name="c")],
+                  orbits="nbody", epoch=0.0, star_mass=1.0, star_radius=1.0).transit_times(0.0, 300.0)
+    assert "mass is in M_sun" not in str(caught.value)
+
+
 def test_a_scattering_system_is_an_error_not_meaningless_transit_times():
     """Two Jupiter-mass planets at 45 and 50 d scatter (b out to 180-290 R*, c in to 22 R*): transit_times
     over 155-3000 d returned 126 transits that changed by tens of days with the step, and no error (the
