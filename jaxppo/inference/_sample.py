@@ -452,8 +452,9 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         parameter that is not free or an inclination, gives a distribution
         that is not a scalar numpyro distribution, or one whose support
         excludes the start; a planet with a free inclination does not
-        transit at the start; or the log-likelihood at the start is not
-        finite.
+        transit at the start; the light curve's flux has a median outside
+        (0.5, 2) (not relative flux); ``alpha`` is not one finite angle; or
+        the log-likelihood at the start is not finite.
 
     Warns
     -----
