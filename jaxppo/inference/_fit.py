@@ -310,8 +310,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         single transit): the posterior is then far from Gaussian and
         ``jaxppo.sample`` gives the errors. Also, without a free
         "lc.jitter", when chi^2 / (N - k) is above 1.25 with a chi^2
-        p-value below 1e-3: the errors, which take flux_err as given, are
-        then too small by about its square root.
+        p-value below 1e-3, or below 0.2 as unlikely: the errors, which
+        take flux_err as given, are then off by about its square root.
 
     Examples
     --------
@@ -574,20 +574,26 @@ def _warn_if_degenerate(free, verdict) -> None:
 def _warn_if_misfit(chi2: float, dof: int) -> None:
     """The UserWarning of ``fit`` when chi^2 / (N - k) says flux_err
     understates the scatter (above 1.25 with a chi^2 p-value below 1e-3,
-    the rule of ``measure_transit_times`` and the scan): the errors, which
-    take flux_err as given, are then too small by about its square root,
-    whatever ``success`` says."""
-    from scipy.special import chdtrc
+    the rule of ``measure_transit_times`` and the scan) or overstates it
+    many times (below 0.2, as unlikely: flux_err of other units): the
+    errors, which take flux_err as given, are then off by about its square
+    root, whatever ``success`` says."""
+    from scipy.special import chdtr, chdtrc
 
     if not np.isfinite(chi2) or dof < 1:
         return
     red = chi2 / dof
     if red > 1.25 and chdtrc(dof, chi2) < 1e-3:
-        warnings.warn(
-            f"jaxppo.fit: chi^2 / (N - k) = {red:.3g} with N - k = {dof}: the model does not fit the data within "
-            f"flux_err, and the errors, which take flux_err as given, are too small by about a factor "
-            f"{np.sqrt(red):.3g}; free 'lc.jitter' (flux_err too small), 'lc.offset' or 'lc.baseline' (a flux level "
-            "that is not 1 or a trend), or rescale flux_err", UserWarning, stacklevel=3)
+        why = (f"the model does not fit the data within flux_err, and the errors, which take flux_err as given, are "
+               f"too small by about a factor {np.sqrt(red):.3g}; free 'lc.jitter' (flux_err too small), 'lc.offset' "
+               "or 'lc.baseline' (a flux level that is not 1 or a trend), or rescale flux_err")
+    elif red < 0.2 and chdtr(dof, chi2) < 1e-3:
+        why = (f"flux_err overstates the scatter about the model, and the errors, which take flux_err as given, are "
+               f"too large by about a factor {1.0 / np.sqrt(red):.3g}; check flux_err's units (relative flux) or "
+               "rescale it")
+    else:
+        return
+    warnings.warn(f"jaxppo.fit: chi^2 / (N - k) = {red:.3g} with N - k = {dof}: {why}", UserWarning, stacklevel=3)
 
 
 def _transit_problems(model: Model, system: System) -> list:

@@ -475,6 +475,9 @@ def test_fit_warns_where_chi2_says_the_errors_are_off():
     with pytest.warns(UserWarning, match=r"chi\^2 / \(N - k\) = 7\.[0-9]+ .*too small by about a factor 2\.[0-9]"):
         res = jp.fit(start, lc, free=("b.t0", "b.radius"))
     assert res.success and res.reduced_chi2 > 7
+    start, lc = _one_transit(err_scale=10.0)  # flux_err 10x too large: so are the errors
+    with pytest.warns(UserWarning, match=r"chi\^2 / \(N - k\) = 0\.00[0-9]+ .*too large by about a factor 1[01]\."):
+        jp.fit(start, lc, free=("b.t0", "b.radius"))
     start, lc = _one_transit()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
