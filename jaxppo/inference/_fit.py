@@ -25,7 +25,7 @@ from ._ecc import off_circular
 from ._params import PERTURBER_PARAMS, checked_lightcurve, inc_sign_matters, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
-__all__ = ["fit", "FitResult", "CONDITION_WARN"]
+__all__ = ["fit", "FitResult", "CONDITION_WARN", "misfit_note"]
 
 # fit warns when the condition number of the scaled Fisher matrix exceeds
 # this: some combination of the free parameters is 1e3 times less determined
@@ -571,17 +571,30 @@ def _warn_if_degenerate(free, verdict) -> None:
             "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=3)
 
 
-def _warn_if_misfit(chi2: float, dof: int) -> None:
-    """The UserWarning of ``fit`` when chi^2 / (N - k) says flux_err
-    understates the scatter (above 1.25 with a chi^2 p-value below 1e-3,
-    the rule of ``measure_transit_times`` and the scan) or overstates it
-    many times (below 0.2, as unlikely: flux_err of other units): the
-    errors, which take flux_err as given, are then off by about its square
-    root, whatever ``success`` says."""
+def misfit_note(chi2: float, dof: int) -> "str | None":
+    """What chi^2 / (N - k) says of flux_err, or None: it understates the
+    scatter (above 1.25 with a chi^2 p-value below 1e-3, the rule of
+    ``measure_transit_times`` and the scan) or overstates it many times
+    (below 0.2, as unlikely: flux_err of other units); the errors of
+    ``fit`` and the widths of ``sample``, which take flux_err as given, are
+    then off by about its square root, whatever ``success`` says.
+
+    Parameters
+    ----------
+    chi2 : float
+        chi^2 of the data at the best fit (or the posterior mode).
+    dof : int
+        N - k: data points less free parameters.
+
+    Returns
+    -------
+    str or None
+        One sentence with the factor and the remedies, or None.
+    """
     from scipy.special import chdtr, chdtrc
 
     if not np.isfinite(chi2) or dof < 1:
-        return
+        return None
     red = chi2 / dof
     if red > 1.25 and chdtrc(dof, chi2) < 1e-3:
         why = (f"the model does not fit the data within flux_err, and the errors, which take flux_err as given, are "
@@ -592,8 +605,15 @@ def _warn_if_misfit(chi2: float, dof: int) -> None:
                f"too large by about a factor {1.0 / np.sqrt(red):.3g}; check flux_err's units (relative flux) or "
                "rescale it")
     else:
-        return
-    warnings.warn(f"jaxppo.fit: chi^2 / (N - k) = {red:.3g} with N - k = {dof}: {why}", UserWarning, stacklevel=3)
+        return None
+    return f"chi^2 / (N - k) = {red:.3g} with N - k = {dof}: {why}"
+
+
+def _warn_if_misfit(chi2: float, dof: int) -> None:
+    """The UserWarning of ``fit`` where ``misfit_note`` has something to say."""
+    note = misfit_note(chi2, dof)
+    if note is not None:
+        warnings.warn(f"jaxppo.fit: {note}", UserWarning, stacklevel=3)
 
 
 def _transit_problems(model: Model, system: System) -> list:
