@@ -25,7 +25,7 @@ from ._ecc import off_circular
 from ._params import PERTURBER_PARAMS, checked_lightcurve, inc_sign_matters, planet_value, star_value
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
-__all__ = ["fit", "FitResult", "CONDITION_WARN"]
+__all__ = ["fit", "FitResult", "CONDITION_WARN", "misfit_note"]
 
 # fit warns when the condition number of the scaled Fisher matrix exceeds
 # this: some combination of the free parameters is 1e3 times less determined
@@ -294,8 +294,11 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         When a name in ``free`` is unknown or names a parameter twice (or
         names degenerate pairs, such as "lc.offset" with "lc.baseline", or
         u1/u2 with q1/q2), ``lightcurve`` is neither a jaxppo nor a
-        lightkurve LightCurve, ``max_steps`` is not a whole number >= 0, or
-        ``rtol`` or ``atol`` is not finite and >= 0.
+        lightkurve LightCurve, its flux's median is outside (0.5, 2) (not
+        relative flux: ppt, electrons, deviations from 1), ``alpha`` is not
+        one finite angle, ``max_steps`` is
+        not a whole number >= 0, or ``rtol`` or ``atol`` is not finite and
+        >= 0.
 
     Warns
     -----
@@ -305,7 +308,10 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
         1 sigma along a principal axis of the covariance differs from
         chi^2_min + 1 by more than a factor 4 (e.g. a and inc of a grazing or
         single transit): the posterior is then far from Gaussian and
-        ``jaxppo.sample`` gives the errors.
+        ``jaxppo.sample`` gives the errors. Also, without a free
+        "lc.jitter", when chi^2 / (N - k) is above 1.25 with a chi^2
+        p-value below 1e-3, or below 0.2 as unlikely: the errors, which
+        take flux_err as given, are then off by about its square root.
 
     Examples
     --------
@@ -366,6 +372,8 @@ def fit(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), alpha
                    "the errors)")
     _warn_if_degenerate(model.free, verdict)
     chi2_data = float(np.sum(verdict["residuals"][:n] ** 2)) if verdict["residuals"] is not None else np.nan
+    if "lc.jitter" not in model.free:
+        _warn_if_misfit(chi2_data, n - k)
     say("done")
     return FitResult(model.result_system(theta, solved), verdict["chi2"], cov, ok, message, tuple(model.free),
                      values, errors, chi2_data / (n - k), steps, model.union_idx, derived,
@@ -562,6 +570,51 @@ def _warn_if_degenerate(free, verdict) -> None:
             f"jaxppo.fit: the linearised covariance of {list(free)} is degenerate or ill-conditioned ("
             + "; ".join(why) + "): the errors and correlations from the curvature are not reliable (e.g. a and inc "
             "of a grazing or single transit); jaxppo.sample gives the posterior", UserWarning, stacklevel=3)
+
+
+def misfit_note(chi2: float, dof: int) -> "str | None":
+    """What chi^2 / (N - k) says of flux_err, or None: it understates the
+    scatter (above 1.25 with a chi^2 p-value below 1e-3, the rule of
+    ``measure_transit_times`` and the scan) or overstates it many times
+    (below 0.2, as unlikely: flux_err of other units); the errors of
+    ``fit`` and the widths of ``sample``, which take flux_err as given, are
+    then off by about its square root, whatever ``success`` says.
+
+    Parameters
+    ----------
+    chi2 : float
+        chi^2 of the data at the best fit (or the posterior mode).
+    dof : int
+        N - k: data points less free parameters.
+
+    Returns
+    -------
+    str or None
+        One sentence with the factor and the remedies, or None.
+    """
+    from scipy.special import chdtr, chdtrc
+
+    if not np.isfinite(chi2) or dof < 1:
+        return None
+    red = chi2 / dof
+    if red > 1.25 and chdtrc(dof, chi2) < 1e-3:
+        why = (f"the model does not fit the data within flux_err, and the errors, which take flux_err as given, are "
+               f"too small by about a factor {np.sqrt(red):.3g}; free 'lc.jitter' (flux_err too small), 'lc.offset' "
+               "or 'lc.baseline' (a flux level that is not 1 or a trend), or rescale flux_err")
+    elif red < 0.2 and chdtr(dof, chi2) < 1e-3:
+        why = (f"flux_err overstates the scatter about the model, and the errors, which take flux_err as given, are "
+               f"too large by about a factor {1.0 / np.sqrt(red):.3g}; check flux_err's units (relative flux) or "
+               "rescale it")
+    else:
+        return None
+    return f"chi^2 / (N - k) = {red:.3g} with N - k = {dof}: {why}"
+
+
+def _warn_if_misfit(chi2: float, dof: int) -> None:
+    """The UserWarning of ``fit`` where ``misfit_note`` has something to say."""
+    note = misfit_note(chi2, dof)
+    if note is not None:
+        warnings.warn(f"jaxppo.fit: {note}", UserWarning, stacklevel=3)
 
 
 def _transit_problems(model: Model, system: System) -> list:

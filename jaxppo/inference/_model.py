@@ -21,6 +21,7 @@ from ..model._overlap import on_star, pairs_in_contact
 from ..model._planet import Planet
 from ..model._programs import stored
 from ..model._system import System
+from ..model._units import from_quantity
 from ._ecc import ECC_PARAMS, conjunction_factor, e_omega, ecc_cap, pair_from_theta, pair_of, periastron_ok, theta_from_pair
 from ._params import (as_lightcurve, expand_free, is_moon, is_tc, is_trend, jitter_start, kipping_q, kipping_u,
                       logit, planet_value, star_value)
@@ -110,6 +111,9 @@ class Model(eqx.Module):
             raise ValueError(f"active_margin must be a finite distance >= 0 [R*], got {active_margin!r}")
         if int(union_floor) != union_floor or union_floor < 0:
             raise ValueError(f"union_floor must be an integer >= 0, got {union_floor!r}")
+        alpha = from_quantity("alpha", alpha, "deg")  # one tilt: NaN read as "no planet transits" before
+        if not isinstance(alpha, jax.core.Tracer) and (np.ndim(alpha) != 0 or not np.isfinite(alpha)):
+            raise ValueError(f"alpha must be one finite angle [deg], got {alpha!r}")
         lc = as_lightcurve(lc)
         self.user_span = system.span  # results get it back (``result_system``)
         if system.orbits == "nbody" and system.span is None:

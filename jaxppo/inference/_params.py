@@ -255,8 +255,16 @@ def as_lightcurve(lightcurve) -> LightCurve:
 def checked_lightcurve(lightcurve, who: str) -> LightCurve:
     """``as_lightcurve``, with a UserWarning naming ``who`` where its points
     are more than 5 min apart without an exposure (``cadence_warning``;
-    once per light curve)."""
+    once per light curve); a ValueError where the flux's median is outside
+    (0.5, 2): not relative flux (ppt, percent, electrons, or deviations
+    from 1), which the model (1 = the star unocculted) cannot fit."""
     lc = as_lightcurve(lightcurve)
+    level = float(np.median(lc.flux))
+    if not 0.5 < level < 2.0:
+        raise ValueError(
+            f"{who}: the light curve's flux has median {level:.6g}, but the model is relative flux (1 = the star "
+            "unocculted; docs/conventions.md): flux in ppt, percent or electrons, or deviations from 1, must be "
+            "normalised first (divide flux and flux_err by the out-of-transit level, e.g. LightCurve.normalized)")
     note = cadence_warning(lc)
     if note is not None:
         import warnings

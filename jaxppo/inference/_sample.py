@@ -47,6 +47,7 @@ from ._model import Model
 from ._ecc import off_circular
 from ._coords import Coordinates, default_priors, start_q, window_priors
 from ._start import find_mode, laplace_factor
+from ._fit import misfit_note
 from ._params import checked_lightcurve
 from ._serialise import from_jsonable, system_from_dict, system_to_dict, to_jsonable
 
@@ -166,8 +167,10 @@ class SampleResult:
         tail ESS below ``ess_per_chain`` per chain (Vehtari et al. 2021:
         1.01 and 100), divergent transitions, a posterior against a bound
         of its default prior window (``start["prior_bound"]``), an
-        optimiser that did not find the mode, and draws that reached frames
-        the model did not compute.
+        optimiser that did not find the mode, chi^2 / (N - k) at the mode
+        that says flux_err under- or overstates the scatter
+        (``start["misfit"]``, ``jaxppo.inference._fit.misfit_note``), and
+        draws that reached frames the model did not compute.
 
         Parameters
         ----------
@@ -198,6 +201,8 @@ class SampleResult:
         if self.start.get("prior_bound"):
             out.append(f"posterior against its default prior window for {list(self.start['prior_bound'])}: the "
                        "window, not the data, sets that edge; start nearer the solution (jp.fit) or give priors")
+        if self.start.get("misfit"):
+            out.append(f"at the posterior mode {self.start['misfit']}")
         if self.start.get("converged") is False:
             out.append(f"the optimiser did not find the posterior mode ({self.start.get('message', '')})")
         if self.start.get("frames_complete") is False:
@@ -452,8 +457,9 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
         parameter that is not free or an inclination, gives a distribution
         that is not a scalar numpyro distribution, or one whose support
         excludes the start; a planet with a free inclination does not
-        transit at the start; or the log-likelihood at the start is not
-        finite.
+        transit at the start; the light curve's flux has a median outside
+        (0.5, 2) (not relative flux); ``alpha`` is not one finite angle; or
+        the log-likelihood at the start is not finite.
 
     Warns
     -----
@@ -516,6 +522,8 @@ def sample(system: System, lightcurve: LightCurve, free=("b.t0", "b.radius"), nu
                       "those draws' likelihoods are short of the planets' transits there; check the posterior's "
                       "tails (grazing orbits) or narrow the priors", UserWarning, stacklevel=2)
     result.start["prior_bound"] = _against_windows(model, priors, result)
+    if start.get("misfit"):
+        warnings.warn(f"sample: at the posterior mode {start['misfit']}", UserWarning, stacklevel=2)
     if start["converged"] is False:
         warnings.warn(f"sample: the optimiser did not find the posterior mode from the given system ({start['message']});"
                       " the chains started there with the Laplace metric of that point: check R-hat, or start closer "
@@ -597,7 +605,11 @@ def _start_point(model: Model, q0, user, fold, optimise):
     prior_sd = coords.prior_widths(u0)
     if optimise:
         u0, chol, ok, why = find_mode(potential_u, jacobian_u, u0, prior_sd)
-        return np.asarray(u0), chol, {"optimised": True, "converged": bool(ok), "message": why}
+        # chi^2 at the mode: flux_err that under- or overstates the scatter scales every width
+        r = np.asarray(model.residuals(model.theta_from(coords.to_q(jnp.asarray(u0)))))[:model.y.size]
+        chi2 = float(np.sum(r**2))
+        note = None if "lc.jitter" in model.free else misfit_note(chi2, model.y.size - len(model.free))
+        return np.asarray(u0), chol, {"optimised": True, "converged": bool(ok), "message": why, "misfit": note}
     return np.asarray(u0), laplace_factor(jacobian_u, u0, prior_sd), {
         "optimised": False, "converged": None, "message": "started at the given system"}
 

@@ -380,7 +380,9 @@ def measure_transit_times(system: System, lightcurve, planets=None, *, free=(), 
     theta = _grid_start(model, slot_idx, search_of, int(grid), windows)
     theta = _joint_grid(model, theta, slot_idx, names, search_of, int(grid), windows, lc, alpha, case)
     say("joint fit of every time" + (f" and {list(free)}" if free else ""))
-    result = fit(model.to_system(theta), lc, free=tuple(names) + free, alpha=alpha, case=case, progress=progress)
+    with warnings.catch_warnings():  # chi^2 / (N - k): said once, below, in terms of tc_err
+        warnings.filterwarnings("ignore", message=r"jaxppo\.fit: chi\^2 / \(N - k\)")
+        result = fit(model.to_system(theta), lc, free=tuple(names) + free, alpha=alpha, case=case, progress=progress)
     if not result.success:
         warnings.warn(f"measure_transit_times: the fit did not converge ({result.message}); the times are where "
                       "it stopped and their errors may be wrong", UserWarning, stacklevel=2)

@@ -117,6 +117,9 @@ class LightCurve:
     def __post_init__(self):
         if is_lightkurve(self.time):
             raise ValueError("a lightkurve LightCurve goes through LightCurve.from_lightkurve(lc)")
+        if self.flux_err is None:
+            raise ValueError("flux_err must be given (one error per point); LightCurve.from_arrays(time, flux) "
+                             "estimates it from the point-to-point scatter")
         t, note, zero = to_days(self.time, self.time_zero)
         if self.time_zero is None and zero is not None:
             object.__setattr__(self, "time_zero", zero)  # an astropy Time's BKJD / BTJD

@@ -53,6 +53,15 @@ def _check_finite(name: str, value) -> None:
         raise ValueError(f"{name} must be finite, got {value!r}")
 
 
+def _check_coefficient(name: str, value) -> None:
+    """``_check_finite`` for one limb-darkening coefficient, which must be
+    one number (a Star holds one profile)."""
+    _check_finite(name, value)
+    if not isinstance(value, jax.core.Tracer) and np.ndim(value) != 0:
+        raise ValueError(f"{name} must be one number (a Star holds one profile), got shape {np.shape(value)}: "
+                         f"{value!r}")
+
+
 def _is_traced(*values) -> bool:
     return any(isinstance(v, jax.core.Tracer) for v in values)
 
@@ -425,8 +434,8 @@ class Star(eqx.Module):
         >>> print(f"{float(star.intensity(0.0)):.4f} {float(star.total_flux):.6f}")
         0.3500 2.591814
         """
-        _check_finite("u1", u1)
-        _check_finite("u2", u2)
+        _check_coefficient("u1", u1)
+        _check_coefficient("u2", u2)
         star = cls(law="quadratic", params=jnp.stack([jnp.asarray(u1, float), jnp.asarray(u2, float)]))
         return _check_profile(star, f"u1={_plain(u1)}, u2={_plain(u2)}")
 
@@ -467,7 +476,7 @@ class Star(eqx.Module):
         0.3000 2.615002
         """
         for name, v in zip(("c1", "c2", "c3", "c4"), (c1, c2, c3, c4)):
-            _check_finite(name, v)
+            _check_coefficient(name, v)
         star = cls(law="nonlinear", params=jnp.stack([jnp.asarray(v, float) for v in (c1, c2, c3, c4)]))
         return _check_profile(star, f"c1={_plain(c1)}, c2={_plain(c2)}, c3={_plain(c3)}, c4={_plain(c4)}")
 
@@ -510,11 +519,12 @@ class Star(eqx.Module):
         >>> print(f"{float(star.intensity(0.0)):.4f} {float(star.total_flux):.6f}")
         0.4000 2.706603
         """
-        _check_finite("c", c)
+        _check_coefficient("c", c)
         _check_finite("alpha", alpha)
         # any concrete value (Python or numpy scalar, 0-d array) is checked
         if not _is_traced(alpha) and np.any(np.asarray(alpha, dtype=float) <= 0):
             raise ValueError(f"power-2 exponent alpha must be > 0, got {alpha!r}")
+        _check_coefficient("alpha", alpha)
         star = cls(law="power2", params=jnp.stack([jnp.asarray(c, float), jnp.asarray(alpha, float)]))
         return _check_profile(star, f"c={_plain(c)}, alpha={_plain(alpha)}")
 

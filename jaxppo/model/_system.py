@@ -152,6 +152,11 @@ class System(eqx.Module):
         for i, pl in enumerate(planets):
             if not isinstance(pl, Planet):
                 raise ValueError(f"planets[{i}] must be a jaxppo.Planet, got {type(pl).__name__}")
+            for field in ("period", "t0", "a", "inc", "radius", "e", "omega", "lnode", "mass"):
+                value = getattr(pl, field)  # one orbit per planet: an array broadcast against the times
+                if not isinstance(value, jax.core.Tracer) and np.ndim(value) != 0:
+                    raise ValueError(f"planet {pl.name or i!r}: {field} must be one number in a System, got shape "
+                                     f"{np.shape(value)}: {np.asarray(value)!r} (one Planet per orbit)")
         names = [pl.name for pl in planets if pl.name]
         if len(names) != len(set(names)):
             raise ValueError(f"planet names must be unique, got {names}")

@@ -441,3 +441,56 @@ def test_fit_model_keeps_an_eccentric_orbit():
     res = jp.fit(truth, lc, free=("b.t0", "b.radius"))
     assert res.success, res.message
     assert abs(res.values[0]) < 1e-6 and abs(res.values[1] - 0.1) < 1e-6
+
+
+def _one_transit(flux_scale=1.0, err_scale=1.0):
+    """A simulated transit (radius 0.1, noise 1e-3, 200 points) and a start
+    off in t0 and radius."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    lc = jp.simulate(truth, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    lc = jp.LightCurve(lc.time, lc.flux * flux_scale, lc.flux_err * flux_scale * err_scale)
+    start = jp.System(star, [jp.Planet(period=3.0, t0=0.003, a=10.0, inc=89.0, radius=0.09, name="b")])
+    return start, lc
+
+
+@pytest.mark.parametrize("scale", [1e3, 1e2, 2e5])
+def test_fit_refuses_flux_that_is_not_relative(scale):
+    """Flux in ppt, percent or electrons (median 1000, 100, 2e5) used to end
+    in "failed: Levenberg-Marquardt stopped: no step lowers chi^2" with
+    a = 5e12 R*; it is refused by name, with its median, before fitting."""
+    start, lc = _one_transit(flux_scale=scale)
+    with pytest.raises(ValueError, match=r"flux has median .*relative flux"):
+        jp.fit(start, lc, free=("b.t0", "b.radius"))
+    deviations = jp.LightCurve(lc.time, lc.flux / scale - 1.0, lc.flux_err / scale)
+    with pytest.raises(ValueError, match="normalised first"):
+        jp.fit(start, deviations, free=("b.t0", "b.radius"))
+
+
+def test_fit_warns_where_chi2_says_the_errors_are_off():
+    """flux_err 3 times too small: success True, chi^2 / (N - k) ~ 9 and
+    errors 3 times too small, and fit said nothing; it now warns with the
+    factor. With the right errors it stays silent."""
+    start, lc = _one_transit(err_scale=1.0 / 3.0)
+    with pytest.warns(UserWarning, match=r"chi\^2 / \(N - k\) = 7\.[0-9]+ .*too small by about a factor 2\.[0-9]"):
+        res = jp.fit(start, lc, free=("b.t0", "b.radius"))
+    assert res.success and res.reduced_chi2 > 7
+    start, lc = _one_transit(err_scale=10.0)  # flux_err 10x too large: so are the errors
+    with pytest.warns(UserWarning, match=r"chi\^2 / \(N - k\) = 0\.00[0-9]+ .*too large by about a factor 1[01]\."):
+        jp.fit(start, lc, free=("b.t0", "b.radius"))
+    start, lc = _one_transit()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jp.fit(start, lc, free=("b.t0", "b.radius"))
+
+
+@pytest.mark.parametrize("alpha, match", [(np.nan, "alpha must be one finite angle"),
+                                          (np.inf, "alpha must be one finite angle"),
+                                          ([10.0, 20.0], "alpha must be one finite angle")])
+def test_fit_refuses_an_alpha_that_is_not_one_finite_angle(alpha, match):
+    """alpha=NaN gave success False with "planet b does not transit in the
+    data at the start (impact parameter 0.37 ...)" (System.flux refuses it
+    by name), and a list of two tilts a numpy broadcasting error."""
+    start, lc = _one_transit()
+    with pytest.raises(ValueError, match=match):
+        jp.fit(start, lc, free=("b.t0", "b.radius"), alpha=alpha)

@@ -442,3 +442,17 @@ def test_sample_never_keeps_draws_scored_on_frames_it_did_not_compute(monkeypatc
     monkeypatch.setattr(smp, "_wider", real)
     res = jp.sample(truth, lc, free=("b.radius",), num_warmup=20, num_samples=10, num_chains=1, progress_bar=False)
     assert res.start["frames_complete"] is True
+
+
+def test_sample_says_where_chi2_at_the_mode_says_flux_err_is_off():
+    """flux_err 3 times too small: the posterior is 3 times too narrow and
+    sample said nothing (fit now warns); the mode's chi^2 / (N - k) is a
+    UserWarning and a line of problems()."""
+    star = jp.Star.quadratic(0.4, 0.25)
+    truth = jp.System(star, [jp.Planet(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.1, name="b")])
+    lc = jp.simulate(truth, np.linspace(-0.15, 0.15, 200), noise=1e-3, seed=1)
+    lc = jp.LightCurve(lc.time, lc.flux, lc.flux_err / 3.0)
+    with pytest.warns(UserWarning, match=r"sample: at the posterior mode chi\^2 / \(N - k\) = 7\.[0-9]+ .*too small"):
+        res = jp.sample(truth, lc, free=("b.t0", "b.radius"), num_warmup=30, num_samples=30, num_chains=1,
+                        progress_bar=False)
+    assert any("too small by about a factor 2." in p for p in res.problems())

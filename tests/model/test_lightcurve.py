@@ -306,6 +306,14 @@ def test_bad_lightcurves(tmp_path):
         jp.LightCurve.from_csv(tmp_path / "none.csv")
 
 
+def test_missing_flux_err_is_named():
+    """LightCurve(time, flux, None) raised "AttributeError: 'NoneType'
+    object has no attribute 'shape'"; it now says flux_err is needed and
+    where errors are estimated."""
+    with pytest.raises(ValueError, match=r"flux_err must be given .*from_arrays"):
+        jp.LightCurve([1.0, 2.0], [1.0, 1.0], None)
+
+
 def _write(path, header, cols, gz=False):
     import gzip
 

@@ -126,6 +126,20 @@ def test_table_short_of_the_limb_is_refused_unless_padded():
     # PHOENIX tables: tests/model/test_phoenix.py (test_grid_short_of_mu_0_loads_with_every_limb_method)
 
 
+@pytest.mark.parametrize("make, match", [
+    (lambda: jp.Star.quadratic(np.array([0.4, 0.5]), 0.2), r"u1 must be one number .*shape \(2,\)"),
+    (lambda: jp.Star.quadratic(0.4, [0.2, 0.3]), r"u2 must be one number"),
+    (lambda: jp.Star.nonlinear(0.1, 0.2, np.zeros(3), 0.1), r"c3 must be one number"),
+    (lambda: jp.Star.power2(np.array([0.6]), 0.5), r"c must be one number"),
+])
+def test_coefficient_arrays_are_refused_by_name(make, match):
+    """Star.quadratic(np.array([0.4, 0.5]), 0.2) raised numpy's "Cannot
+    stack arrays with different numbers of dimensions", and two arrays of
+    one length a broadcasting error deep in the total flux."""
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
 def test_unknown_law():
     with pytest.raises(ValueError, match="unknown limb-darkening law 'squareroot'"):
         jp.Star.from_law("squareroot", [0.1, 0.2])

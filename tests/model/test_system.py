@@ -214,6 +214,18 @@ def test_bad_system_inputs(system):
         jp.multi_transits(system, 10.0, 5.0)
 
 
+@pytest.mark.parametrize("field, value", [("e", np.array([0.1, 0.2])), ("a", np.array([10.0, 11.0])),
+                                          ("radius", [0.05])])
+def test_system_refuses_a_planet_with_array_parameters(field, value):
+    """Planet(e=np.array([0.1, 0.2])) is accepted (a Planet's parameters may
+    be arrays), but System.flux then raised "TypeError: add got incompatible
+    shapes for broadcasting: (200,), (2,)" and fit "Cannot stack arrays";
+    the System now refuses it, naming the planet, parameter and value."""
+    pl = jp.Planet(**{**dict(period=3.0, t0=0.0, a=10.0, inc=89.0, radius=0.05, name="b"), field: value})
+    with pytest.raises(ValueError, match=rf"planet 'b': {field} must be one number in a System, got shape"):
+        jp.System(jp.Star.quadratic(0.4, 0.2), [pl])
+
+
 def test_flux_bad_alpha_and_t_name_the_parameter(system):
     """Issue 16 item 9: the message names alpha (it said "x must be finite")."""
     with pytest.raises(ValueError, match=r"alpha must be finite .*nan"):
