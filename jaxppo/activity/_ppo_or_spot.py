@@ -83,13 +83,20 @@ def _window_models(system, window, alpha, case):
     on one scan window. The no-PPO model is the scan's ground level
     (``no_ppo_model``: the tilted planet touches no disk, two untilted
     planets that overlap each other are counted once, as at every tilt)."""
-    from ..model._overlap import no_ppo_model
     from ..model._sweep import sweep
 
-    tm, nsub = supersampled_times(window.time, window.exposure)
-    null = exposure_mean(no_ppo_model(system, tm, case), nsub)
+    tm, nsub, null = _null_model(system, window, case)
     ppo = exposure_mean(sweep(system, tm, np.array([float(alpha)]), cases=(case,))[0, 0], nsub)
-    return tm, nsub, np.asarray(null), np.asarray(ppo)
+    return tm, nsub, null, np.asarray(ppo)
+
+
+def _null_model(system, window, case):
+    """(supersampled times, sub-exposures per point, the no-PPO model
+    exposure-averaged) of one scan window."""
+    from ..model._overlap import no_ppo_model
+
+    tm, nsub = supersampled_times(window.time, window.exposure)
+    return tm, nsub, np.asarray(exposure_mean(no_ppo_model(system, tm, case), nsub))
 
 
 # alphas per round of the refinement, and its rounds: each narrows the interval
@@ -119,15 +126,14 @@ def refine_alpha(system, windows, alpha: float, case: str, step: float) -> float
     disk at any of a round's angles add nothing (their PPO model is the
     no-PPO model). ``alpha`` itself where ``step`` is 0 or no angle does
     better."""
-    from ..model._overlap import contact_frames, no_ppo_model
+    from ..model._overlap import contact_frames
     from ..model._sweep import sweep
 
     if not step > 0:
         return float(alpha)
     parts = []
     for w in windows:
-        tm, nsub = supersampled_times(w.time, w.exposure)
-        null = exposure_mean(np.asarray(no_ppo_model(system, tm, case)), nsub)
+        tm, nsub, null = _null_model(system, w, case)
         y, sig = np.asarray(w.flux, float), np.asarray(w.flux_err, float)
         parts.append((tm, nsub, y, sig, np.sum(((y - null) / sig) ** 2)))
     centre, half, best = float(alpha), float(step), (0.0, float(alpha))
