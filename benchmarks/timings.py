@@ -85,6 +85,21 @@ def _stages(env: dict) -> list:
             ("... Figs. 4 and 6 (drawing process) beside the PPO-or-spot fits and the other figures (this one)", products, "")]
 
 
+def _versions() -> str:
+    """The versions of the libraries whose import and compilation the
+    timings include (ml_dtypes 0.7.0 alone added 0.6 s to every import of
+    jax: pyproject.toml caps it)."""
+    from importlib import metadata
+
+    out = []
+    for name in ("jax", "jaxlib", "numpy", "ml_dtypes", "equinox", "numpyro", "matplotlib"):
+        try:
+            out.append(f"{name} {metadata.version(name)}")
+        except metadata.PackageNotFoundError:
+            out.append(f"{name} none")
+    return ", ".join(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=str(ROOT / "docs" / "timings.md"))
@@ -132,6 +147,7 @@ def main() -> None:
              "(`PYTHONDONTWRITEBYTECODE` is dropped from the commands' environment).", "",
              f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
              f"{platform.python_version()}; {now}; load average at the end {load[0]:.2f}.", "",
+             f"Versions: {_versions()}.", "",
              "| what | seconds | note |", "|---|---:|---|"]
     lines += [f"| {w} | {s:.1f} | {n} |" for w, s, n in rows]
     lines += ["", "Timings on this 2-core machine vary by about +-30 % from run to run."]

@@ -401,7 +401,7 @@ class _Stored:
             except (OSError, TypeError):  # no file (python -c, a notebook): never stored
                 self._name = None
         self._loaded = {}
-        self._pending = {}  # key: the Future of a program ``precompile`` compiles
+        self._pending = {}  # key: (the Future of a program ``precompile`` compiles or reads, whether it reads it)
         functools.update_wrapper(self, fn)
 
     def __getattr__(self, name):  # lower, trace, eval_shape, ... of the jitted function
@@ -458,18 +458,19 @@ class _Stored:
         compiled = self._loaded.get(key)
         if compiled is not None:
             return compiled(*inputs)
-        pending = self._pending.pop(key, None)
-        if pending is not None:  # compiled by ``precompile``'s thread (the same key: the same program)
+        pending, from_file = self._pending.pop(key, (None, False))
+        if pending is not None:  # compiled or read by ``precompile``'s thread (the same key: the same program)
             try:
                 compiled = pending.result()
             except Exception:  # noqa: BLE001 - compiled again below, where the error shows as jit's
                 compiled = None
-            if compiled is not None:
+            if compiled is not None and not from_file:
                 self._loaded[key] = compiled
                 return compiled(*inputs)
         if not _unchanged():
             return self._jit(*args, **kwargs)
-        compiled, from_file = self._load_or_compile(folder, key, inputs, structure, statics)
+        if compiled is None:
+            compiled, from_file = self._load_or_compile(folder, key, inputs, structure, statics)
         if not from_file:
             self._loaded[key] = compiled
             return compiled(*inputs)
@@ -490,24 +491,29 @@ class _Stored:
         thread of its own, traced and lowered here: XLA's compilation runs
         without Python's lock, beside what this thread does next (the
         fit's Levenberg-Marquardt program traces while its minimum check's
-        program compiles). The call with those shapes takes that program
-        (waiting for it if need be). Nothing happens where the store is
-        off or cannot serve the call, or the program is loaded, pending or
-        in the store already (loading it costs little)."""
+        program compiles). Where the store holds the program, the thread
+        reads it instead (deserializing runs without Python's lock too:
+        0.1 s of a new process's fit, beside the loading of its
+        Levenberg-Marquardt program); the call then runs it once before
+        trusting it, as any program read from the store. The call with
+        those shapes takes that program (waiting for it if need be).
+        Nothing happens where the store is off or cannot serve the call,
+        or the program is loaded or pending already."""
         plan = self._plan(args, kwargs)
         if plan is None:
             return
         key, folder, inputs, structure, statics = plan
         path = folder / f"{key}.exe"
-        if key in self._loaded or key in self._pending or path.exists() or not _unchanged():
+        if key in self._loaded or key in self._pending or not _unchanged():
             return
-        lowered = self._lower(key, inputs, structure, statics)
+        from_file = path.exists()
+        lowered = None if from_file else self._lower(key, inputs, structure, statics)
         pending = concurrent.futures.Future()
-        self._pending[key] = pending
+        self._pending[key] = (pending, from_file)
 
         def work():
             try:
-                pending.set_result(self._finish(folder, path, lowered)[0])
+                pending.set_result(_read(path) if from_file else self._finish(folder, path, lowered)[0])
             except BaseException as err:  # noqa: BLE001 - the call compiles it again
                 pending.set_exception(err)
 
@@ -565,25 +571,10 @@ class _Stored:
         """(the program of ``key``, whether it was read from the store): read
         from the store, else compiled (and written there). A file that does
         not load is compiled again."""
-        from jax.experimental import serialize_executable as se
-
         path = folder / f"{key}.exe"
-        try:
-            with open(path, "rb") as fh:
-                blob = fh.read()
-            head, digest, body = blob[:len(_FORMAT)], blob[len(_FORMAT):len(_FORMAT) + 32], blob[len(_FORMAT) + 32:]
-            if head != _FORMAT or hashlib.sha256(body).digest() != digest:
-                raise ValueError("not a stored program, or a damaged one")  # never handed to the loader
-            targets, payload, in_tree, out_tree = pickle.loads(body)
-            if targets:
-                _prepare_lapack()
-            compiled = se.deserialize_and_load(payload, in_tree, out_tree)
-            counts["loaded"] += 1
+        compiled = _read(path)
+        if compiled is not None:
             return compiled, True
-        except FileNotFoundError:
-            pass
-        except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again
-            pass
         return self._finish(folder, path, self._lower(key, inputs, structure, statics))
 
     def _lower(self, key: str, inputs, structure, statics):
@@ -624,6 +615,41 @@ class _Stored:
             return compiled, False
         _write(folder, path, blob)
         return compiled, False
+
+
+def _read(path: Path):
+    """The program stored at ``path``, deserialized (LAPACK loaded into the
+    process meanwhile where it calls LAPACK: ``_prepare_lapack``, 0.1 s,
+    beside the 0.3 s of deserializing the fit's Levenberg-Marquardt
+    program, which runs without Python's lock); None where there is none,
+    or the file is damaged or foreign (then compiled again)."""
+    from jax.experimental import serialize_executable as se
+
+    try:
+        with open(path, "rb") as fh:
+            blob = fh.read()
+        head, digest, body = blob[:len(_FORMAT)], blob[len(_FORMAT):len(_FORMAT) + 32], blob[len(_FORMAT) + 32:]
+        if head != _FORMAT or hashlib.sha256(body).digest() != digest:
+            raise ValueError("not a stored program, or a damaged one")  # never handed to the loader
+        targets, payload, in_tree, out_tree = pickle.loads(body)
+        if targets and _prepare_lapack.cache_info().currsize == 0:
+            # LAPACK before the program runs (not before it loads): both at once
+            loading = _loader().submit(se.deserialize_and_load, payload, in_tree, out_tree)
+            _prepare_lapack()
+            compiled = loading.result()
+        else:
+            compiled = se.deserialize_and_load(payload, in_tree, out_tree)
+    except Exception:  # noqa: BLE001 - none, a damaged or a foreign file: compile again
+        return None
+    with _lock:
+        counts["loaded"] += 1
+    return compiled
+
+
+@functools.lru_cache(maxsize=None)
+def _loader() -> concurrent.futures.ThreadPoolExecutor:
+    """The thread that deserializes a program while ``_read``'s loads LAPACK."""
+    return concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="jaxppo-load")
 
 
 def threads() -> int:

@@ -426,8 +426,9 @@ def test_precompile_compiles_in_a_thread_and_the_call_takes_that_program(store):
     """``precompile`` compiles the program of a call's shapes beside the
     caller (in a thread of its own): the call with those shapes runs that
     program (one compilation in all, jit's numbers, one file); a call of
-    other shapes compiles its own; a program already loaded or stored is
-    not compiled again; with the store off nothing happens."""
+    other shapes compiles its own; a program already loaded is not
+    compiled again, one in the store is read in the thread (and run by the
+    call); with the store off nothing happens."""
     moment = _programs._Stored(_moment.__wrapped__, ("power",))
     x = jnp.linspace(0.0, 1.0, 7)
     before = counts["compiled"]
@@ -439,15 +440,40 @@ def test_precompile_compiles_in_a_thread_and_the_call_takes_that_program(store):
     assert len(list(store.glob("*.exe"))) == 1
     moment.precompile(x, 5.0, power=3)  # loaded in memory: the same program
     fresh = _programs._Stored(_moment.__wrapped__, ("power",))
-    fresh.precompile(x, 2.0, power=3)  # in the store: loaded by the call
-    assert not moment._pending and not fresh._pending and counts["compiled"] - before == 1
+    loaded = counts["loaded"]
+    fresh.precompile(x, 2.0, power=3)  # in the store: read in the thread, run by the call
+    assert not moment._pending and list(fresh._pending.values())[0][1] is True
     assert float(fresh(x, 2.0, power=3)) == float(out)
+    assert not fresh._pending and counts["compiled"] - before == 1 and counts["loaded"] == loaded + 1
     moment.precompile(x, 2.0, power=2)  # another static value: another program
     assert float(moment(x, 2.0, power=2)) == pytest.approx(float(jnp.sum((2.0 * x) ** 2)), rel=1e-15)
     assert counts["compiled"] - before == 2
     set_store(None)
     moment.precompile(x[:3], 2.0, power=3)
     assert not moment._pending
+
+
+def test_a_program_precompile_read_that_does_not_run_is_removed(store, monkeypatch):
+    """A program ``precompile`` read from the store runs once in the call
+    before it is trusted, as one the call reads itself: where it fails,
+    it is removed and the call answered by the jitted path."""
+    x = jnp.arange(4.0)
+    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
+    (path,) = store.glob("*.exe")
+
+    def broken(*args, **kwargs):
+        def run(*inputs):
+            raise jax.errors.JaxRuntimeError("NOT_FOUND: Function fusion not found")
+        return run
+
+    from jax.experimental import serialize_executable
+
+    monkeypatch.setattr(serialize_executable, "deserialize_and_load", broken)
+    moment = _programs._Stored(_moment.__wrapped__, ("power",))
+    moment.precompile(x, 1.0, power=2)
+    before = counts["failed"]
+    assert float(moment(x, 1.0, power=2)) == 14.0
+    assert counts["failed"] == before + 1 and not path.exists() and not moment._pending
 
 
 def test_a_precompile_that_fails_leaves_the_call_to_compile(store, monkeypatch):
