@@ -349,12 +349,9 @@ def test_programs_of_the_same_code_load_alone(tmp_path):
     assert second.stdout.split() == [depth_c, "1", "0"]
 
 
-def test_a_stored_program_that_does_not_run_is_removed(store, monkeypatch):
-    """A program read from the store that fails when it runs is removed and
-    the call answered by the jitted path."""
-    x = jnp.arange(4.0)
-    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
-    (path,) = store.glob("*.exe")
+def _programs_load_but_do_not_run(monkeypatch):
+    """Every program read from the store from now on fails when it runs (as
+    one whose serialization lacked its kernels)."""
 
     def broken(*args, **kwargs):
         def run(*inputs):
@@ -364,6 +361,15 @@ def test_a_stored_program_that_does_not_run_is_removed(store, monkeypatch):
     from jax.experimental import serialize_executable
 
     monkeypatch.setattr(serialize_executable, "deserialize_and_load", broken)
+
+
+def test_a_stored_program_that_does_not_run_is_removed(store, monkeypatch):
+    """A program read from the store that fails when it runs is removed and
+    the call answered by the jitted path."""
+    x = jnp.arange(4.0)
+    _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
+    (path,) = store.glob("*.exe")
+    _programs_load_but_do_not_run(monkeypatch)
     before = counts["failed"]
     assert float(_programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)) == 14.0
     assert counts["failed"] == before + 1
@@ -460,15 +466,7 @@ def test_a_program_precompile_read_that_does_not_run_is_removed(store, monkeypat
     x = jnp.arange(4.0)
     _programs._Stored(_moment.__wrapped__, ("power",))(x, 1.0, power=2)
     (path,) = store.glob("*.exe")
-
-    def broken(*args, **kwargs):
-        def run(*inputs):
-            raise jax.errors.JaxRuntimeError("NOT_FOUND: Function fusion not found")
-        return run
-
-    from jax.experimental import serialize_executable
-
-    monkeypatch.setattr(serialize_executable, "deserialize_and_load", broken)
+    _programs_load_but_do_not_run(monkeypatch)
     moment = _programs._Stored(_moment.__wrapped__, ("power",))
     moment.precompile(x, 1.0, power=2)
     before = counts["failed"]
