@@ -25,7 +25,7 @@ from ._keywords import Default
 from ._marginal import centre_epochs, config_of, default_free, density_prior, quiet_alpha
 from ._progress import atomic_write
 from ..model._strict_json import strict_jsonable
-from ._stats import geometry_names, goodness_of_fit, jeffreys, reach_check
+from ._stats import case_ruled_out, geometry_names, goodness_of_fit, jeffreys, reach_check
 from ._windows import windows_and_events, windows_data
 
 __all__ = ["joint_scan", "prograde", "joint_lines"]
@@ -315,6 +315,13 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
     if not fit["ok"]:
         for c in cases.values():
             _withhold(c, fit["reason"])
+    elif fit.get("checked"):  # a case the data rule out: its probabilities assume it (the case Bayes factors stay)
+        least = {c: float(np.min([np.nan if done[f"{c}#{s}"]["chi2_best"] is None else done[f"{c}#{s}"]["chi2_best"]
+                                  for s in seeds])) for c in cfg.cases}  # NaN where a run's was not finite
+        for c in cfg.cases:
+            why = case_ruled_out(c, least[c], least, len(data), "particle")
+            if why is not None:
+                _withhold(cases[c], why)
     result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,

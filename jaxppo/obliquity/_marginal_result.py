@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._stats import geometry_probabilities, goodness_of_fit, plot_range, reach_check, withheld
+from ._stats import case_ruled_out, geometry_probabilities, goodness_of_fit, plot_range, reach_check, withheld
 from ._summary import DeprecatedSummaryAccess
 from ..inference._importance import MIN_IMPORTANCE_ESS, importance_reliability, kish_ess
 
@@ -196,14 +196,18 @@ def sampler_mixing(sampler: dict, min_ess: float) -> dict:
     return out
 
 
-def _other_checks(check: dict, fit: dict, grid: dict, mixing: dict) -> None:
+def _other_checks(check: dict, fit: dict, grid: dict, mixing: dict, ruled: "str | None" = None) -> None:
     """The importance ``check`` of a case made unreliable (in place) where
-    the best draw does not fit the data (``fit``), the fixed scan's alpha
-    grid does not resolve this case's features (``grid``, its entry of
-    ``alpha_grid_check``) or the sampler's chains disagree (``mixing``,
-    ``sampler_mixing``), with the reason and ``withheld_by``."""
+    the best draw does not fit the data (``fit``), the data rule this case
+    out (``ruled``: ``case_ruled_out``'s reason, None where they do not),
+    the fixed scan's alpha grid does not resolve this case's features
+    (``grid``, its entry of ``alpha_grid_check``) or the sampler's chains
+    disagree (``mixing``, ``sampler_mixing``), with the reason and
+    ``withheld_by``."""
     if check["reliable"] and not fit["ok"]:
         check.update(reliable=False, reason=fit["reason"], withheld_by="goodness_of_fit")
+    elif check["reliable"] and ruled is not None:
+        check.update(reliable=False, reason=ruled, withheld_by="case_ruled_out")
     elif check["reliable"] and grid.get("ok") is False:
         check.update(reliable=False, reason=grid["reason"], withheld_by="alpha_grid_check")
     elif check["reliable"] and not mixing["ok"]:
@@ -233,6 +237,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
     fit, grid, mixing = _draw_checks(chi2, fixed, samples, sampler, min_ess)
+    least = {case: float(np.min(chi2[:, ci])) for ci, case in enumerate(cfg.cases)}  # over draws and tilts
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
@@ -261,7 +266,8 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         a_mod = np.mod(cfg.alpha, 360.0)
         pro = (a_mod <= 90.0) | (a_mod > 270.0)
         check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
-        _other_checks(check, fit, grid.get(case, {}), mixing)
+        _other_checks(check, fit, grid.get(case, {}), mixing,
+                      case_ruled_out(case, least[case], least, int(fixed.summary["points"]), "draw and tilt"))
         if not check["reliable"]:
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)

@@ -57,11 +57,11 @@ def pair_reports(cfg, windows, step: float):
     for partner in partners:
         mine = [w for w in windows if partner in w.event.planets]
         data = windows_data(mine, cfg.lightcurve.exposure)
-        cases, best = {}, np.inf
+        cases, best = {}, {}
         for case in cfg.cases:
             chi2 = np.concatenate([grid_chi2(system, data, cfg.alpha[i:i + cfg.block], case)
                                    for i in range(0, cfg.alpha.size, cfg.block)])
-            best = min(best, float(np.min(chi2)))
+            best[case] = float(np.min(chi2))
             sign = case_signs(len(labels), system.tilted, case)[labels.index(partner)]
             own = "same" if sign > 0 else "opposite"
             summary, dchi2, post = analyse_case(system, mine, data, cfg.alpha, chi2, case, step, names_case=own)

@@ -10,7 +10,11 @@ from ._pairs import pair_lines
 from ._stats import bayes_factor_text
 from ._tables import table5_text
 
-__all__ = ["scan_report", "probability_lines"]
+__all__ = ["scan_report", "probability_lines", "dip_lines"]
+
+# a case's rating is said to rest on a dip that a starspot (or no feature at
+# all) explains better where the PPO-or-spot verdict's evidence is one of these
+_CONTRADICTING = ("strong", "very strong")
 
 
 def probability_lines(summary: dict) -> list[str]:
@@ -32,6 +36,36 @@ def probability_lines(summary: dict) -> list[str]:
                              f"sum(dchi2 > 0) = {v['sum_positive_delta_chi2']:.2f}")
         k = bayes_factor_text(geo)
         lines.append(f"   Bayes factor {k} for '{geo['favoured']}': {geo['jeffreys']}")
+    return lines
+
+
+def dip_lines(summary: dict) -> list[str]:
+    """The PPO-or-spot verdict of each dip (summary.json's ``ppo_or_spot``),
+    one line each, and a caution for each rated case whose deepest dip
+    (``min_delta_chi2``, where its rating comes from) the verdict gives to
+    a spot or to no PPO with strong or very strong evidence: the case's
+    probabilities assume that dip is a PPO (a spot crossing injected into
+    Kepler-20 b + c: "retrograde, decisive" printed, "spot, very strong"
+    in summary.json alone)."""
+    block = summary.get("ppo_or_spot") or {}
+    if block.get("error"):
+        return [f"PPO or spot: not decided ({block['error']})"]
+    dips = block.get("dips") or []
+    lines = [f"PPO or spot, dip at alpha = {d['alpha']:g} deg (case {d['case']}, Delta chi^2 = "
+             f"{d['scan_delta_chi2']:.2f}): {d['preferred']} ({d['evidence']}, BIC margin {d['bic_margin']:.2f})"
+             for d in dips]
+    for case, c in (summary.get("cases") or {}).items():
+        low = c.get("min_delta_chi2") or {}
+        if c.get("geometries", {}).get("withheld") or "alpha" not in low:
+            continue
+        for d in dips:
+            if (d["case"] == case and abs(d["alpha"] - low["alpha"]) < 1e-9 and d["preferred"] != "PPO"
+                    and d["evidence"] in _CONTRADICTING):
+                what = "a starspot crossing" if d["preferred"] == "spot" else "no PPO at all"
+                lines.append(f"caution: case {case}'s rating rests on its deepest dip (alpha = {d['alpha']:g} deg, "
+                             f"Delta chi^2 = {d['scan_delta_chi2']:.2f}), which {what} explains better "
+                             f"({d['evidence']}, BIC margin {d['bic_margin']:.2f}): its probabilities assume "
+                             "that dip is a PPO")
     return lines
 
 
@@ -64,6 +98,7 @@ def scan_report(summary: dict, cfg, out, seconds: float) -> str:
         lines.append(f"caution: {caution}")
     lines += probability_lines(summary)
     lines += pair_lines(summary)
+    lines += dip_lines(summary)
     text = "\n".join(lines) + "\n" + table5_text(summary["table5"], cfg.cases)
     verb = "results in" if res.get("finished_before") else "wrote"
     n_fig = len(summary.get("figures", [])) + bool((summary.get("ppo_or_spot") or {}).get("figure"))

@@ -404,11 +404,13 @@ _FIGURE_NAMES = ("fig4_multitransits.png", "fig5_delta_chi2.png", "fig6_cutout.p
 
 def _analysed_as_now(summary: dict) -> bool:
     """Whether a finished scan's summary has what this release's analysis
-    gives: the goodness-of-fit and grid checks, the grid check's numbers
-    named for their grid (``*_on_grid``), and Table 5's intervals to the
-    first angle beyond each run (rows with ``lower_open``; older ones
-    spanned the run alone, 0 wide for a one-point feature)."""
-    if not {"goodness_of_fit", "alpha_grid_check"} <= set(summary):
+    gives: the goodness-of-fit and grid checks, the goodness of fit of each
+    case (``ruled_out``: a case that fits at no tilt was rated before), the
+    grid check's numbers named for their grid (``*_on_grid``), and Table
+    5's intervals to the first angle beyond each run (rows with
+    ``lower_open``; older ones spanned the run alone, 0 wide for a
+    one-point feature)."""
+    if not {"goodness_of_fit", "alpha_grid_check"} <= set(summary) or "ruled_out" not in summary["goodness_of_fit"]:
         return False
     grid = summary["alpha_grid_check"].get("cases", {})
     return (all("probabilities_on_grid" in c for c in grid.values())
@@ -549,12 +551,12 @@ def _analyse(cfg: ScanConfig, done: dict, windows, data: LightCurve, step: float
     rows, table rows, summary per case)."""
     sysm = cfg.system
     tm, nsub = data.supersampled_times()
-    rows, summary_cases, table, best = [], {}, [], np.inf
+    rows, summary_cases, table, best = [], {}, [], {}
     for case in cfg.cases:  # untilted planets that overlap each other may do so in one case only
         null = no_ppo_model(sysm, tm, case).reshape(-1, nsub).mean(-1)
         chi2_null = float(np.sum(((data.flux - null) / data.flux_err) ** 2))
         chi2 = np.array([done[(case, round(float(a), 9))] for a in cfg.alpha])
-        best = min(best, float(np.min(chi2)))
+        best[case] = float(np.min(chi2))
         summ, dchi2, post = analyse_case(sysm, windows, data, cfg.alpha, chi2, case, step)
         summary_cases[case] = {"chi2_0": summ.pop("chi2_0"), "chi2_null_model": chi2_null, **summ}
         for a, c2, dc, p in zip(cfg.alpha, chi2, dchi2, post):

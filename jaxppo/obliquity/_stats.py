@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit", "reach_check",
-           "guard_cases", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+           "guard_cases", "case_ruled_out", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
 # points): the model does not describe the data, and exp(-Delta chi^2 / 2)
@@ -183,14 +183,47 @@ def reach_check(fit: dict, fixed_fit: dict, k: int, what: str) -> dict:
     return out
 
 
-def guard_cases(cases: dict, chi2_best: float, points: int) -> dict:
+def guard_cases(cases: dict, chi2_best: dict, points: int) -> dict:
     """``goodness_of_fit`` of the best chi^2 over ``cases`` (case -> its
-    summary, with "geometries"); where the model does not fit, every case's
-    geometries are ``withheld`` (in place). Returns the check."""
-    check = goodness_of_fit(chi2_best, points)
+    summary, with "geometries"; ``chi2_best``: case -> its least chi^2 over
+    the tilts); where the model does not fit, every case's geometries are
+    ``withheld`` (in place). Where it fits, a case whose own least chi^2
+    fails the same test is ruled out by the data (``case_ruled_out``): its
+    geometries, conditional on a hemisphere case that fits at no tilt, are
+    withheld (a true "opposite" scanned as "same" too: chi^2 / N = 145 at
+    that case's best tilt, and "prograde, decisive" printed for it). Returns
+    the check, with "ruled_out" (case -> reason)."""
+    finite = [v for v in chi2_best.values() if np.isfinite(v)]
+    check = goodness_of_fit(min(finite) if finite else float("nan"), points)
+    check["ruled_out"] = {}
     if not check["ok"]:
         withhold_cases(cases, check["reason"])
+        return check
+    for case, chi2 in chi2_best.items():
+        why = case_ruled_out(case, chi2, chi2_best, points)
+        if why is not None:
+            check["ruled_out"][case] = why
+            withhold_cases({case: cases[case]}, why)
     return check
+
+
+def case_ruled_out(case: str, chi2: float, chi2_best: dict, points: int, where: str = "tilt") -> "str | None":
+    """Why the data rule hemisphere case ``case`` out, or None: its least
+    chi^2 (``chi2``, over the tilts; ``chi2_best``: every case's) fails
+    ``goodness_of_fit`` where the best case's passes. Its probabilities
+    assume the case: they are then not rated."""
+    own = goodness_of_fit(chi2, points, f"at case {case}'s best {where}")
+    if own["ok"]:
+        return None
+    finite = {c: v for c, v in chi2_best.items() if np.isfinite(v)}
+    top = min(finite, key=finite.get) if finite else None
+    if top is None or top == case:
+        return None
+    lead = "" if own["chi2_best"] is None else (
+        f": its least chi^2 is {own['chi2_best']:.6g} for {points} points (chi^2 / N = {own['reduced']:.3g}, "
+        f"p = {own['p_value']:.2g}), {own['chi2_best'] - finite[top]:.6g} above case {top}'s ({finite[top]:.6g})")
+    return (f"the data rule case {case} out: it fits at no {where}{lead}; its probabilities assume this "
+            "hemisphere case and are not rated")
 
 
 def withhold_cases(cases: dict, reason: str) -> None:

@@ -1022,3 +1022,95 @@ def test_chi2_null_model_counts_two_untilted_planets_overlap_once():
     for case, v in res.summary["cases"].items():
         assert v["chi2_null_model"] == pytest.approx(v["chi2_0"], rel=1e-9), case
         assert v["chi2_null_model"] < 1.3 * res.summary["points"]
+
+
+RULED_OUT = """
+[star]
+law = "quadratic"
+coefficients = [0.4, 0.25]
+
+[[planet]]
+name = "t"
+period = 10.0
+t0 = 0.0
+a = 15.0
+inc = 88.854
+radius = 0.1
+tilted = true
+
+[[planet]]
+name = "b"
+period = 20.0
+t0 = 0.0
+a = 20.0
+inc = 89.141
+radius = 0.1
+
+[data]
+path = "data.csv"
+
+[scan]
+alpha = [0.0, 360.0, 2.0]
+cases = ["same", "opposite"]
+detrend = "none"
+"""
+
+
+def test_a_case_the_data_rule_out_is_not_rated(tmp_path):
+    """Two planets whose double transits overlap in every case, the truth in
+    case "opposite" at alpha = 200 deg: case "same" fits at no tilt (its
+    least chi^2 / N = 145), yet the check of the best case alone passed and
+    the scan printed "prograde, same hemisphere 100 %, decisive" for it.
+    Each case's own least chi^2 is now checked: "same" is withheld with the
+    reason, "opposite" (which fits) keeps its rating, in the report too."""
+    from jaxppo.obliquity._report import scan_report
+
+    star = jp.Star.quadratic(0.4, 0.25)
+    system = jp.System(star, [jp.Planet(10.0, 0.0, 15.0, 88.854, 0.1, name="t"),
+                              jp.Planet(20.0, 0.0, 20.0, 89.141, 0.1, name="b")], tilted="t")
+    t = np.concatenate([np.arange(m - 0.3, m + 0.3, 2.0 / 1440.0) for m in (0.0, 20.0, 40.0)])
+    jp.simulate(system, t, noise=1e-4, alpha=200.0, case="opposite", seed=7).to_csv(tmp_path / "data.csv")
+    (tmp_path / "scan.toml").write_text(RULED_OUT)
+    cfg = load_config(tmp_path / "scan.toml")
+    res = run_scan(cfg, tmp_path / "out", progress=False)
+    check = res.summary["goodness_of_fit"]
+    assert check["ok"] and set(check["ruled_out"]) == {"same"}
+    same, opposite = (res.summary["probabilities"][c] for c in ("same", "opposite"))
+    assert same["favoured"] is None and same["jeffreys"] == "not rated" and "rule case same out" in same["withheld"]
+    assert opposite["favoured"] == "retrograde, same hemisphere" and not opposite.get("withheld")
+    assert res.summary["cases"]["same"]["min_delta_chi2"]["value"] + res.summary["chi2_0"]["same"] > 100 * len(t)
+    text = scan_report(res.summary, cfg, tmp_path / "out", 1.0)
+    assert "the data rule case same out" in text
+    assert np.all(np.isnan(res.table["posterior"][res.table["case"] == "same"]))
+
+
+def test_report_says_where_a_rating_rests_on_a_dip_a_spot_explains_better():
+    """A spot crossing (a Gaussian bump) in Kepler-20 b + c data without a
+    PPO: the scan's deepest dip (Delta chi^2 -207.9 at 248 deg) carried
+    "retrograde, different hemispheres: decisive", and only summary.json
+    said that a spot explains it better (BIC margin 175, very strong). The
+    report prints each dip's verdict, and a caution where a rated case's
+    deepest dip goes to a spot or to no PPO with strong evidence or more;
+    none where the verdict is the PPO's or the case is withheld."""
+    from jaxppo.obliquity._report import dip_lines
+
+    def dip(alpha, dchi2, preferred, evidence, margin):
+        return {"case": "same", "alpha": alpha, "scan_delta_chi2": dchi2, "preferred": preferred,
+                "evidence": evidence, "bic_margin": margin}
+
+    summary = {"cases": {"same": {"geometries": {"favoured": "retrograde, different hemispheres"},
+                                  "min_delta_chi2": {"alpha": 248.0, "value": -207.88}}},
+               "ppo_or_spot": {"dips": [dip(216.0, -0.83, "no PPO", "positive", 4.53),
+                                        dip(248.0, -207.88, "spot", "very strong", 175.17)]}}
+    lines = dip_lines(summary)
+    assert lines[1] == ("PPO or spot, dip at alpha = 248 deg (case same, Delta chi^2 = -207.88): spot (very strong, "
+                        "BIC margin 175.17)")
+    assert len(lines) == 3 and lines[2].startswith("caution: case same's rating rests on its deepest dip (alpha = 248")
+    assert "a starspot crossing explains better" in lines[2]
+    summary["ppo_or_spot"]["dips"][1].update(preferred="PPO")
+    assert not any(ln.startswith("caution") for ln in dip_lines(summary))
+    summary["ppo_or_spot"]["dips"][1].update(preferred="no PPO", evidence="strong")
+    assert "no PPO at all explains better" in dip_lines(summary)[-1]
+    summary["cases"]["same"]["geometries"]["withheld"] = "not rated"
+    assert not any(ln.startswith("caution") for ln in dip_lines(summary))
+    assert dip_lines({"ppo_or_spot": {"error": "ValueError: x"}}) == ["PPO or spot: not decided (ValueError: x)"]
