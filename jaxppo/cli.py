@@ -352,6 +352,10 @@ def cmd_activity(args) -> int:
                                    spot_chunk=spot_chunk, n_spots=args.spots,
                                    mask_transits=not args.no_transit_mask)
     rot = rep["rotation"]
+    prep = rep.get("preparation") or {}
+    if system is not None and args.data is not None:  # another file may be of another star: never silent
+        print(f"masked the transits of Kepler-20 b-f (the bundled ephemerides): {prep.get('in_transit')} of "
+              f"{prep.get('points')} points (--no-transit-mask keeps them: for a star other than Kepler-20)")
     print(f"rotation period {rot['period_d']:.3f} +- {rot['period_err_d']:.3f} d ({rot['period_err_method']})")
     if rot.get("caution"):
         print(f"  caution: {rot['caution']}")
@@ -363,7 +367,7 @@ def cmd_activity(args) -> int:
         print("peak-to-peak variability per quarter [%]: " + ", ".join(f"{k} {v:.2f}" for k, v in var.items()
                                                                     if isinstance(v, (int, float))))
     if "paper" in rep:
-        print(f"paper (Mueller et al. 2021): {rep['paper']['rotation_period_d']} +- "
+        print(f"paper (Mueller et al. 2021, Kepler-20): {rep['paper']['rotation_period_d']} +- "
               f"{rep['paper']['rotation_period_err_d']} d")
     print(f"wrote {Path(args.out) / 'activity.json'} and figures")
     return 0

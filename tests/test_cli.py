@@ -377,6 +377,27 @@ def test_activity_command(tmp_path, capsys):
     assert "--spot-chunk must be a chunk index or 'all'" in capsys.readouterr().err
 
 
+def test_activity_of_another_file_says_what_the_kepler20_mask_took(tmp_path, capsys):
+    """`jaxppo activity --data FILE` masks the transits of Kepler-20 b-f by
+    their bundled ephemerides, whatever star FILE holds (a review: 18 % of
+    another star's points gone, said in activity.json alone): the output
+    says how many points the mask took and how to keep them."""
+    from jaxppo.cli import main
+
+    t = np.arange(131.5, 400.0, 0.0204)
+    f = 1e4 * (1.0 + 2e-3 * np.sin(2 * np.pi * t / 11.3))
+    np.savetxt(tmp_path / "star.csv", np.column_stack([t, f]), delimiter=",", header="time,flux", comments="")
+    assert main(["activity", "--data", str(tmp_path / "star.csv"), "--out", str(tmp_path / "a"), "--bootstrap",
+                 "0"]) == 0
+    printed = capsys.readouterr().out
+    line = next(ln for ln in printed.splitlines() if ln.startswith("masked the transits of Kepler-20 b-f"))
+    masked = int(line.split(": ")[1].split(" of ")[0])
+    assert 0 < masked < t.size and f"of {t.size} points (--no-transit-mask keeps them" in line
+    assert main(["activity", "--data", str(tmp_path / "star.csv"), "--out", str(tmp_path / "b"), "--bootstrap",
+                 "0", "--no-transit-mask"]) == 0
+    assert "masked the transits" not in capsys.readouterr().out
+
+
 def test_scan_marginalize_and_joint_options_call_their_workflows(tmp_path, monkeypatch, capsys):
     """--marginalize N runs jp.marginal_scan after the plain scan with the
     config's [fit] free and the fixed scan's result (the marginal scan itself
