@@ -16,7 +16,8 @@ from ._times import TIMES_COLUMNS, linear_ephemeris
 if TYPE_CHECKING:  # astropy is imported where a table is read
     from astropy.table import Table
 
-__all__ = ["read_times", "days_column", "epoch_column", "read_references", "compare_times", "plot_oc", "write_times_products", "summary_lines"]
+__all__ = ["read_times", "days_column", "epoch_column", "read_references", "compare_times", "plot_oc", "write_times_products",
+           "summary_lines", "time_system_offset", "TIME_SYSTEM_OFFSETS"]
 
 MINUTES = 1440.0
 
@@ -135,6 +136,24 @@ def compare_times(measured, reference) -> dict:
 ERR_RATIO_SUSPECT = 100.0
 
 
+#: Offsets between the time systems a reference may be given in [d]: BJD_TDB
+#: less BKJD and BTJD, BTJD less BKJD, JD less MJD and reduced JD.
+TIME_SYSTEM_OFFSETS = {"BJD - BKJD (2454833)": 2454833.0, "BJD - BTJD (2457000)": 2457000.0,
+                       "BTJD - BKJD (2167)": 2167.0, "JD - MJD (2400000.5)": 2400000.5,
+                       "JD - RJD (2400000)": 2400000.0}
+
+
+def time_system_offset(median_diff_min: float) -> "str | None":
+    """The time-system offset (``TIME_SYSTEM_OFFSETS``) that the median
+    difference measured - reference [min] is within 1 d of, either sign;
+    None where there is none."""
+    days = abs(median_diff_min) / MINUTES
+    for name, offset in TIME_SYSTEM_OFFSETS.items():
+        if abs(days - offset) < 1.0:
+            return name
+    return None
+
+
 def plot_oc(measured, planet: str, path, references=None) -> dict:
     """The O-C diagram of one planet: measured minus the linear ephemeris
     fitted to the measured times [min] against epoch, with 1-sigma errors
@@ -245,6 +264,11 @@ def summary_lines(summary: dict, n_times: int, seconds: float) -> list[str]:
                              f"within 2, max |z| {c['max_abs_z']:.2f} (median difference "
                              f"{c['median_diff_min']:+.2f} min, error ratio reference / measured "
                              f"{c['err_ratio']:.2g})")
+                offset = time_system_offset(c["median_diff_min"])
+                if offset is not None:
+                    lines.append(f"      warning: the measured and reference times differ by {c['median_diff_min']:+.6g} "
+                                 f"min, the offset {offset} d between time systems: the reference is in another "
+                                 "time system than the data (convert one of them)")
                 if c["err_ratio"] > ERR_RATIO_SUSPECT:
                     lines.append(f"      warning: the reference's errors are {c['err_ratio']:.0f} times the measured "
                                  "ones, so every z is near 0: errors in minutes read as days? (a CSV has no units: "

@@ -489,3 +489,27 @@ def test_a_reference_that_compares_nothing_or_in_minutes_is_said(tmp_path):
     assert "d: no epoch in common, nothing compared (the reference's planets: ['3']" in text
     assert text.count("warning: the reference's errors are 1250 times the measured ones") == 1
     assert "error ratio reference / measured 0.88)" in text  # ok.csv: no warning
+
+
+def test_a_reference_in_another_time_system_is_said():
+    """A reference's times in BJD beside BKJD data (a review: "median |z|
+    2010556296, median difference -3534959520 min", no word): a median
+    difference within 1 d of an offset between time systems (BJD - BKJD,
+    BJD - BTJD, BTJD - BKJD, JD - MJD) is named; a real shift is not."""
+    from astropy.table import Table
+
+    from jaxppo.inference._times_report import compare_times, summary_lines, time_system_offset
+
+    measured = Table({"planet": ["d"] * 3, "epoch": [0, 1, 2], "tc": [212.0246, 342.2070, 472.3914],
+                      "tc_err": [0.0008] * 3})
+    lines = {}
+    for name, shift in (("bjd", 2454833.0), ("btjd", -2167.0), ("same", 0.0019)):
+        ref = Table({"planet": ["d"] * 2, "epoch": [0, 1], "tc": [212.0265 + shift, 342.2090 + shift],
+                     "tc_err": [0.0007] * 2})
+        summary = {"fit": {"chi2": 1.0, "n_points": 10, "reduced_chi2": 1.0}, "planets": {},
+                   "reference": {name: compare_times(measured, ref)}}
+        lines[name] = "\n".join(summary_lines(summary, 3, 1.0))
+    assert "the offset BJD - BKJD (2454833) d between time systems" in lines["bjd"]
+    assert "the offset BTJD - BKJD (2167) d between time systems" in lines["btjd"]
+    assert "time systems" not in lines["same"]
+    assert time_system_offset(-2400000.5 * 1440.0) == "JD - MJD (2400000.5)" and time_system_offset(3.0) is None
