@@ -321,6 +321,7 @@ def cmd_activity(args) -> int:
     period, per-quarter variability, brightness map, optional spot inversion."""
     _enable_x64()
     from jaxppo import activity
+    from jaxppo.activity._report import report_lines
     from jaxppo.obliquity._config import load_config
 
     if args.data is not None:
@@ -351,24 +352,8 @@ def cmd_activity(args) -> int:
                                    period_min=args.period_min, period_max=args.period_max, bootstrap=args.bootstrap,
                                    spot_chunk=spot_chunk, n_spots=args.spots,
                                    mask_transits=not args.no_transit_mask)
-    rot = rep["rotation"]
-    prep = rep.get("preparation") or {}
-    if system is not None and args.data is not None:  # another file may be of another star: never silent
-        print(f"masked the transits of Kepler-20 b-f (the bundled ephemerides): {prep.get('in_transit')} of "
-              f"{prep.get('points')} points (--no-transit-mask keeps them: for a star other than Kepler-20)")
-    print(f"rotation period {rot['period_d']:.3f} +- {rot['period_err_d']:.3f} d ({rot['period_err_method']})")
-    if rot.get("caution"):
-        print(f"  caution: {rot['caution']}")
-    if rot.get("bootstrap_percentiles_16_50_84_d"):
-        lo, med, hi = rot["bootstrap_percentiles_16_50_84_d"]
-        print(f"quarter bootstrap 16/50/84 %: {lo:.2f} / {med:.2f} / {hi:.2f} d")
-    var = rep["variability_percent"]
-    if isinstance(var, dict):
-        print("peak-to-peak variability per quarter [%]: " + ", ".join(f"{k} {v:.2f}" for k, v in var.items()
-                                                                    if isinstance(v, (int, float))))
-    if "paper" in rep:
-        print(f"paper (Mueller et al. 2021, Kepler-20): {rep['paper']['rotation_period_d']} +- "
-              f"{rep['paper']['rotation_period_err_d']} d")
+    # another file may be of another star: what Kepler-20's mask took is never silent
+    print("\n".join(report_lines(rep, kepler20_mask=system is not None and args.data is not None)))
     print(f"wrote {Path(args.out) / 'activity.json'} and figures")
     return 0
 

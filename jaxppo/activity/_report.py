@@ -15,7 +15,7 @@ from ._spots import KEPLER20_SPOT_CONTRAST, fit_spots
 from ._rotation import (PAPER_ROTATION_PERIOD, PAPER_ROTATION_PERIOD_ERR, prepare_light_curve,
                         quarter_variability, rotation_period)
 
-__all__ = ["activity_report"]
+__all__ = ["activity_report", "report_lines"]
 
 # Mueller et al. (2021), Sect. 3.2: peak-to-peak 0.1-0.2 %, largest 0.6 % in Q17.
 PAPER_VARIABILITY = {"typical_percent": [0.1, 0.2], "largest_percent": 0.6, "largest_quarter": "17"}
@@ -230,3 +230,29 @@ def activity_report(time, flux, out=None, system=None, quarters=None, period_min
         on_writer(f"writing the activity report into {out}",
                   lambda: _write(report, out, prep, rot, var, bmap, spots, spot_fit, chunk_sel, compare_paper))
     return report
+
+
+def report_lines(rep: dict, kepler20_mask: bool = False) -> list[str]:
+    """What ``jaxppo activity`` prints of an ``activity_report``: with
+    ``kepler20_mask`` (a file of the user's, masked by Kepler-20 b-f's
+    bundled ephemerides whatever star it holds) how many points the mask
+    took, then the rotation period, its caution and bootstrap, the
+    variability per quarter and the paper's period."""
+    rot, prep, lines = rep["rotation"], rep.get("preparation") or {}, []
+    if kepler20_mask:
+        lines.append(f"masked the transits of Kepler-20 b-f (the bundled ephemerides): {prep.get('in_transit')} of "
+                     f"{prep.get('points')} points (--no-transit-mask keeps them: for a star other than Kepler-20)")
+    lines.append(f"rotation period {rot['period_d']:.3f} +- {rot['period_err_d']:.3f} d ({rot['period_err_method']})")
+    if rot.get("caution"):
+        lines.append(f"  caution: {rot['caution']}")
+    if rot.get("bootstrap_percentiles_16_50_84_d"):
+        lo, med, hi = rot["bootstrap_percentiles_16_50_84_d"]
+        lines.append(f"quarter bootstrap 16/50/84 %: {lo:.2f} / {med:.2f} / {hi:.2f} d")
+    var = rep["variability_percent"]
+    if isinstance(var, dict):
+        lines.append("peak-to-peak variability per quarter [%]: " + ", ".join(
+            f"{k} {v:.2f}" for k, v in var.items() if isinstance(v, (int, float))))
+    if "paper" in rep:
+        lines.append(f"paper (Mueller et al. 2021, Kepler-20): {rep['paper']['rotation_period_d']} +- "
+                     f"{rep['paper']['rotation_period_err_d']} d")
+    return lines

@@ -115,6 +115,27 @@ def _goodness_of_fit(runs: list[dict], points: int, fixed, k: int) -> dict:
     return fit
 
 
+def _guard(cases: dict, fit: dict, runs: dict, points: int) -> None:
+    """Every case ``_withhold``-en (in place) where the model does not fit
+    (``fit``, ``_goodness_of_fit``); where it fits, each case the data rule
+    out (``case_ruled_out``: its least chi^2 over its runs, ``runs``: case
+    -> its runs, fits at no particle where another case's does): its
+    probabilities assume it (the case Bayes factors, which compare the
+    cases, stay)."""
+    if not fit["ok"]:
+        for c in cases.values():
+            _withhold(c, fit["reason"])
+        return
+    if not fit.get("checked"):
+        return
+    least = {c: float(np.min([np.nan if r["chi2_best"] is None else r["chi2_best"] for r in rs]))
+             for c, rs in runs.items()}  # NaN where a run's was not finite
+    for c in cases:
+        why = case_ruled_out(c, least[c], least, points, "particle")
+        if why is not None:
+            _withhold(cases[c], why)
+
+
 def _withhold(case: dict, reason: str) -> None:
     """A case's probabilities, rating, peak and posterior withheld (in
     place): the model does not fit the data (``reason``)."""
@@ -312,16 +333,7 @@ def joint_scan(system, lightcurve=None, *, particles: int = 256, seeds=(0, 1), o
             lk = cases[a]["log_z"] - cases[b]["log_z"]
             log_factors[f"{a}/{b}"] = float(lk) if fit["ok"] else None
             factors[f"{a}/{b}"] = float(np.exp(lk)) if abs(lk) < 700.0 and fit["ok"] else None  # None: beyond a float
-    if not fit["ok"]:
-        for c in cases.values():
-            _withhold(c, fit["reason"])
-    elif fit.get("checked"):  # a case the data rule out: its probabilities assume it (the case Bayes factors stay)
-        least = {c: float(np.min([np.nan if done[f"{c}#{s}"]["chi2_best"] is None else done[f"{c}#{s}"]["chi2_best"]
-                                  for s in seeds])) for c in cfg.cases}  # NaN where a run's was not finite
-        for c in cfg.cases:
-            why = case_ruled_out(c, least[c], least, len(data), "particle")
-            if why is not None:
-                _withhold(cases[c], why)
+    _guard(cases, fit, {c: [done[f"{c}#{s}"] for s in seeds] for c in cfg.cases}, len(data))
     result = {"method": f"adaptive tempered SMC from the posterior's modes, {particles} particles, seeds {seeds}",
               "free": list(free), "density_prior": density, "density_prior_source": density_source,
               "cases": cases, "case_bayes_factors": factors, "case_log_bayes_factors": log_factors,

@@ -214,17 +214,23 @@ def _other_checks(check: dict, fit: dict, grid: dict, mixing: dict, ruled: "str 
         check.update(reliable=False, reason=mixing["reason"], withheld_by="sampler_mixing")
 
 
-def _draw_checks(chi2, fixed, samples: dict, sampler: dict, min_ess: float) -> tuple:
-    """(fit, grid, mixing): ``goodness_of_fit`` of the least chi^2 of the
-    draws ``chi2`` [draw, case, alpha] with its ``reach_check`` against the
-    fixed scan's best ("ok" False with the reason where the draws do not
-    reach it), the fixed scan's ``alpha_grid_check`` per case, and
-    ``sampler_mixing`` of the sampler's record (``min_ess``)."""
-    fit = goodness_of_fit(float(np.min(chi2)), int(fixed.summary["points"]))
+def _draw_checks(chi2, fixed, samples: dict, sampler: dict, min_ess: float, cases) -> tuple:
+    """(fit, grid, mixing, ruled): ``goodness_of_fit`` of the least chi^2
+    of the draws ``chi2`` [draw, case, alpha] with its ``reach_check``
+    against the fixed scan's best ("ok" False with the reason where the
+    draws do not reach it), the fixed scan's ``alpha_grid_check`` per
+    case, ``sampler_mixing`` of the sampler's record (``min_ess``), and
+    per case of ``cases`` why the data rule it out (``case_ruled_out`` of
+    its least chi^2 over draws and tilts), or None."""
+    points = int(fixed.summary["points"])
+    fit = goodness_of_fit(float(np.min(chi2)), points)
     fit["reach"] = reach_check(fit, fixed.summary.get("goodness_of_fit") or {}, len(samples), "draws")
     if fit["ok"] and not fit["reach"]["ok"]:
         fit.update(ok=False, reason=fit["reach"]["reason"])
-    return fit, (fixed.summary.get("alpha_grid_check") or {}).get("cases", {}), sampler_mixing(sampler, min_ess)
+    least = {case: float(np.min(chi2[:, ci])) for ci, case in enumerate(cases)}
+    ruled = {case: case_ruled_out(case, least[case], least, points, "draw and tilt") for case in cases}
+    return (fit, (fixed.summary.get("alpha_grid_check") or {}).get("cases", {}), sampler_mixing(sampler, min_ess),
+            ruled)
 
 
 def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sampler, digest, ref_quiet,
@@ -236,8 +242,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
     n_d = dchi2.shape[0]
     step = float(cfg.alpha[1] - cfg.alpha[0]) if cfg.alpha.size > 1 else 360.0
     rows, cases = [], {}
-    fit, grid, mixing = _draw_checks(chi2, fixed, samples, sampler, min_ess)
-    least = {case: float(np.min(chi2[:, ci])) for ci, case in enumerate(cfg.cases)}  # over draws and tilts
+    fit, grid, mixing, ruled = _draw_checks(chi2, fixed, samples, sampler, min_ess, cfg.cases)
     for ci, case in enumerate(cfg.cases):
         dc = dchi2[:, ci]  # [draw, alpha]
         ref = c0[:, ci] if chi2_ref is None else chi2_ref
@@ -266,8 +271,7 @@ def analyse_draws(cfg, dchi2, chi2, c0, chi2_null, chi2_ref, fixed, samples, sam
         a_mod = np.mod(cfg.alpha, 360.0)
         pro = (a_mod <= 90.0) | (a_mod > 270.0)
         check = importance_reliability(logw, {names[0]: pro, names[1]: ~pro}, min_ess)
-        _other_checks(check, fit, grid.get(case, {}), mixing,
-                      case_ruled_out(case, least[case], least, int(fixed.summary["points"]), "draw and tilt"))
+        _other_checks(check, fit, grid.get(case, {}), mixing, ruled[case])
         if not check["reliable"]:
             geo = withheld(geo, names, check["reason"])
             post = np.full_like(post, np.nan)

@@ -217,8 +217,8 @@ def case_ruled_out(case: str, chi2: float, chi2_best: dict, points: int, where: 
         return None
     finite = {c: v for c, v in chi2_best.items() if np.isfinite(v)}
     top = min(finite, key=finite.get) if finite else None
-    if top is None or top == case:
-        return None
+    if top is None or top == case or not goodness_of_fit(finite[top], points)["ok"]:
+        return None  # the best case itself, or none fits: goodness_of_fit's own reason withholds them all
     lead = "" if own["chi2_best"] is None else (
         f": its least chi^2 is {own['chi2_best']:.6g} for {points} points (chi^2 / N = {own['reduced']:.3g}, "
         f"p = {own['p_value']:.2g}), {own['chi2_best'] - finite[top]:.6g} above case {top}'s ({finite[top]:.6g})")
