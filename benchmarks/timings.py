@@ -85,6 +85,24 @@ def _stages(env: dict) -> list:
             ("... Figs. 4 and 6 (drawing process) beside the PPO-or-spot fits and the other figures (this one)", products, "")]
 
 
+CALIBRATION = """
+import time
+t = time.perf_counter()
+s = 0
+for i in range(5_000_000):
+    s += i * i
+print(time.perf_counter() - t)
+"""
+
+
+def _calibration(env: dict) -> float:
+    """Seconds of a fixed pure-Python loop (5e6 multiply-adds) in a new
+    process, the least of three: how fast this machine is while the table is
+    measured (a shared 2-core machine: the same code took 10.8 and 13.6 s
+    for the first scan an hour apart)."""
+    return min(float(_run([sys.executable, "-c", CALIBRATION], env)[1].split()[-1]) for _ in range(3))
+
+
 def _versions() -> str:
     """The versions of the libraries whose import and compilation the
     timings include (ml_dtypes 0.7.0 alone added 0.6 s to every import of
@@ -128,6 +146,7 @@ def main() -> None:
             rows.append((f"`jp.fit` Kepler-20 b + c, a new Python process with `jp.compilation_cache()`, {label}", dt,
                          f"the fit call itself {float(call.group(1)):.1f} s" if call else "benchmarks/fit_timing.py --once"))
         rows += _stages(env)
+        speed = _calibration(env)
         t = time.perf_counter()
         proc = subprocess.run([sys.executable, str(HERE / "fit_timing.py"), "--no-nuts"], capture_output=True, text=True,
                               cwd=ROOT, env=env)
@@ -148,6 +167,9 @@ def main() -> None:
              f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
              f"{platform.python_version()}; {now}; load average at the end {load[0]:.2f}.", "",
              f"Versions: {_versions()}.", "",
+             f"Machine speed while measured: a fixed pure-Python loop (5e6 multiply-adds, benchmarks/timings.py "
+             f"CALIBRATION) took {speed:.2f} s, the least of three (compare it across tables: this shared machine's "
+             "speed changes by more than the +-30 % below within an hour).", "",
              "| what | seconds | note |", "|---|---:|---|"]
     lines += [f"| {w} | {s:.1f} | {n} |" for w, s, n in rows]
     lines += ["", "Timings on this 2-core machine vary by about +-30 % from run to run."]

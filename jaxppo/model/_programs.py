@@ -687,7 +687,18 @@ def _prepare_lapack() -> None:
     runs (jaxlib does so when it lowers a LAPACK call; a stored program is
     not lowered, and would call an empty LAPACK table). jaxlib's
     ``lapack.prepare_lapack_call`` is what that lowering calls (0.08 s);
-    with a jaxlib that lacks it, a LAPACK call is lowered (0.19 s)."""
+    with a jaxlib that lacks it, a LAPACK call is lowered (0.19 s). One
+    thread at a time (``precompile``'s and the caller's may both read a
+    program that calls LAPACK)."""
+    with _LAPACK_LOCK:
+        _load_lapack()
+
+
+_LAPACK_LOCK = threading.Lock()
+
+
+def _load_lapack() -> None:
+    """``_prepare_lapack``'s work."""
     try:
         from jaxlib import lapack
 
