@@ -585,7 +585,9 @@ def _warn_ambiguous(table, plan, second) -> None:
     if rows:
         tc = {(str(r["planet"]), int(r["epoch"])): float(r["tc"]) for r in table}
         which = ", ".join(f"{r['planet']} epoch {r['epoch']} ({1440.0 * (r['tc_other'] - tc[(r['planet'], r['epoch'])]):+.1f}"
-                          f" min, Delta chi^2 {r['delta_chi2']:+.2f})" for r in rows)
+                          f" min, Delta chi^2 {r['delta_chi2']:+.2f}" + (", below the fitted time's: the fit ended in "
+                                                                        "the higher of two minima" if r["delta_chi2"] < 0
+                                                                        else "") + ")" for r in rows)
         warnings.warn(f"measure_transit_times: {which}: the chi^2 of the transit's points has another minimum "
                       f"within Delta chi^2 = {AMBIGUOUS_CHI2:g} of the fitted time, more than {DISTINCT_ERRORS:g} "
                       "tc_err away (the offset from the fitted time given): the time is ambiguous and tc_err, the "

@@ -144,14 +144,12 @@ TIME_SYSTEM_OFFSETS = {"BJD - BKJD (2454833)": 2454833.0, "BJD - BTJD (2457000)"
 
 
 def time_system_offset(median_diff_min: float) -> "str | None":
-    """The time-system offset (``TIME_SYSTEM_OFFSETS``) that the median
-    difference measured - reference [min] is within 1 d of, either sign;
-    None where there is none."""
+    """The time-system offset (``TIME_SYSTEM_OFFSETS``) nearest the median
+    difference measured - reference [min], either sign, where it lies
+    within 1 d of it; None where none does."""
     days = abs(median_diff_min) / MINUTES
-    for name, offset in TIME_SYSTEM_OFFSETS.items():
-        if abs(days - offset) < 1.0:
-            return name
-    return None
+    name = min(TIME_SYSTEM_OFFSETS, key=lambda n: abs(days - TIME_SYSTEM_OFFSETS[n]))  # the nearest (RJD vs MJD)
+    return name if abs(days - TIME_SYSTEM_OFFSETS[name]) < 1.0 else None
 
 
 def plot_oc(measured, planet: str, path, references=None) -> dict:

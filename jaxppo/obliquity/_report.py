@@ -15,6 +15,8 @@ __all__ = ["scan_report", "probability_lines", "dip_lines"]
 # a case's rating is said to rest on a dip that a starspot (or no feature at
 # all) explains better where the PPO-or-spot verdict's evidence is one of these
 _CONTRADICTING = ("strong", "very strong")
+# ratings that say nothing (no caution is given for them)
+_UNRATED = ("not rated", "barely worth mentioning")
 
 
 def probability_lines(summary: dict) -> list[str]:
@@ -42,8 +44,9 @@ def probability_lines(summary: dict) -> list[str]:
 def dip_lines(summary: dict) -> list[str]:
     """The PPO-or-spot verdict of each dip (summary.json's ``ppo_or_spot``),
     one line each, and a caution for each rated case whose deepest dip
-    (``min_delta_chi2``, where its rating comes from) the verdict gives to
-    a spot or to no PPO with strong or very strong evidence: the case's
+    (``min_delta_chi2``, where its rating comes from; a rating above
+    "barely worth mentioning") the verdict gives to a spot or to no PPO
+    with strong or very strong evidence: the case's
     probabilities assume that dip is a PPO (a spot crossing injected into
     Kepler-20 b + c: "retrograde, decisive" printed, "spot, very strong"
     in summary.json alone)."""
@@ -56,8 +59,9 @@ def dip_lines(summary: dict) -> list[str]:
              for d in dips]
     for case, c in (summary.get("cases") or {}).items():
         low = c.get("min_delta_chi2") or {}
-        if c.get("geometries", {}).get("withheld") or "alpha" not in low:
-            continue
+        geo = c.get("geometries", {})
+        if geo.get("withheld") or geo.get("jeffreys") in _UNRATED or "alpha" not in low:
+            continue  # a rating "barely worth mentioning" rests on no dip (1-min data: a negligible dip is "no PPO")
         for d in dips:
             if (d["case"] == case and abs(d["alpha"] - low["alpha"]) < 1e-9 and d["preferred"] != "PPO"
                     and d["evidence"] in _CONTRADICTING):

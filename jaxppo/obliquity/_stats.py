@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["jeffreys", "geometry_names", "logsumexp", "geometry_probabilities", "withheld", "goodness_of_fit", "reach_check",
-           "guard_cases", "case_ruled_out", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
+           "guard_cases", "case_ruled_out", "ruled_out_margin", "withhold_cases", "bayes_factor_text", "full_circle", "plot_range", "MISFIT_REDUCED_CHI2", "MISFIT_P_VALUE"]
 
 # the best chi^2 of a scan above both (per point, and in probability for N
 # points): the model does not describe the data, and exp(-Delta chi^2 / 2)
@@ -207,11 +207,22 @@ def guard_cases(cases: dict, chi2_best: dict, points: int) -> dict:
     return check
 
 
+def ruled_out_margin(points: int) -> float:
+    """The least Delta chi^2 above the best case's by which a case that
+    fails ``goodness_of_fit`` counts as ruled out: 3 sqrt(2 N), three
+    standard deviations of a chi^2 of N points (at least 25). Two cases
+    whose least chi^2 straddle the goodness-of-fit limit 0.008 apart fit
+    alike (a review: the one above the limit was withheld as ruled out)."""
+    return float(max(25.0, 3.0 * np.sqrt(2.0 * points)))
+
+
 def case_ruled_out(case: str, chi2: float, chi2_best: dict, points: int, where: str = "tilt") -> "str | None":
-    """Why the data rule hemisphere case ``case`` out, or None: its least
-    chi^2 (``chi2``, over the tilts; ``chi2_best``: every case's) fails
-    ``goodness_of_fit`` where the best case's passes. Its probabilities
-    assume the case: they are then not rated."""
+    """Why case ``case``'s probabilities are not rated on its own account,
+    or None: its least chi^2 (``chi2``, over the tilts; ``chi2_best``:
+    every case's) is not finite (``goodness_of_fit``'s reason), or fails
+    ``goodness_of_fit`` where the best case's passes, by more than
+    ``ruled_out_margin`` above it: the data rule the case out, and its
+    probabilities, which assume it, are not rated."""
     own = goodness_of_fit(chi2, points, f"at case {case}'s best {where}")
     if own["ok"]:
         return None
@@ -219,11 +230,14 @@ def case_ruled_out(case: str, chi2: float, chi2_best: dict, points: int, where: 
     top = min(finite, key=finite.get) if finite else None
     if top is None or top == case or not goodness_of_fit(finite[top], points)["ok"]:
         return None  # the best case itself, or none fits: goodness_of_fit's own reason withholds them all
-    lead = "" if own["chi2_best"] is None else (
-        f": its least chi^2 is {own['chi2_best']:.6g} for {points} points (chi^2 / N = {own['reduced']:.3g}, "
-        f"p = {own['p_value']:.2g}), {own['chi2_best'] - finite[top]:.6g} above case {top}'s ({finite[top]:.6g})")
-    return (f"the data rule case {case} out: it fits at no {where}{lead}; its probabilities assume this "
-            "hemisphere case and are not rated")
+    if own["chi2_best"] is None:
+        return own["reason"]  # a model that gives NaN: nothing to rate, nothing ruled out by the data
+    gap = own["chi2_best"] - finite[top]
+    if gap <= ruled_out_margin(points):
+        return None  # as good as the best case: both are rated (with its caution, where it has one)
+    return (f"the data rule case {case} out: it fits at no {where}: its least chi^2 is {own['chi2_best']:.6g} for "
+            f"{points} points (chi^2 / N = {own['reduced']:.3g}, p = {own['p_value']:.2g}), {gap:.6g} above case "
+            f"{top}'s ({finite[top]:.6g}); its probabilities assume this hemisphere case and are not rated")
 
 
 def withhold_cases(cases: dict, reason: str) -> None:

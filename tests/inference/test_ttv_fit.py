@@ -515,6 +515,7 @@ def test_a_reference_in_another_time_system_is_said():
     assert "the offset BTJD - BKJD (2167) d between time systems" in lines["btjd"]
     assert "time systems" not in lines["same"]
     assert time_system_offset(-2400000.5 * 1440.0) == "JD - MJD (2400000.5)" and time_system_offset(3.0) is None
+    assert time_system_offset(2400000.0 * 1440.0) == "JD - RJD (2400000)"  # the nearest offset, not the first
 
 
 def test_a_transit_time_between_two_minima_is_said():
@@ -562,3 +563,11 @@ def test_a_transit_time_between_two_minima_is_said():
     err17 = float(table["tc_err"][table["epoch"] == 17][0])
     assert abs(tc17 - tcs[17]) > 3 * err17  # the fitted time: 3.8 sigma off the truth
     assert abs(row["tc_other"] - tcs[17]) < abs(tc17 - tcs[17]) / 2  # the other minimum: near it
+    # an other minimum below the fitted time's (Kepler-20 b epoch 283 of simulate_kepler20(seed=1), -0.38 at
+    # +17.2 min: the fit in the higher of two wells; moving that time alone lowers the whole chi^2 by as much)
+    from jaxppo.inference._times import _warn_ambiguous
+
+    with pytest.warns(UserWarning, match=r"b epoch 17 \(\+17\.3 min, Delta chi\^2 -0\.38, below the fitted time's: "
+                                         r"the fit ended in the higher of two minima\)"):
+        _warn_ambiguous(table, [{"planet": "b", "epoch": 16}, {"planet": "b", "epoch": 17}],
+                        [None, (tc17 + 17.3 / 1440.0, -0.38)])

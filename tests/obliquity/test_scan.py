@@ -1082,6 +1082,19 @@ def test_a_case_the_data_rule_out_is_not_rated(tmp_path):
     text = scan_report(res.summary, cfg, tmp_path / "out", 1.0)
     assert "the data rule case same out" in text
     assert np.all(np.isnan(res.table["posterior"][res.table["case"] == "same"]))
+    # a review's edges: least chi^2 straddling the goodness-of-fit limit 0.008 apart fit alike (both rated); a
+    # case whose chi^2 is NaN is withheld for the NaN, not "ruled out by the data"
+    from jaxppo.obliquity._stats import case_ruled_out, guard_cases, ruled_out_margin
+
+    geo = res.summary["probabilities"]["opposite"]
+    for best, ruled in (({"same": 3655.008, "opposite": 3655.0}, set()), ({"same": 3655.0 + 230.0, "opposite": 3655.0},
+                                                                       {"same"})):
+        cases = {c: {"geometries": dict(geo)} for c in best}
+        assert set(guard_cases(cases, best, 2924)["ruled_out"]) == ruled
+        assert bool(cases["same"]["geometries"].get("withheld")) == bool(ruled)
+    assert ruled_out_margin(2924) == pytest.approx(3 * np.sqrt(2 * 2924)) and ruled_out_margin(10) == 25.0
+    nan = case_ruled_out("same", float("nan"), {"same": float("nan"), "opposite": 1000.0}, 1000)
+    assert "nothing can be rated" in nan and "rule" not in nan
 
 
 def test_report_says_where_a_rating_rests_on_a_dip_a_spot_explains_better():
@@ -1111,6 +1124,8 @@ def test_report_says_where_a_rating_rests_on_a_dip_a_spot_explains_better():
     assert not any(ln.startswith("caution") for ln in dip_lines(summary))
     summary["ppo_or_spot"]["dips"][1].update(preferred="no PPO", evidence="strong")
     assert "no PPO at all explains better" in dip_lines(summary)[-1]
-    summary["cases"]["same"]["geometries"]["withheld"] = "not rated"
+    summary["cases"]["same"]["geometries"]["jeffreys"] = "barely worth mentioning"  # a rating that rests on no dip
+    assert not any(ln.startswith("caution") for ln in dip_lines(summary))
+    summary["cases"]["same"]["geometries"].update(jeffreys="decisive", withheld="not rated")
     assert not any(ln.startswith("caution") for ln in dip_lines(summary))
     assert dip_lines({"ppo_or_spot": {"error": "ValueError: x"}}) == ["PPO or spot: not decided (ValueError: x)"]
